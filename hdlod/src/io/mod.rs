@@ -1,0 +1,1 @@
+//! Mesh file formats: glTF/GLB in and out, OBJ and PLY in.

@@ -1,0 +1,17 @@
+//! Hierarchical dynamic level of detail (HDLOD) for 4D construction scenes.
+//!
+//! Data flows one way through the modules:
+//! [`scene`] (model, schedule, `hdlod-scene/1` files) -> [`geometry`] (merge,
+//! simplify, Hausdorff) -> cluster (the tree builder) -> [`tree`] (the
+//! `hdlod-tree/1` format and the cut). [`io`] reads and writes mesh files and
+//! [`fixture`] generates test scenes. See `docs/ARCHITECTURE.md` for the map.
+
+pub mod error;
+pub mod fixture;
+pub mod geometry;
+pub mod io;
+pub mod scene;
+pub mod time;
+pub mod tree;
+
+pub use error::{Error, Result};

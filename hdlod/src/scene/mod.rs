@@ -1,0 +1,154 @@
+//! The scene model: objects `s = (g_s, v_s, p_s)` with triangle geometry,
+//! visibility and position functions over the time span `[0, T]`, the
+//! schedule that drives visibility, and the classification of DESIGN.md
+//! section 1.
+
+mod motion;
+mod schedule;
+mod visibility;
+
+use std::collections::BTreeMap;
+
+use glam::Mat4;
+use serde::{Deserialize, Serialize};
+
+use crate::geometry::Mesh;
+use crate::time::TimeSpan;
+
+pub use motion::{Keyframe, Motion};
+pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
+pub use visibility::{Visibility, VisibilityType};
+
+/// Which axis points up in the scene's world frame.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
+#[serde(rename_all = "lowercase")]
+pub enum Up {
+    #[default]
+    Y,
+    Z,
+}
+
+/// The classes of DESIGN.md section 1.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Class {
+    /// Visible on all of `[0, T]`, never moves.
+    Static,
+    /// Appears and/or disappears, never moves.
+    PseudoDynamic,
+    /// Moves (and may appear and disappear).
+    Dynamic,
+    /// Never visible: dropped by the build.
+    Absent,
+}
+
+impl Class {
+    pub const ALL: [Class; 4] = [
+        Class::Static,
+        Class::PseudoDynamic,
+        Class::Dynamic,
+        Class::Absent,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            Class::Static => "static",
+            Class::PseudoDynamic => "pseudo_dynamic",
+            Class::Dynamic => "dynamic",
+            Class::Absent => "absent",
+        }
+    }
+}
+
+/// A schedule task, times in seconds since the scene's start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Task {
+    pub id: String,
+    pub name: String,
+    pub kind: TaskType,
+    pub start: f64,
+    pub finish: f64,
+    /// Ids of the objects the task acts on.
+    pub objects: Vec<String>,
+}
+
+/// One object of the scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Object {
+    pub id: String,
+    /// Index into [`Scene::meshes`]; objects sharing a mesh are instances.
+    pub mesh: usize,
+    /// World placement of the mesh when the object has no motion.
+    pub transform: Mat4,
+    /// Linear RGBA colour, used where the mesh has no vertex colours.
+    pub color: [f32; 4],
+    pub visibility: Visibility,
+    /// Keyframed world transform; replaces `transform` when present.
+    pub motion: Option<Motion>,
+    /// Free-form properties (storey, IFC class, source file, ...).
+    pub properties: BTreeMap<String, String>,
+}
+
+impl Object {
+    /// The world transform at `t`.
+    pub fn pose(&self, t: f64) -> Mat4 {
+        self.motion.as_ref().map_or(self.transform, |m| m.at(t))
+    }
+
+    pub fn class(&self, span: f64) -> Class {
+        if self.visibility.present_seconds(span) <= 0.0 {
+            Class::Absent
+        } else if self.motion.as_ref().is_some_and(Motion::moves) {
+            Class::Dynamic
+        } else if self.visibility.kind(span) == VisibilityType::Static {
+            Class::Static
+        } else {
+            Class::PseudoDynamic
+        }
+    }
+}
+
+/// A whole 4D scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Scene {
+    pub name: String,
+    pub up: Up,
+    pub time: TimeSpan,
+    /// Shared geometry in each mesh's own frame.
+    pub meshes: Vec<Mesh>,
+    pub objects: Vec<Object>,
+    pub tasks: Vec<Task>,
+    pub schedule_options: ScheduleOptions,
+}
+
+impl Scene {
+    /// Recomputes every object's visibility from the tasks. Objects without
+    /// a task are present throughout.
+    pub fn apply_schedule(&mut self) {
+        let index: BTreeMap<&str, usize> = self
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (o.id.as_str(), i))
+            .collect();
+        let mut actions: Vec<Vec<Action>> = vec![Vec::new(); self.objects.len()];
+        for task in &self.tasks {
+            for id in &task.objects {
+                if let Some(&i) = index.get(id.as_str()) {
+                    actions[i].push(Action {
+                        kind: task.kind,
+                        start: task.start,
+                        finish: task.finish,
+                    });
+                }
+            }
+        }
+        for (object, actions) in self.objects.iter_mut().zip(actions) {
+            object.visibility = compose(&actions, &self.schedule_options);
+        }
+    }
+
+    pub fn class_of(&self, object: &Object) -> Class {
+        object.class(self.time.seconds)
+    }
+}

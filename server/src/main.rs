@@ -1,0 +1,50 @@
+//! The `hdlod` command: one subcommand per job, each in its own module under
+//! `cmd/`. The HDLOD logic lives in the `hdlod` library; this crate parses
+//! arguments, reports progress and serves HTTP.
+
+mod cmd;
+
+use std::process::ExitCode;
+
+use clap::{Parser, Subcommand};
+
+#[derive(Parser)]
+#[command(
+    name = "hdlod",
+    version,
+    about = "Hierarchical dynamic LOD for 4D construction scenes"
+)]
+struct Cli {
+    #[command(subcommand)]
+    command: Command,
+}
+
+#[derive(Subcommand)]
+enum Command {
+    /// Generate a test scene.
+    #[command(subcommand)]
+    Fixture(cmd::fixture::Fixture),
+    /// Describe a scene (or a tree): counts per class, time span, bounds.
+    Inspect(cmd::inspect::Args),
+}
+
+fn main() -> ExitCode {
+    tracing_subscriber::fmt()
+        .with_env_filter(
+            tracing_subscriber::EnvFilter::try_from_default_env().unwrap_or_else(|_| "info".into()),
+        )
+        .with_writer(std::io::stderr)
+        .init();
+    let cli = Cli::parse();
+    let result = match cli.command {
+        Command::Fixture(c) => cmd::fixture::run(c),
+        Command::Inspect(a) => cmd::inspect::run(a),
+    };
+    match result {
+        Ok(()) => ExitCode::SUCCESS,
+        Err(e) => {
+            eprintln!("error: {e:#}");
+            ExitCode::FAILURE
+        }
+    }
+}
