@@ -6,6 +6,7 @@
 //! `hdlod-tree/1` format and the cut). [`io`] reads and writes mesh files and
 //! [`fixture`] generates test scenes. See `docs/ARCHITECTURE.md` for the map.
 
+pub mod cluster;
 pub mod error;
 pub mod fixture;
 pub mod geometry;

@@ -1,0 +1,579 @@
+//! Bottom-up clustering of the static and the pseudo-dynamic objects, and
+//! the assembly of the whole tree under its virtual root.
+//!
+//! Reference: Semenov et al., "Visualization of large scenes with
+//! deterministic dynamics", Programming and Computer Software 46(3), 2020,
+//! appendix 2; the thresholds and errors are those of DESIGN.md.
+
+use std::time::Instant;
+
+use glam::{Mat4, Vec3};
+use obvhs::aabb::Aabb;
+use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
+use rayon::prelude::*;
+
+use super::config::{BuildConfig, Thresholds, level_count, thresholds};
+use super::dynamic::dynamic_chains;
+use super::hilbert::hilbert_key;
+use super::steps::Steps;
+use super::{Built, BuildStats, Cluster, GeometrySink, Kind, LevelStats, Progress};
+use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy};
+use crate::scene::{Class, Scene};
+use crate::{Error, Result};
+
+/// A cluster while its level is being built: what the next level needs.
+struct Active {
+    id: u32,
+    lo: Vec3,
+    hi: Vec3,
+    w: f64,
+    eps: f64,
+    steps: Steps,
+    /// Ids of the distinct leaf visibility functions below (sorted): the
+    /// temporal error is a maximum over these, and objects of one task
+    /// share one, so this stays short.
+    vis: Vec<u32>,
+    /// Dropped once the cluster has a parent: memory stays bounded by one
+    /// level's geometry.
+    mesh: Mesh,
+}
+
+pub(super) struct Context<'a> {
+    pub config: &'a BuildConfig,
+    pub span: f64,
+    /// Distinct 0/1 visibility functions of the leaves.
+    pub leaf_steps: Vec<Steps>,
+    pub sink: &'a dyn GeometrySink,
+}
+
+/// Builds the HDLOD tree of `scene`. Geometry goes to `sink` as it is made.
+pub fn build(
+    scene: &Scene,
+    config: &BuildConfig,
+    sink: &dyn GeometrySink,
+    progress: &dyn Progress,
+) -> Result<Built> {
+    config
+        .validate()
+        .map_err(|(field, message)| Error::argument(format!("config.{field}"), message))?;
+    let mut scene_owned;
+    let scene = match config.schedule {
+        Some(options) if options != scene.schedule_options => {
+            scene_owned = scene.clone();
+            scene_owned.schedule_options = options;
+            scene_owned.apply_schedule();
+            &scene_owned
+        }
+        _ => scene,
+    };
+    let span = scene.time.seconds;
+    let mut stats = BuildStats::default();
+    let mut clusters: Vec<Cluster> = Vec::new();
+    let mut ctx = Context {
+        config,
+        span,
+        leaf_steps: Vec::new(),
+        sink,
+    };
+
+    let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
+    stats.absent_objects = scene
+        .objects
+        .iter()
+        .zip(&classes)
+        .filter(|(_, c)| **c == Class::Absent)
+        .map(|(o, _)| o.id.clone())
+        .collect();
+
+    // Leaves of the static and pseudo-dynamic trees: each object's mesh
+    // moved into the world frame, coloured.
+    let clock = Instant::now();
+    let mut leaves: [Vec<Active>; 2] = [Vec::new(), Vec::new()];
+    let members: Vec<(usize, usize)> = classes
+        .iter()
+        .enumerate()
+        .filter_map(|(i, c)| match c {
+            Class::Static => Some((i, 0)),
+            Class::PseudoDynamic => Some((i, 1)),
+            _ => None,
+        })
+        .collect();
+    progress.phase("leaves", members.len() as u64);
+    let leaf_meshes: Vec<Result<(Mesh, String)>> = members
+        .par_iter()
+        .map(|&(i, _)| {
+            let o = &scene.objects[i];
+            let mesh = geometry::merge(
+                &[Part {
+                    mesh: &scene.meshes[o.mesh],
+                    transform: o.transform,
+                    color: o.color,
+                }],
+                0.0,
+            );
+            let hash = sink.put(&mesh)?;
+            progress.advance(1);
+            Ok((mesh, hash))
+        })
+        .collect();
+    let mut vis_ids: Vec<(Steps, u32)> = Vec::new();
+    for (&(i, tree), made) in members.iter().zip(leaf_meshes) {
+        let (mesh, hash) = made?;
+        let o = &scene.objects[i];
+        let steps = Steps::of_visibility(&o.visibility, span);
+        let vis = match vis_ids.iter().find(|(s, _)| *s == steps) {
+            Some((_, id)) => *id,
+            None => {
+                let id = ctx.leaf_steps.len() as u32;
+                ctx.leaf_steps.push(steps.clone());
+                vis_ids.push((steps.clone(), id));
+                id
+            }
+        };
+        let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+        let w = f64::from((hi - lo).length());
+        let id = clusters.len() as u32;
+        clusters.push(Cluster {
+            parent: None,
+            children: Vec::new(),
+            level: 0,
+            kind: if tree == 0 {
+                Kind::Static
+            } else {
+                Kind::PseudoDynamic
+            },
+            bounds: (lo, hi),
+            w,
+            eps: 0.0,
+            gamma: 0.0,
+            visibility: steps.clone(),
+            motion: None,
+            geometry: Some(hash),
+            triangles: mesh.triangle_count() as u64,
+            objects: vec![o.id.clone()],
+        });
+        leaves[tree].push(Active {
+            id,
+            lo,
+            hi,
+            w,
+            eps: 0.0,
+            steps,
+            vis: vec![vis],
+            mesh,
+        });
+    }
+    stats.phases.push(("leaves".into(), clock.elapsed().as_secs_f64()));
+
+    // Scene size W and the level count from every clustered object.
+    let all = leaves.iter().flatten();
+    let (lo, hi) = all.fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), a| (lo.min(a.lo), hi.max(a.hi)),
+    );
+    let scene_w = if lo.x.is_finite() {
+        f64::from((hi - lo).length())
+    } else {
+        0.0
+    };
+    let mut sizes: Vec<f64> = leaves.iter().flatten().map(|a| a.w).collect();
+    sizes.sort_by(f64::total_cmp);
+    let median = sizes.get(sizes.len() / 2).copied().unwrap_or(0.0);
+    let levels = level_count(config, scene_w, median);
+    stats.levels = levels;
+    stats.scene_w = scene_w;
+
+    let [static_leaves, pd_leaves] = leaves;
+    let mut roots: Vec<u32> = Vec::new();
+    for (kind, active) in [
+        (Kind::Static, static_leaves),
+        (Kind::PseudoDynamic, pd_leaves),
+    ] {
+        let clock = Instant::now();
+        let (top, level_stats) = cluster_class(
+            &ctx,
+            &mut clusters,
+            kind,
+            active,
+            (lo, hi),
+            scene_w,
+            levels,
+            progress,
+        )?;
+        roots.extend(top);
+        let name = match kind {
+            Kind::Static => {
+                stats.static_levels = level_stats;
+                "static"
+            }
+            _ => {
+                stats.pseudo_dynamic_levels = level_stats;
+                "pseudo_dynamic"
+            }
+        };
+        stats.phases.push((name.into(), clock.elapsed().as_secs_f64()));
+    }
+
+    let clock = Instant::now();
+    let dynamic: Vec<usize> = (0..scene.objects.len())
+        .filter(|&i| classes[i] == Class::Dynamic)
+        .collect();
+    progress.phase("dynamic", dynamic.len() as u64);
+    let (tops, dyn_stats) = dynamic_chains(scene, &dynamic, &ctx, &mut clusters, progress)?;
+    roots.extend(tops);
+    stats.dynamic_levels = dyn_stats;
+    stats.phases.push(("dynamic".into(), clock.elapsed().as_secs_f64()));
+
+    // The virtual root: no geometry, w and v aggregated like any cluster.
+    let root = clusters.len() as u32;
+    let parts: Vec<(f64, &Steps)> = roots
+        .iter()
+        .map(|&r| (clusters[r as usize].w, &clusters[r as usize].visibility))
+        .collect();
+    let visibility = Steps::weighted_mean(&parts).simplified(config.max_steps, span);
+    let (rlo, rhi) = roots.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), &r| {
+            let c = &clusters[r as usize];
+            let (clo, chi) = world_box(c);
+            (lo.min(clo), hi.max(chi))
+        },
+    );
+    let bounds = if rlo.x.is_finite() {
+        (rlo, rhi)
+    } else {
+        (Vec3::ZERO, Vec3::ZERO)
+    };
+    let eps = roots
+        .iter()
+        .map(|&r| clusters[r as usize].eps)
+        .fold(0.0, f64::max);
+    for &r in &roots {
+        clusters[r as usize].parent = Some(root);
+    }
+    clusters.push(Cluster {
+        parent: None,
+        children: roots,
+        level: clusters.iter().map(|c| c.level).max().unwrap_or(0) + 1,
+        kind: Kind::Root,
+        bounds,
+        w: f64::from((bounds.1 - bounds.0).length()),
+        eps,
+        gamma: 0.0,
+        visibility,
+        motion: None,
+        geometry: None,
+        triangles: 0,
+        objects: Vec::new(),
+    });
+    stats.phases.push(("root".into(), clock.elapsed().as_secs_f64()));
+    Ok(Built {
+        clusters,
+        root,
+        stats,
+    })
+}
+
+/// The box of a cluster in the world over the whole span: a dynamic
+/// cluster's own box moved by every keyframe.
+fn world_box(c: &Cluster) -> (Vec3, Vec3) {
+    let Some(motion) = &c.motion else {
+        return c.bounds;
+    };
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for k in motion.keyframes() {
+        let (a, b) = transform_box(&k.matrix(), c.bounds);
+        lo = lo.min(a);
+        hi = hi.max(b);
+    }
+    (lo, hi)
+}
+
+fn transform_box(m: &Mat4, (lo, hi): (Vec3, Vec3)) -> (Vec3, Vec3) {
+    let mut out_lo = Vec3::splat(f32::INFINITY);
+    let mut out_hi = Vec3::splat(f32::NEG_INFINITY);
+    for i in 0..8 {
+        let p = Vec3::new(
+            if i & 1 == 0 { lo.x } else { hi.x },
+            if i & 2 == 0 { lo.y } else { hi.y },
+            if i & 4 == 0 { lo.z } else { hi.z },
+        );
+        let q = m.transform_point3(p);
+        out_lo = out_lo.min(q);
+        out_hi = out_hi.max(q);
+    }
+    (out_lo, out_hi)
+}
+
+/// Clusters one class level by level; answers the ids of the clusters left
+/// at the top and the statistics per level.
+#[allow(clippy::too_many_arguments)]
+fn cluster_class(
+    ctx: &Context,
+    clusters: &mut Vec<Cluster>,
+    kind: Kind,
+    mut active: Vec<Active>,
+    (scene_lo, scene_hi): (Vec3, Vec3),
+    scene_w: f64,
+    levels: u32,
+    progress: &dyn Progress,
+) -> Result<(Vec<u32>, Vec<LevelStats>)> {
+    let mut level_stats = Vec::new();
+    for level in 1..=levels {
+        if active.len() < 2 {
+            break;
+        }
+        let th = thresholds(ctx.config, scene_w, levels, level);
+        let groups = group(ctx, &active, &th, (scene_lo, scene_hi), kind);
+        let name = format!(
+            "{} level {level}/{levels}",
+            match kind {
+                Kind::Static => "static",
+                _ => "pseudo-dynamic",
+            }
+        );
+        progress.phase(&name, groups.len() as u64);
+        let parents: Vec<Result<(Mesh, f64, String)>> = groups
+            .par_iter()
+            .map(|g| {
+                let made = make_parent(ctx, &active, g, &th);
+                progress.advance(1);
+                made
+            })
+            .collect();
+
+        let mut stats = LevelStats {
+            level,
+            ..LevelStats::default()
+        };
+        let mut taken = vec![false; active.len()];
+        let mut next: Vec<Active> = Vec::with_capacity(active.len());
+        let mut made: Vec<Active> = Vec::with_capacity(groups.len());
+        for (g, parent) in groups.iter().zip(parents) {
+            let (mesh, eps, hash) = parent?;
+            let children: Vec<&Active> = g.iter().map(|&i| &active[i]).collect();
+            let (steps, vis, gamma) = temporal(ctx, &children);
+            let lo = children.iter().fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
+            let hi = children
+                .iter()
+                .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
+            let w = f64::from((hi - lo).length());
+            let id = clusters.len() as u32;
+            for c in &children {
+                clusters[c.id as usize].parent = Some(id);
+                stats.children_triangles += clusters[c.id as usize].triangles;
+            }
+            stats.clusters += 1;
+            stats.triangles += mesh.triangle_count() as u64;
+            stats.max_eps = stats.max_eps.max(eps);
+            stats.max_gamma = stats.max_gamma.max(gamma);
+            clusters.push(Cluster {
+                parent: None,
+                children: children.iter().map(|c| c.id).collect(),
+                level,
+                kind,
+                bounds: (lo, hi),
+                w,
+                eps,
+                gamma,
+                visibility: steps.clone(),
+                motion: None,
+                geometry: Some(hash),
+                triangles: mesh.triangle_count() as u64,
+                objects: Vec::new(),
+            });
+            for &i in g {
+                taken[i] = true;
+            }
+            made.push(Active {
+                id,
+                lo,
+                hi,
+                w,
+                eps,
+                steps,
+                vis,
+                mesh,
+            });
+        }
+        for (a, t) in active.into_iter().zip(taken) {
+            if !t {
+                next.push(a);
+            }
+        }
+        next.extend(made);
+        active = next;
+        if stats.clusters > 0 {
+            level_stats.push(stats);
+        }
+    }
+    Ok((active.iter().map(|a| a.id).collect(), level_stats))
+}
+
+/// The fractional visibility of a would-be parent (simplified to K steps),
+/// its distinct leaf visibilities, and its temporal error
+/// `gamma = max_s (1/T) integral |v_c - v_s|`.
+fn temporal(ctx: &Context, children: &[&Active]) -> (Steps, Vec<u32>, f64) {
+    let parts: Vec<(f64, &Steps)> = children.iter().map(|c| (c.w.max(1e-9), &c.steps)).collect();
+    let steps = Steps::weighted_mean(&parts).simplified(ctx.config.max_steps, ctx.span);
+    let mut vis: Vec<u32> = children.iter().flat_map(|c| c.vis.iter().copied()).collect();
+    vis.sort_unstable();
+    vis.dedup();
+    let gamma = if ctx.span > 0.0 {
+        vis.iter()
+            .map(|&v| steps.l1_distance(&ctx.leaf_steps[v as usize], ctx.span) / ctx.span)
+            .fold(0.0, f64::max)
+    } else {
+        0.0
+    };
+    (steps, vis, gamma)
+}
+
+/// Picks the groups of one level: representatives in Hilbert order of
+/// their centres, neighbours from a BVH over the active boxes, nearest
+/// first, while the merged box fits `w(l)` and the temporal error fits
+/// `gamma(l)`.
+fn group(
+    ctx: &Context,
+    active: &[Active],
+    th: &Thresholds,
+    (scene_lo, scene_hi): (Vec3, Vec3),
+    kind: Kind,
+) -> Vec<Vec<usize>> {
+    let aabbs: Vec<Aabb> = active
+        .iter()
+        .map(|a| Aabb::new(a.lo.into(), a.hi.into()))
+        .collect();
+    let bvh = PlocBuilder::new().build(
+        PlocSearchDistance::Minimum,
+        &aabbs,
+        (0..active.len() as u32).collect(),
+        SortPrecision::U64,
+        1,
+    );
+    let mut order: Vec<(u64, usize)> = active
+        .iter()
+        .enumerate()
+        .map(|(i, a)| (hilbert_key((a.lo + a.hi) * 0.5, scene_lo, scene_hi), i))
+        .collect();
+    order.sort_unstable();
+
+    let w_max = th.w as f32;
+    let diag = |lo: Vec3, hi: Vec3| (hi - lo).length();
+    let mut taken = vec![false; active.len()];
+    let mut groups = Vec::new();
+    let mut candidates: Vec<(f32, usize)> = Vec::new();
+    for &(_, i) in &order {
+        if taken[i] {
+            continue;
+        }
+        let rep = &active[i];
+        if diag(rep.lo, rep.hi) > w_max {
+            continue;
+        }
+        let centre = (rep.lo + rep.hi) * 0.5;
+        let query = Aabb::new((rep.lo - w_max).into(), (rep.hi + w_max).into());
+        candidates.clear();
+        bvh.aabb_traverse(query, |bvh, node| {
+            let node = &bvh.nodes[node as usize];
+            let first = node.first_index as usize;
+            for &j in &bvh.primitive_indices[first..first + node.prim_count as usize] {
+                let j = j as usize;
+                let c = &active[j];
+                if j != i && !taken[j] && diag(rep.lo.min(c.lo), rep.hi.max(c.hi)) <= w_max {
+                    candidates.push((centre.distance_squared((c.lo + c.hi) * 0.5), j));
+                }
+            }
+            true
+        });
+        candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        let mut members = vec![i];
+        let (mut lo, mut hi) = (rep.lo, rep.hi);
+        for &(_, j) in candidates.iter() {
+            if members.len() >= ctx.config.max_children {
+                break;
+            }
+            let c = &active[j];
+            let (nlo, nhi) = (lo.min(c.lo), hi.max(c.hi));
+            if diag(nlo, nhi) > w_max {
+                continue;
+            }
+            if kind == Kind::PseudoDynamic {
+                let mut trial: Vec<&Active> = members.iter().map(|&m| &active[m]).collect();
+                trial.push(c);
+                if temporal(ctx, &trial).2 > th.gamma {
+                    continue;
+                }
+            }
+            members.push(j);
+            lo = nlo;
+            hi = nhi;
+        }
+        if members.len() > 1 {
+            for &m in &members {
+                taken[m] = true;
+            }
+            groups.push(members);
+        }
+    }
+    groups
+}
+
+/// Merges the children's geometry, simplifies it within the level's budget
+/// and measures the spatial error: `eps_c = D_H(g_c, union g_c') + max
+/// eps_c'`, with `D_H` a computed upper bound. A simplification whose
+/// measured error overshoots the level's budget is retried with a quarter
+/// of the budget, then given up (the parent is the union, `D_H = 0`), so
+/// that `eps_c <= eps(l)` whenever the children allow it.
+fn make_parent(
+    ctx: &Context,
+    active: &[Active],
+    group: &[usize],
+    th: &Thresholds,
+) -> Result<(Mesh, f64, String)> {
+    let children: Vec<&Active> = group.iter().map(|&i| &active[i]).collect();
+    let child_eps = children.iter().map(|c| c.eps).fold(0.0, f64::max);
+    let parts: Vec<Part> = children
+        .iter()
+        .map(|c| Part {
+            mesh: &c.mesh,
+            transform: Mat4::IDENTITY,
+            color: [1.0; 4],
+        })
+        .collect();
+    let union = geometry::merge(&parts, 0.0);
+    let budget = th.eps - child_eps;
+    let mut chosen = None;
+    if budget > 0.0 {
+        for try_budget in [budget, budget * 0.25] {
+            let s = geometry::simplify(
+                &union,
+                &SimplifyOptions {
+                    max_error: try_budget as f32,
+                    target_triangles: None,
+                    prune: true,
+                },
+            );
+            if s.strategy == Strategy::Unchanged || s.triangles >= union.triangle_count() {
+                break;
+            }
+            let h = geometry::hausdorff(
+                &s.mesh,
+                &union,
+                &HausdorffOptions {
+                    tolerance: (ctx.config.hausdorff_fraction * th.eps) as f32,
+                    seed: 0,
+                },
+            );
+            let eps = f64::from(h.bound) + child_eps;
+            if eps <= th.eps {
+                chosen = Some((s.mesh, eps));
+                break;
+            }
+        }
+    }
+    let (mesh, eps) = chosen.unwrap_or((union, child_eps));
+    let hash = ctx.sink.put(&mesh)?;
+    Ok((mesh, eps, hash))
+}
