@@ -1,6 +1,15 @@
-//! Triangle geometry: the indexed mesh every stage shares, and (in their own
-//! files) merging, simplification and the Hausdorff bound.
+//! Triangle geometry: the indexed mesh every stage shares, merging,
+//! simplification to an error budget, the Hausdorff bound and measures.
 
+mod closest;
+mod hausdorff;
+pub mod measure;
+mod merge;
 mod mesh;
+mod simplify;
 
+pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
+pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff};
+pub use merge::{Part, merge};
 pub use mesh::Mesh;
+pub use simplify::{Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify};

@@ -1,0 +1,275 @@
+//! Exact point-to-surface distance queries: the closest point on a triangle
+//! (Ericson, "Real-Time Collision Detection", 2005, section 5.1.5) and a
+//! nearest-triangle search over a BVH.
+//!
+//! The BVH itself is built by `obvhs` (PLOC, Meister and Bittner 2018). It
+//! only offers ray, box and point-containment traversals, so the
+//! nearest-neighbour traversal (depth-first, nearer child first, pruned by
+//! the squared distance to each node's box) is written here.
+
+use glam::Vec3;
+use glam::Vec3A;
+use obvhs::aabb::Aabb;
+use obvhs::bvh2::Bvh2;
+use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
+
+/// Below this many triangles a linear scan beats building a tree: the tree
+/// builder calls the Hausdorff bound on thousands of small clusters.
+const BRUTE_FORCE_MAX: usize = 32;
+
+/// The point of triangle `abc` closest to `p`. Degenerate triangles (points,
+/// segments) are handled: the answer is then the closest point of the
+/// triangle's edges.
+pub fn closest_point_on_triangle(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3A {
+    let ab = b - a;
+    let ac = c - a;
+    let ap = p - a;
+    let d1 = ab.dot(ap);
+    let d2 = ac.dot(ap);
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return a;
+    }
+    let bp = p - b;
+    let d3 = ab.dot(bp);
+    let d4 = ac.dot(bp);
+    if d3 >= 0.0 && d4 <= d3 {
+        return b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        let v = d1 / (d1 - d3);
+        return a + ab * v;
+    }
+    let cp = p - c;
+    let d5 = ab.dot(cp);
+    let d6 = ac.dot(cp);
+    if d6 >= 0.0 && d5 <= d6 {
+        return c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        let w = d2 / (d2 - d6);
+        return a + ac * w;
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+        return b + (c - b) * w;
+    }
+    let denom = va + vb + vc;
+    let q = a + ab * (vb / denom) + ac * (vc / denom);
+    // Rounding can send a (nearly) degenerate triangle here with a zero or
+    // tiny denominator; the edges then hold the true closest point.
+    if denom > 0.0 && q.is_finite() {
+        q
+    } else {
+        let candidates = [
+            closest_point_on_segment(p, a, b),
+            closest_point_on_segment(p, b, c),
+            closest_point_on_segment(p, c, a),
+        ];
+        candidates
+            .into_iter()
+            .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
+            .unwrap_or(a)
+    }
+}
+
+fn closest_point_on_segment(p: Vec3A, a: Vec3A, b: Vec3A) -> Vec3A {
+    let ab = b - a;
+    let len2 = ab.length_squared();
+    if len2 <= 0.0 {
+        return a;
+    }
+    a + ab * ((p - a).dot(ab) / len2).clamp(0.0, 1.0)
+}
+
+fn box_distance_squared(p: Vec3A, aabb: &Aabb) -> f32 {
+    let d = (aabb.min - p).max(p - aabb.max).max(Vec3A::ZERO);
+    d.length_squared()
+}
+
+#[derive(Clone, Copy)]
+struct Tri {
+    a: Vec3A,
+    b: Vec3A,
+    c: Vec3A,
+}
+
+impl obvhs::Boundable for Tri {
+    fn aabb(&self) -> Aabb {
+        Aabb::new(self.a.min(self.b).min(self.c), self.a.max(self.b).max(self.c))
+    }
+}
+
+/// The triangles of a mesh prepared for nearest-point queries. Triangles
+/// with a non-finite corner are left out.
+pub struct TriangleSet {
+    /// In BVH leaf order, so that a leaf's range indexes this directly.
+    tris: Vec<Tri>,
+    bvh: Option<Bvh2>,
+}
+
+/// The result of a nearest query: the squared distance and the triangle
+/// (an opaque handle to pass back as a hint).
+#[derive(Clone, Copy, Debug)]
+pub struct Nearest {
+    pub distance_squared: f32,
+    pub triangle: u32,
+}
+
+impl TriangleSet {
+    pub fn new(triangles: impl Iterator<Item = [Vec3; 3]>) -> Self {
+        let tris: Vec<Tri> = triangles
+            .filter(|t| t.iter().all(|p| p.is_finite()))
+            .map(|[a, b, c]| Tri {
+                a: a.into(),
+                b: b.into(),
+                c: c.into(),
+            })
+            .collect();
+        if tris.len() <= BRUTE_FORCE_MAX {
+            return TriangleSet { tris, bvh: None };
+        }
+        // A minimal search distance builds fastest; the queries only need
+        // a reasonable tree, not a ray-tracing quality one.
+        let mut bvh = PlocBuilder::with_capacity(tris.len()).build(
+            PlocSearchDistance::VeryLow,
+            &tris,
+            (0..tris.len() as u32).collect(),
+            SortPrecision::U64,
+            0,
+        );
+        obvhs::bvh2::leaf_collapser::collapse(&mut bvh, 4, 1.0);
+        let tris = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| tris[i as usize])
+            .collect();
+        TriangleSet {
+            tris,
+            bvh: Some(bvh),
+        }
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.tris.is_empty()
+    }
+
+    /// The nearest triangle to `p`. `hint`, a triangle from an earlier query
+    /// on a nearby point, seeds the search radius. `None` for an empty set.
+    pub fn nearest(&self, p: Vec3, hint: Option<u32>) -> Option<Nearest> {
+        let p = Vec3A::from(p);
+        let mut best = Nearest {
+            distance_squared: f32::INFINITY,
+            triangle: u32::MAX,
+        };
+        let visit = |i: usize, best: &mut Nearest| {
+            let t = &self.tris[i];
+            let d = closest_point_on_triangle(p, t.a, t.b, t.c).distance_squared(p);
+            if d < best.distance_squared {
+                *best = Nearest {
+                    distance_squared: d,
+                    triangle: i as u32,
+                };
+            }
+        };
+        if let Some(h) = hint.filter(|&h| (h as usize) < self.tris.len()) {
+            visit(h as usize, &mut best);
+        }
+        let Some(bvh) = &self.bvh else {
+            for i in 0..self.tris.len() {
+                visit(i, &mut best);
+            }
+            return (best.triangle != u32::MAX).then_some(best);
+        };
+        let nodes = &bvh.nodes;
+        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
+        stack.push((0, box_distance_squared(p, nodes[0].aabb())));
+        while let Some((index, d)) = stack.pop() {
+            if d >= best.distance_squared {
+                continue;
+            }
+            let node = &nodes[index as usize];
+            if node.is_leaf() {
+                let first = node.first_index as usize;
+                for i in first..first + node.prim_count as usize {
+                    visit(i, &mut best);
+                }
+                continue;
+            }
+            let left = node.first_index;
+            let right = left + 1;
+            let dl = box_distance_squared(p, nodes[left as usize].aabb());
+            let dr = box_distance_squared(p, nodes[right as usize].aabb());
+            // The nearer child is pushed last so that it is searched first
+            // and shrinks the radius for its sibling.
+            if dl < dr {
+                stack.push((right, dr));
+                stack.push((left, dl));
+            } else {
+                stack.push((left, dl));
+                stack.push((right, dr));
+            }
+        }
+        (best.triangle != u32::MAX).then_some(best)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn closest_point_regions() {
+        let a = Vec3A::new(0.0, 0.0, 0.0);
+        let b = Vec3A::new(1.0, 0.0, 0.0);
+        let c = Vec3A::new(0.0, 1.0, 0.0);
+        let q = |x, y, z| closest_point_on_triangle(Vec3A::new(x, y, z), a, b, c);
+        assert_eq!(q(0.2, 0.2, 5.0), Vec3A::new(0.2, 0.2, 0.0));
+        assert_eq!(q(-1.0, -1.0, 0.0), a);
+        assert_eq!(q(2.0, -0.5, 0.0), b);
+        assert_eq!(q(0.5, -1.0, 1.0), Vec3A::new(0.5, 0.0, 0.0));
+        assert!((q(1.0, 1.0, 0.0) - Vec3A::new(0.5, 0.5, 0.0)).length() < 1e-6);
+    }
+
+    #[test]
+    fn degenerate_triangles_give_finite_points() {
+        let a = Vec3A::new(0.0, 0.0, 0.0);
+        let b = Vec3A::new(1.0, 0.0, 0.0);
+        let c = Vec3A::new(2.0, 0.0, 0.0);
+        let p = Vec3A::new(1.5, 1.0, 0.0);
+        let q = closest_point_on_triangle(p, a, b, c);
+        assert!((q - Vec3A::new(1.5, 0.0, 0.0)).length() < 1e-6);
+        assert_eq!(closest_point_on_triangle(p, a, a, a), a);
+    }
+
+    #[test]
+    fn bvh_search_matches_linear_scan() {
+        let mut tris = Vec::new();
+        for i in 0..20 {
+            for j in 0..20 {
+                let o = Vec3::new(i as f32, (i * j % 7) as f32 * 0.3, j as f32);
+                tris.push([o, o + Vec3::X, o + Vec3::Z]);
+            }
+        }
+        let set = TriangleSet::new(tris.iter().copied());
+        assert!(set.bvh.is_some());
+        for k in 0..200 {
+            let p = Vec3::new(
+                (k * 37 % 23) as f32 - 1.5,
+                (k % 5) as f32,
+                (k * 11 % 21) as f32,
+            );
+            let brute = tris
+                .iter()
+                .map(|[a, b, c]| {
+                    closest_point_on_triangle(p.into(), (*a).into(), (*b).into(), (*c).into())
+                        .distance_squared(p.into())
+                })
+                .fold(f32::INFINITY, f32::min);
+            let got = set.nearest(p, Some(k % 400)).unwrap().distance_squared;
+            assert_eq!(got, brute, "query {k}");
+        }
+    }
+}

@@ -1,0 +1,331 @@
+//! A conservative upper bound of the symmetric Hausdorff distance between
+//! two triangle meshes, by branch and bound over the triangles of each mesh
+//! (after Tang, Lee and Kim, "Interactive Hausdorff distance computation for
+//! general polygonal models", SIGGRAPH 2009).
+//!
+//! The distance to the other surface, `d(p)`, is 1-Lipschitz. For a triangle
+//! with exact corner distances `d_i`, every point `p` of it satisfies
+//! `d(p) <= d_i + |p - c_i| <= d_i + max_j |c_j - c_i|` for each corner `i`,
+//! so `min_i (d_i + max_j |c_j - c_i|)` bounds `d` over the whole triangle,
+//! and any exact `d(p)` is a lower bound of the supremum. Triangles whose
+//! upper bound could still raise the running lower bound are split 4 ways at
+//! their edge midpoints, largest bound first, until the gap between the two
+//! is at most the tolerance. Every number returned as a bound is one.
+//!
+//! Mean and RMS come from an area-weighted random sample of each surface
+//! (seeded, so deterministic), pooled over both directions.
+
+use std::cmp::Ordering;
+use std::collections::BinaryHeap;
+
+use glam::Vec3;
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::Mesh;
+use super::closest::TriangleSet;
+
+/// A triangle is not split more than this many times: its bound then stands
+/// as it is (still a bound, only looser).
+const MAX_DEPTH: u8 = 16;
+/// Open triangles kept at once; past this the search stops with the bound
+/// it has, to keep memory bounded on pathological inputs.
+const MAX_OPEN: usize = 1 << 22;
+/// Tolerances below this fraction of the scene diagonal are raised to it:
+/// finer than float precision is not meaningful and would not terminate.
+const MIN_RELATIVE_TOLERANCE: f32 = 1e-6;
+/// Float rounding of the closest-point computations, as a multiple of the
+/// largest coordinate, added to the upper bound so that it stays one.
+const ROUNDING_SLACK: f32 = 16.0 * f32::EPSILON;
+
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HausdorffOptions {
+    /// Refinement stops when `upper - lower <= tolerance` (scene units).
+    /// Zero or less means as tight as float precision allows.
+    pub tolerance: f32,
+    /// Seed of the surface sample that gives the mean and RMS.
+    pub seed: u64,
+}
+
+impl Default for HausdorffOptions {
+    fn default() -> Self {
+        HausdorffOptions {
+            tolerance: 0.0,
+            seed: 0,
+        }
+    }
+}
+
+/// The distances between two meshes `A` and `B`.
+///
+/// Empty meshes: between two empty meshes every field is 0; between an empty
+/// and a non-empty one every field is `f32::INFINITY` (no point of the empty
+/// one is near the other). Triangles with a non-finite corner are ignored.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hausdorff {
+    /// Conservative upper bound of the symmetric Hausdorff distance.
+    pub bound: f32,
+    /// A lower bound of it: the largest exactly measured distance.
+    pub lower: f32,
+    /// Mean of the sampled point-to-surface distances, both directions.
+    pub mean: f32,
+    /// Root mean square of the same sample.
+    pub rms: f32,
+    /// Upper bound of `sup_{a in A} d(a, B)`.
+    pub ab: f32,
+    /// Upper bound of `sup_{b in B} d(b, A)`.
+    pub ba: f32,
+}
+
+pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
+    let tris_a = finite_triangles(a);
+    let tris_b = finite_triangles(b);
+    match (tris_a.is_empty(), tris_b.is_empty()) {
+        (true, true) => {
+            return Hausdorff {
+                bound: 0.0,
+                lower: 0.0,
+                mean: 0.0,
+                rms: 0.0,
+                ab: 0.0,
+                ba: 0.0,
+            };
+        }
+        (false, false) => {}
+        _ => {
+            let inf = f32::INFINITY;
+            return Hausdorff {
+                bound: inf,
+                lower: inf,
+                mean: inf,
+                rms: inf,
+                ab: inf,
+                ba: inf,
+            };
+        }
+    }
+    let (lo, hi) = tris_a
+        .iter()
+        .chain(&tris_b)
+        .flatten()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    let diagonal = (hi - lo).length();
+    let max_coordinate = lo.abs().max(hi.abs()).max_element();
+    let tolerance = if options.tolerance.is_finite() {
+        options.tolerance
+    } else {
+        0.0
+    }
+    .max(MIN_RELATIVE_TOLERANCE * diagonal);
+    let slack = ROUNDING_SLACK * max_coordinate;
+
+    let set_a = TriangleSet::new(tris_a.iter().copied());
+    let set_b = TriangleSet::new(tris_b.iter().copied());
+    let ab = one_way(&tris_a, &set_b, tolerance, options.seed);
+    let ba = one_way(&tris_b, &set_a, tolerance, options.seed ^ 0x9e37_79b9_7f4a_7c15);
+    let n = (ab.samples + ba.samples).max(1) as f64;
+    Hausdorff {
+        bound: ab.upper.max(ba.upper) + slack,
+        lower: ab.lower.max(ba.lower),
+        mean: ((ab.sum + ba.sum) / n) as f32,
+        rms: ((ab.sum_squares + ba.sum_squares) / n).sqrt() as f32,
+        ab: ab.upper + slack,
+        ba: ba.upper + slack,
+    }
+}
+
+fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
+    let n = m.positions.len();
+    m.indices
+        .chunks_exact(3)
+        .filter(|t| t.iter().all(|&i| (i as usize) < n))
+        .map(|t| {
+            [
+                m.positions[t[0] as usize],
+                m.positions[t[1] as usize],
+                m.positions[t[2] as usize],
+            ]
+        })
+        .filter(|t| t.iter().all(|p| p.is_finite()))
+        .collect()
+}
+
+struct OneWay {
+    upper: f32,
+    lower: f32,
+    sum: f64,
+    sum_squares: f64,
+    samples: usize,
+}
+
+/// A triangle still open in the search, ordered by its upper bound.
+struct Open {
+    upper: f32,
+    corners: [Vec3; 3],
+    distances: [f32; 3],
+    hint: u32,
+    depth: u8,
+}
+
+impl PartialEq for Open {
+    fn eq(&self, other: &Self) -> bool {
+        self.upper.total_cmp(&other.upper) == Ordering::Equal
+    }
+}
+impl Eq for Open {}
+impl PartialOrd for Open {
+    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Open {
+    fn cmp(&self, other: &Self) -> Ordering {
+        self.upper.total_cmp(&other.upper)
+    }
+}
+
+fn triangle_upper(c: &[Vec3; 3], d: &[f32; 3]) -> f32 {
+    (0..3)
+        .map(|i| {
+            let far = c[(i + 1) % 3]
+                .distance(c[i])
+                .max(c[(i + 2) % 3].distance(c[i]));
+            d[i] + far
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the
+/// non-empty set `b`, and samples A's surface for the mean and RMS.
+fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWay {
+    let mut hint = None;
+    let mut distance = |p: Vec3, h: Option<u32>| -> (f32, u32) {
+        // `b` is not empty, so a nearest triangle always exists.
+        let n = b.nearest(p, h.or(hint)).map_or((0.0, 0), |n| {
+            (n.distance_squared.sqrt(), n.triangle)
+        });
+        hint = Some(n.1);
+        n
+    };
+
+    let mut lower = 0.0f32;
+    let mut corners = Vec::with_capacity(a.len());
+    // Meshes share corners between triangles: measure each distinct point
+    // once, in triangle order so that consecutive queries are near each
+    // other and the previous answer is a good starting radius.
+    let mut known: std::collections::HashMap<[u32; 3], (f32, u32)> =
+        std::collections::HashMap::with_capacity(a.len());
+    for t in a {
+        let mut d = [0.0; 3];
+        let mut h = 0;
+        for (k, p) in t.iter().enumerate() {
+            let key = p.to_array().map(f32::to_bits);
+            let (dist, tri) = *known.entry(key).or_insert_with(|| distance(*p, None));
+            d[k] = dist;
+            h = tri;
+        }
+        lower = lower.max(d[0]).max(d[1]).max(d[2]);
+        corners.push((d, h));
+    }
+
+    let areas: Vec<f64> = a
+        .iter()
+        .map(|[p, q, r]| f64::from((*q - *p).cross(*r - *p).length() * 0.5))
+        .collect();
+    let total_area: f64 = areas.iter().sum();
+    let (mut sum, mut sum_squares, mut samples) = (0.0f64, 0.0f64, 0usize);
+    if total_area > 0.0 && total_area.is_finite() {
+        let mut cdf = Vec::with_capacity(areas.len());
+        let mut acc = 0.0;
+        for x in &areas {
+            acc += x;
+            cdf.push(acc);
+        }
+        let count = (2 * a.len()).clamp(256, 20_000);
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        for _ in 0..count {
+            let x = rng.random::<f64>() * total_area;
+            let i = cdf.partition_point(|&c| c <= x).min(a.len() - 1);
+            let [p, q, r] = a[i];
+            let (u, v): (f32, f32) = (rng.random(), rng.random());
+            let su = u.sqrt();
+            let point = p * (1.0 - su) + q * (su * (1.0 - v)) + r * (su * v);
+            let (d, _) = distance(point, Some(corners[i].1));
+            lower = lower.max(d);
+            sum += f64::from(d);
+            sum_squares += f64::from(d) * f64::from(d);
+            samples += 1;
+        }
+    } else {
+        // A surface of zero area: its corners are all there is to sample.
+        for (d, _) in &corners {
+            for x in d {
+                sum += f64::from(*x);
+                sum_squares += f64::from(*x) * f64::from(*x);
+                samples += 1;
+            }
+        }
+    }
+
+    // The largest bound of the triangles settled without splitting: they
+    // could not raise the lower bound by more than the tolerance.
+    let mut settled = 0.0f32;
+    let mut open = BinaryHeap::new();
+    for (t, (d, h)) in a.iter().zip(&corners) {
+        let upper = triangle_upper(t, d);
+        if upper <= lower + tolerance {
+            settled = settled.max(upper);
+        } else {
+            open.push(Open {
+                upper,
+                corners: *t,
+                distances: *d,
+                hint: *h,
+                depth: 0,
+            });
+        }
+    }
+    while let Some(t) = open.pop() {
+        if t.upper <= lower + tolerance || t.depth >= MAX_DEPTH || open.len() >= MAX_OPEN {
+            // The largest open bound: nothing left open can exceed it.
+            settled = settled.max(t.upper);
+            break;
+        }
+        let [p0, p1, p2] = t.corners;
+        let [d0, d1, d2] = t.distances;
+        let (m01, m12, m20) = ((p0 + p1) * 0.5, (p1 + p2) * 0.5, (p2 + p0) * 0.5);
+        let (e01, h) = distance(m01, Some(t.hint));
+        let (e12, _) = distance(m12, Some(h));
+        let (e20, _) = distance(m20, Some(h));
+        lower = lower.max(e01).max(e12).max(e20);
+        let children = [
+            ([p0, m01, m20], [d0, e01, e20]),
+            ([m01, p1, m12], [e01, d1, e12]),
+            ([m20, m12, p2], [e20, e12, d2]),
+            ([m01, m12, m20], [e01, e12, e20]),
+        ];
+        for (c, d) in children {
+            let u = triangle_upper(&c, &d);
+            if u <= lower + tolerance {
+                settled = settled.max(u);
+            } else {
+                open.push(Open {
+                    upper: u,
+                    corners: c,
+                    distances: d,
+                    hint: h,
+                    depth: t.depth + 1,
+                });
+            }
+        }
+    }
+    OneWay {
+        upper: settled.max(lower),
+        lower,
+        sum,
+        sum_squares,
+        samples,
+    }
+}

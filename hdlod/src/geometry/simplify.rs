@@ -1,0 +1,245 @@
+//! Simplification to an absolute error budget, with meshoptimizer:
+//! quadric edge collapse (Garland and Heckbert, "Surface simplification
+//! using quadric error metrics", SIGGRAPH 1997) weighing normals and
+//! colours, then the same with pruning of small disconnected components,
+//! then vertex clustering (Rossignac and Borrel 1993; meshoptimizer's
+//! "sloppy" simplifier) for inputs made of many small parts, where edge
+//! collapse stalls on topology.
+//!
+//! meshoptimizer's own error figure is a quadric estimate, not a distance:
+//! the caller measures the result (`hausdorff`) and uses that.
+
+use meshopt::{SimplifyOptions as Flags, VertexDataAdapter, typed_to_bytes};
+
+use super::Mesh;
+
+/// What to simplify to.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct SimplifyOptions {
+    /// The error budget, absolute (scene units). Infinite: no limit but the
+    /// triangle target.
+    pub max_error: f32,
+    /// Stop at this many triangles even if the budget allows fewer.
+    pub target_triangles: Option<usize>,
+    /// Allow removing small disconnected components.
+    pub prune: bool,
+}
+
+/// Which step produced the result.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Strategy {
+    /// Nothing to do (empty input, target at or above the input size, or no
+    /// step removed a triangle): the input, cleaned of invalid triangles.
+    Unchanged,
+    EdgeCollapse,
+    /// Edge collapse that also removed small components.
+    Pruned,
+    Clustering,
+}
+
+#[derive(Debug, Clone)]
+pub struct Simplified {
+    pub mesh: Mesh,
+    pub strategy: Strategy,
+    pub triangles: usize,
+}
+
+/// Edge collapse "stalls" when it keeps more than this share of the
+/// triangles while the budget or target asks for fewer.
+const STALL_RATIO: f32 = 0.5;
+/// A fallback must do at least this much better than the step before it
+/// to be worth its lower quality.
+const FALLBACK_GAIN: f32 = 0.8;
+/// Attribute weights relative to the position error (meshoptimizer's
+/// convention): colours matter as much as shape, normals a little less.
+const NORMAL_WEIGHT: f32 = 0.5;
+const COLOR_WEIGHT: f32 = 1.0;
+
+/// Simplifies `mesh` within `options.max_error` (and down to
+/// `options.target_triangles` at most, if given): edge collapse first, then
+/// with pruning (if allowed), then clustering, each tried only when the one
+/// before stalls. Triangles with an out-of-range index or a non-finite
+/// corner are dropped first. Never returns more triangles than it was given,
+/// and never an empty mesh for a non-empty input.
+pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
+    let mesh = cleaned(mesh);
+    let n = mesh.triangle_count();
+    let target = options.target_triangles.unwrap_or(0);
+    if n == 0 || target >= n {
+        return unchanged(mesh);
+    }
+    let stalled = |t: usize| t > target && t as f32 > STALL_RATIO * n as f32;
+
+    let mut best = (edge_collapse_indices(&mesh, options, false), Strategy::EdgeCollapse);
+    if options.prune && stalled(best.0.len() / 3) {
+        let pruned = edge_collapse_indices(&mesh, options, true);
+        if better(&pruned, &best.0) {
+            best = (pruned, Strategy::Pruned);
+        }
+    }
+    if stalled(best.0.len() / 3) {
+        let clustered = clustering_indices(&mesh, options);
+        if better(&clustered, &best.0) {
+            best = (clustered, Strategy::Clustering);
+        }
+    }
+    let (indices, strategy) = best;
+    if indices.is_empty() || indices.len() / 3 >= n {
+        return unchanged(mesh);
+    }
+    let mesh = compact(&mesh, &indices);
+    Simplified {
+        triangles: mesh.triangle_count(),
+        mesh,
+        strategy,
+    }
+}
+
+/// Quadric edge collapse alone (with pruning if `options.prune`).
+pub fn edge_collapse(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
+    run_step(mesh, options, |m| edge_collapse_indices(m, options, options.prune))
+}
+
+/// Vertex clustering alone.
+pub fn clustering(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
+    run_step(mesh, options, |m| clustering_indices(m, options))
+}
+
+fn run_step(mesh: &Mesh, options: &SimplifyOptions, step: impl Fn(&Mesh) -> Vec<u32>) -> Mesh {
+    let mesh = cleaned(mesh);
+    if mesh.is_empty() || options.target_triangles.unwrap_or(0) >= mesh.triangle_count() {
+        return mesh;
+    }
+    let indices = step(&mesh);
+    if indices.is_empty() {
+        return mesh;
+    }
+    compact(&mesh, &indices)
+}
+
+fn better(candidate: &[u32], current: &[u32]) -> bool {
+    !candidate.is_empty() && (candidate.len() as f32) < FALLBACK_GAIN * current.len() as f32
+}
+
+fn unchanged(mesh: Mesh) -> Simplified {
+    Simplified {
+        triangles: mesh.triangle_count(),
+        mesh,
+        strategy: Strategy::Unchanged,
+    }
+}
+
+/// The mesh without the triangles meshoptimizer must not see: out-of-range
+/// indices (undefined behaviour in C) and non-finite corners. Attribute
+/// arrays of the wrong length are dropped rather than trusted.
+fn cleaned(mesh: &Mesh) -> Mesh {
+    let n = mesh.positions.len();
+    let ok = |i: u32| (i as usize) < n && mesh.positions[i as usize].is_finite();
+    let indices = mesh
+        .indices
+        .chunks_exact(3)
+        .filter(|t| t.iter().all(|&i| ok(i)))
+        .flatten()
+        .copied()
+        .collect();
+    Mesh {
+        positions: mesh.positions.clone(),
+        normals: if mesh.normals.len() == n {
+            mesh.normals.clone()
+        } else {
+            Vec::new()
+        },
+        colors: if mesh.colors.len() == n {
+            mesh.colors.clone()
+        } else {
+            Vec::new()
+        },
+        indices,
+    }
+}
+
+fn adapter(mesh: &Mesh) -> VertexDataAdapter<'_> {
+    VertexDataAdapter::new(typed_to_bytes(&mesh.positions), 12, 0)
+        .expect("a Vec3 slice is a whole number of 12-byte vertices")
+}
+
+/// The absolute budget as meshoptimizer's error relative to the mesh extent.
+fn relative_error(mesh: &Mesh, options: &SimplifyOptions) -> f32 {
+    let scale = meshopt::simplify_scale(&adapter(mesh));
+    if !(options.max_error.is_finite()) || scale <= 0.0 {
+        // No limit but the target (or a mesh of one point: anything goes).
+        return f32::MAX;
+    }
+    (options.max_error.max(0.0) / scale).min(f32::MAX)
+}
+
+fn edge_collapse_indices(mesh: &Mesh, options: &SimplifyOptions, prune: bool) -> Vec<u32> {
+    let target = options.target_triangles.unwrap_or(0) * 3;
+    let error = relative_error(mesh, options);
+    let flags = if prune { Flags::Prune } else { Flags::None };
+    let vertices = adapter(mesh);
+    let mut weights = Vec::new();
+    if !mesh.normals.is_empty() {
+        weights.extend([NORMAL_WEIGHT; 3]);
+    }
+    if !mesh.colors.is_empty() {
+        weights.extend([COLOR_WEIGHT; 4]);
+    }
+    if weights.is_empty() {
+        return meshopt::simplify(&mesh.indices, &vertices, target, error, flags, None);
+    }
+    let mut attributes = Vec::with_capacity(mesh.positions.len() * weights.len());
+    for i in 0..mesh.positions.len() {
+        if let Some(n) = mesh.normals.get(i) {
+            attributes.extend(n.to_array());
+        }
+        if let Some(c) = mesh.colors.get(i) {
+            attributes.extend(c);
+        }
+    }
+    // The wrapper passes the lock array's pointer on even when it is empty,
+    // so it gets one (unlocked) entry per vertex.
+    let locks = vec![false; mesh.positions.len()];
+    meshopt::simplify_with_attributes_and_locks(
+        &mesh.indices,
+        &vertices,
+        &attributes,
+        &weights,
+        weights.len() * 4,
+        &locks,
+        target,
+        error,
+        flags,
+        None,
+    )
+}
+
+fn clustering_indices(mesh: &Mesh, options: &SimplifyOptions) -> Vec<u32> {
+    let target = options.target_triangles.unwrap_or(0) * 3;
+    let error = relative_error(mesh, options);
+    meshopt::simplify_sloppy(&mesh.indices, &adapter(mesh), target, error, None)
+}
+
+/// The mesh made of `indices` (into `mesh`'s vertices) with only the
+/// vertices they use, in first-use order.
+fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
+    let mut remap = vec![u32::MAX; mesh.positions.len()];
+    let mut out = Mesh::default();
+    out.indices.reserve(indices.len());
+    for &i in indices {
+        let slot = &mut remap[i as usize];
+        if *slot == u32::MAX {
+            *slot = out.positions.len() as u32;
+            out.positions.push(mesh.positions[i as usize]);
+            if let Some(n) = mesh.normals.get(i as usize) {
+                out.normals.push(*n);
+            }
+            if let Some(c) = mesh.colors.get(i as usize) {
+                out.colors.push(*c);
+            }
+        }
+        out.indices.push(*slot);
+    }
+    out
+}
