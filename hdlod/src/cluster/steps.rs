@@ -102,7 +102,7 @@ impl Steps {
     pub fn l1_distance(&self, other: &Steps, span: f64) -> f64 {
         let (a, b) = (&self.points, &other.points);
         let (mut i, mut j) = (0, 0);
-        let (mut va, mut vb) = (0.0, 0.0);
+        let (mut va, mut vb) = (0.0f64, 0.0f64);
         let mut t = 0.0;
         let mut sum = 0.0;
         loop {
