@@ -3,6 +3,7 @@
 //! schedule that drives visibility, and the classification of DESIGN.md
 //! section 1.
 
+pub mod format;
 mod motion;
 mod schedule;
 mod visibility;
