@@ -326,7 +326,8 @@ impl Loader<'_> {
 /// A time as the user wrote it, for messages.
 fn show(value: &TimeValue) -> String {
     match value {
-        TimeValue::Seconds(s) => format!("{s} s"),
+        TimeValue::Seconds(s) if s.abs() < 1e15 => format!("{s} s"),
+        TimeValue::Seconds(s) => format!("{s:e} s"),
         TimeValue::Iso(text) => text.clone(),
     }
 }
