@@ -6,6 +6,7 @@
 pub mod format;
 mod motion;
 mod schedule;
+mod summary;
 mod visibility;
 
 use std::collections::BTreeMap;
@@ -18,6 +19,7 @@ use crate::time::TimeSpan;
 
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
+pub use summary::{Bounds, Counts, Summary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
 
 /// Which axis points up in the scene's world frame.
