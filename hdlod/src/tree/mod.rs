@@ -6,6 +6,7 @@
 pub mod camera;
 pub mod cut;
 pub mod format;
+pub mod paper;
 pub mod sample;
 pub mod store;
 

@@ -3,10 +3,11 @@
 //! ground of static slabs, a tower of pseudo-dynamic elements installed
 //! floor by floor (with temporary scaffolding), and moving cranes with a
 //! two-step LOD chain. Its structure and its `v`, `w` and `gamma` follow
-//! DESIGN.md section 2 exactly; geometry is boxes, a parent's geometry is
-//! the box of its children and its `eps` is the children's largest `eps`
-//! plus that box's half diagonal (a bound of the Hausdorff distance from a
-//! box to anything inside it), so every invariant of a real tree holds.
+//! DESIGN.md section 2 exactly; geometry is boxes and a parent's geometry is
+//! the box of its children. Its `eps` is synthetic, not measured: the
+//! children's largest `eps` plus 1% of the parent's diagonal, which keeps
+//! `eps` growing upwards like a real tree's so that cuts coarsen with
+//! distance.
 
 use std::path::Path;
 
@@ -244,7 +245,7 @@ impl Builder<'_> {
             eps: if class == ClusterClass::Root {
                 max_eps
             } else {
-                max_eps + bounds.diagonal() / 2.0
+                max_eps + bounds.diagonal() * 0.01
             },
             gamma,
             visibility,
