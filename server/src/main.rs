@@ -2,6 +2,7 @@
 //! `cmd/`. The HDLOD logic lives in the `hdlod` library; this crate parses
 //! arguments, reports progress and serves HTTP.
 
+mod api;
 mod cmd;
 
 use std::process::ExitCode;
@@ -26,6 +27,13 @@ enum Command {
     Fixture(cmd::fixture::Fixture),
     /// Describe a scene (or a tree): counts per class, time span, bounds.
     Inspect(cmd::inspect::Args),
+    /// The cut of a tree for a time and camera.
+    Cut(cmd::cut::Args),
+    /// Serve trees over HTTP and WebSocket.
+    Serve(cmd::serve::Args),
+    /// Benchmarks: the paper's table, WebSocket load.
+    #[command(subcommand)]
+    Bench(cmd::bench::Bench),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +47,9 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Fixture(c) => cmd::fixture::run(c),
         Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Cut(a) => cmd::cut::run(a),
+        Command::Serve(a) => cmd::serve::run(a),
+        Command::Bench(b) => cmd::bench::run(b),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,2 +1,5 @@
+pub mod bench;
+pub mod cut;
 pub mod fixture;
 pub mod inspect;
+pub mod serve;

@@ -1,0 +1,104 @@
+//! The serde types of the `hdlod-tree/1` files, field for field as
+//! DESIGN.md section 8 fixes them (`schemas/tree-manifest.schema.json` and
+//! `schemas/tree-clusters.schema.json` describe the same shapes). These are
+//! the on-disk records only; [`super::Tree`] is the validated in-memory form.
+
+use serde::{Deserialize, Serialize};
+
+pub const FORMAT: &str = "hdlod-tree/1";
+pub const MANIFEST_FILE: &str = "manifest.json";
+pub const CLUSTERS_FILE: &str = "clusters.json";
+pub const GEOMETRY_DIR: &str = "geometry";
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ManifestRecord {
+    pub format: String,
+    pub scene: String,
+    pub time: TimeRecord,
+    pub bounds: BoundsRecord,
+    pub up: crate::scene::Up,
+    pub root: u32,
+    /// The build configuration, free-form (the builder owns its shape).
+    #[serde(default)]
+    pub config: serde_json::Value,
+    /// Build statistics, free-form.
+    #[serde(default)]
+    pub stats: serde_json::Value,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TimeRecord {
+    pub start: String,
+    pub end: String,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct BoundsRecord {
+    pub min: [f64; 3],
+    pub max: [f64; 3],
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClustersRecord {
+    pub clusters: Vec<ClusterRecord>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum ClusterClass {
+    /// The one virtual root: no geometry, all subtrees hang under it.
+    Root,
+    Static,
+    PseudoDynamic,
+    Dynamic,
+}
+
+impl ClusterClass {
+    pub const ALL: [ClusterClass; 4] = [
+        ClusterClass::Root,
+        ClusterClass::Static,
+        ClusterClass::PseudoDynamic,
+        ClusterClass::Dynamic,
+    ];
+
+    pub fn name(self) -> &'static str {
+        match self {
+            ClusterClass::Root => "root",
+            ClusterClass::Static => "static",
+            ClusterClass::PseudoDynamic => "pseudo_dynamic",
+            ClusterClass::Dynamic => "dynamic",
+        }
+    }
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ClusterRecord {
+    pub id: u32,
+    pub parent: Option<u32>,
+    pub children: Vec<u32>,
+    pub level: u32,
+    pub class: ClusterClass,
+    /// In the cluster's own frame (dynamic clusters) or the world frame.
+    pub bounds: BoundsRecord,
+    pub w: f64,
+    pub eps: f64,
+    pub gamma: f64,
+    /// Steps `[t_i, v_i]`: `v(t) = v_i` for the last `t_i <= t`, 0 before `t_0`.
+    pub visibility: Vec<(f64, f64)>,
+    pub motion: Option<Vec<KeyframeRecord>>,
+    pub geometry: Option<String>,
+    pub triangles: u64,
+    /// The original objects of a leaf (empty above the leaves).
+    #[serde(default)]
+    pub objects: Vec<String>,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct KeyframeRecord {
+    pub t: f64,
+    pub translation: [f32; 3],
+    /// Quaternion `[x, y, z, w]`.
+    pub rotation: [f32; 4],
+    pub scale: [f32; 3],
+}

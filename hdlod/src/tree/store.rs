@@ -1,0 +1,352 @@
+//! The tree on disk: content-addressed GLB blobs under `geometry/` and an
+//! atomic write of the whole directory (DESIGN.md section 8).
+//!
+//! Atomicity: everything is written into a temporary directory beside the
+//! target, then renamed into place. A failed or interrupted build leaves the
+//! previous tree as it was; a reader sees either the old or the new tree,
+//! except for the instant between the two renames of a replacement (the old
+//! tree moved aside, the new one not yet in place), when the target is
+//! missing and a reader must retry or keep what it has loaded.
+
+use std::collections::HashSet;
+use std::fs;
+use std::io::{BufWriter, Write};
+use std::path::{Path, PathBuf};
+use std::sync::Mutex;
+use std::sync::atomic::{AtomicU64, Ordering};
+
+use super::Tree;
+use super::format::{self, CLUSTERS_FILE, GEOMETRY_DIR, MANIFEST_FILE};
+use crate::error::{Error, Result};
+
+static SEQUENCE: AtomicU64 = AtomicU64::new(0);
+
+/// A path beside `target`: `.NAME.KIND-PID-N`, hidden and on the same file
+/// system so that the final rename is atomic.
+fn sibling(target: &Path, kind: &str) -> PathBuf {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "tree".into());
+    let n = SEQUENCE.fetch_add(1, Ordering::Relaxed);
+    target.with_file_name(format!(".{name}.{kind}-{}-{n}", std::process::id()))
+}
+
+/// Writes a tree: geometry first (from any thread), then [`TreeWriter::finish`]
+/// with the cluster table. Dropped without `finish`, it removes its
+/// temporary directory and leaves the target untouched.
+pub struct TreeWriter {
+    target: PathBuf,
+    tmp: PathBuf,
+    stored: Mutex<HashSet<String>>,
+    finished: bool,
+}
+
+impl TreeWriter {
+    pub fn create(target: impl Into<PathBuf>) -> Result<Self> {
+        let target: PathBuf = target.into();
+        if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
+            fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
+        }
+        let tmp = sibling(&target, "tmp");
+        let geometry = tmp.join(GEOMETRY_DIR);
+        fs::create_dir_all(&geometry).map_err(|e| Error::io(&geometry, e))?;
+        Ok(TreeWriter {
+            target,
+            tmp,
+            stored: Mutex::new(HashSet::new()),
+            finished: false,
+        })
+    }
+
+    /// Stores GLB bytes under the blake3 hex of their content and returns
+    /// that hash; identical bytes are stored once.
+    pub fn put_geometry(&self, glb: &[u8]) -> Result<String> {
+        let hash = blake3::hash(glb).to_hex().to_string();
+        if self
+            .stored
+            .lock()
+            .expect("no panic while holding")
+            .contains(&hash)
+        {
+            return Ok(hash);
+        }
+        let path = self.tmp.join(GEOMETRY_DIR).join(format!("{hash}.glb"));
+        fs::write(&path, glb).map_err(|e| Error::io(&path, e))?;
+        self.stored
+            .lock()
+            .expect("no panic while holding")
+            .insert(hash.clone());
+        Ok(hash)
+    }
+
+    /// Validates the tree (including that every geometry hash was stored),
+    /// writes the manifest and cluster table and moves the directory into place.
+    pub fn finish(mut self, tree: &Tree) -> Result<()> {
+        let clusters_path = self.target.join(CLUSTERS_FILE);
+        tree.validate(&clusters_path)?;
+        {
+            let stored = self.stored.lock().expect("no panic while holding");
+            for c in &tree.clusters {
+                if let Some(h) = &c.geometry
+                    && !stored.contains(h)
+                {
+                    return Err(Error::invalid(
+                        &clusters_path,
+                        format!("clusters[{}].geometry", c.id),
+                        format!("geometry {h} was not stored with put_geometry"),
+                    ));
+                }
+            }
+        }
+        let (manifest, clusters) = tree.to_records();
+        write_json(&self.tmp.join(MANIFEST_FILE), &manifest, true)?;
+        write_json(&self.tmp.join(CLUSTERS_FILE), &clusters, false)?;
+
+        let old = sibling(&self.target, "old");
+        let had_old = self.target.exists();
+        if had_old {
+            fs::rename(&self.target, &old).map_err(|e| Error::io(&self.target, e))?;
+        }
+        if let Err(e) = fs::rename(&self.tmp, &self.target) {
+            if had_old {
+                let _ = fs::rename(&old, &self.target);
+            }
+            return Err(Error::io(&self.target, e));
+        }
+        self.finished = true;
+        if had_old {
+            fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
+        }
+        Ok(())
+    }
+}
+
+impl Drop for TreeWriter {
+    fn drop(&mut self) {
+        if !self.finished {
+            let _ = fs::remove_dir_all(&self.tmp);
+        }
+    }
+}
+
+fn write_json<T: serde::Serialize>(path: &Path, value: &T, pretty: bool) -> Result<()> {
+    let file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    let mut w = BufWriter::new(file);
+    let written = if pretty {
+        serde_json::to_writer_pretty(&mut w, value)
+    } else {
+        serde_json::to_writer(&mut w, value)
+    };
+    written.map_err(|e| Error::invalid(path, "", e.to_string()))?;
+    w.write_all(b"\n")
+        .and_then(|()| w.flush())
+        .map_err(|e| Error::io(path, e))?;
+    w.into_inner()
+        .map_err(|e| Error::io(path, e.into_error()))?
+        .sync_all()
+        .map_err(|e| Error::io(path, e))
+}
+
+fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
+    let bytes = fs::read(path).map_err(|e| Error::io(path, e))?;
+    serde_json::from_slice(&bytes).map_err(|e| {
+        Error::invalid(
+            path,
+            format!("line {} column {}", e.line(), e.column()),
+            e.to_string(),
+        )
+    })
+}
+
+/// Loads and validates a tree directory: the manifest, the cluster table and
+/// the presence of every geometry file (one directory listing, no reads).
+pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
+    let dir = dir.as_ref();
+    let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
+    let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
+    let tree = Tree::from_records(manifest, clusters, dir)?;
+
+    let geometry = dir.join(GEOMETRY_DIR);
+    let mut present = HashSet::new();
+    for entry in fs::read_dir(&geometry).map_err(|e| Error::io(&geometry, e))? {
+        let name = entry.map_err(|e| Error::io(&geometry, e))?.file_name();
+        if let Some(hash) = name.to_str().and_then(|n| n.strip_suffix(".glb")) {
+            present.insert(hash.to_owned());
+        }
+    }
+    for c in &tree.clusters {
+        if let Some(h) = &c.geometry
+            && !present.contains(h.as_str())
+        {
+            return Err(Error::invalid(
+                dir.join(CLUSTERS_FILE),
+                format!("clusters[{}].geometry", c.id),
+                format!("{} is missing", geometry.join(format!("{h}.glb")).display()),
+            ));
+        }
+    }
+    Ok(tree)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::tree::sample::write_sample_tree;
+
+    fn schema(name: &str) -> jsonschema::Validator {
+        let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../schemas")
+            .join(name);
+        let schema: serde_json::Value = serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+        jsonschema::validator_for(&schema).unwrap()
+    }
+
+    fn assert_valid(validator: &jsonschema::Validator, file: &Path) {
+        let value: serde_json::Value = serde_json::from_slice(&fs::read(file).unwrap()).unwrap();
+        let errors: Vec<String> = validator
+            .iter_errors(&value)
+            .map(|e| format!("{}: {e}", e.instance_path()))
+            .take(5)
+            .collect();
+        assert!(errors.is_empty(), "{}: {errors:?}", file.display());
+    }
+
+    #[test]
+    fn round_trip_and_schemas() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("tree");
+        let written = write_sample_tree(&target, 1, 4).unwrap();
+        let loaded = load(&target).unwrap();
+        assert_eq!(written, loaded);
+        assert_valid(
+            &schema("tree-manifest.schema.json"),
+            &target.join(MANIFEST_FILE),
+        );
+        assert_valid(
+            &schema("tree-clusters.schema.json"),
+            &target.join(CLUSTERS_FILE),
+        );
+        // Content addressing: each file is named by the hash of its bytes,
+        // and identical bytes are stored once.
+        let mut files = 0;
+        for entry in fs::read_dir(target.join(GEOMETRY_DIR)).unwrap() {
+            let path = entry.unwrap().path();
+            let name = path.file_stem().unwrap().to_str().unwrap().to_owned();
+            assert_eq!(
+                blake3::hash(&fs::read(&path).unwrap()).to_hex().as_str(),
+                name
+            );
+            files += 1;
+        }
+        let distinct: HashSet<_> = loaded
+            .clusters
+            .iter()
+            .filter_map(|c| c.geometry.clone())
+            .collect();
+        assert_eq!(files, distinct.len());
+        // Nothing is left beside the target.
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    #[test]
+    fn replacement_is_atomic_and_failure_keeps_the_old_tree() {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("tree");
+        let first = write_sample_tree(&target, 1, 2).unwrap();
+        let second = write_sample_tree(&target, 2, 3).unwrap();
+        assert_eq!(load(&target).unwrap(), second);
+        assert_ne!(first, second);
+
+        // A failed write (here: an invalid tree) and an abandoned one leave
+        // the previous tree and no temporary directory.
+        let mut broken = second.clone();
+        broken.clusters[3].parent = None;
+        let writer = TreeWriter::create(&target).unwrap();
+        for c in &broken.clusters {
+            if c.geometry.is_some() {
+                writer.put_geometry(b"not the real bytes").unwrap();
+            }
+        }
+        assert!(writer.finish(&broken).is_err());
+        drop(TreeWriter::create(&target).unwrap());
+        assert_eq!(load(&target).unwrap(), second);
+        assert_eq!(fs::read_dir(dir.path()).unwrap().count(), 1);
+    }
+
+    /// Writes the sample tree, lets `edit` change clusters.json and returns
+    /// the load error.
+    fn load_error(edit: impl FnOnce(&mut serde_json::Value), geometry: bool) -> String {
+        let dir = tempfile::tempdir().unwrap();
+        let target = dir.path().join("tree");
+        write_sample_tree(&target, 1, 2).unwrap();
+        let path = target.join(CLUSTERS_FILE);
+        let mut value: serde_json::Value =
+            serde_json::from_slice(&fs::read(&path).unwrap()).unwrap();
+        edit(&mut value);
+        fs::write(&path, serde_json::to_vec(&value).unwrap()).unwrap();
+        if geometry {
+            let hash = value["clusters"][1]["geometry"]
+                .as_str()
+                .unwrap()
+                .to_owned();
+            fs::remove_file(target.join(GEOMETRY_DIR).join(format!("{hash}.glb"))).unwrap();
+        }
+        load(&target).unwrap_err().to_string()
+    }
+
+    #[test]
+    fn load_names_what_is_wrong() {
+        type Edit = Box<dyn FnOnce(&mut serde_json::Value)>;
+        let cases: Vec<(&str, Edit)> = vec![
+            (
+                "clusters[2].id",
+                Box::new(|v| v["clusters"][2]["id"] = 5.into()),
+            ),
+            (
+                "clusters[2].visibility",
+                Box::new(|v| {
+                    v["clusters"][2]["visibility"] = serde_json::json!([[5.0, 1.0], [1.0, 0.0]])
+                }),
+            ),
+            (
+                "clusters[2].visibility",
+                Box::new(|v| v["clusters"][2]["visibility"] = serde_json::json!([[0.0, 1.5]])),
+            ),
+            (
+                "clusters[2].eps",
+                Box::new(|v| v["clusters"][2]["eps"] = (-1.0).into()),
+            ),
+            (
+                "clusters[2].parent",
+                Box::new(|v| v["clusters"][2]["parent"] = serde_json::Value::Null),
+            ),
+            (
+                "clusters[2].geometry",
+                Box::new(|v| v["clusters"][2]["geometry"] = "xyz".into()),
+            ),
+            (
+                "clusters[2].motion",
+                Box::new(
+                    |v| v["clusters"][2]["motion"] = serde_json::json!([{"t": 0.0, "translation": [0, 0, 0], "rotation": [0, 0, 0, 1], "scale": [1, 1, 1]}]),
+                ),
+            ),
+            (
+                "line 1",
+                Box::new(|v| v["clusters"][2]["w"] = "wide".into()),
+            ),
+        ];
+        for (expected, edit) in cases {
+            let err = load_error(edit, false);
+            assert!(
+                err.contains("clusters.json") && err.contains(expected),
+                "expected {expected:?} in {err:?}"
+            );
+        }
+        let err = load_error(|_| {}, true);
+        assert!(
+            err.contains("clusters[1].geometry") && err.contains("is missing"),
+            "{err}"
+        );
+    }
+}

@@ -1,0 +1,78 @@
+//! The API's one error type: every 4xx answer is JSON naming the field at
+//! fault, `{"error": {"status", "field", "message"}}`
+//! (`schemas/api/error.schema.json`).
+
+use axum::Json;
+use axum::http::StatusCode;
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct ApiError {
+    #[serde(skip)]
+    pub status: StatusCode,
+    /// The request field (`camera.fov_y_deg`), query parameter or path part.
+    pub field: Option<String>,
+    pub message: String,
+}
+
+impl ApiError {
+    pub fn new(status: StatusCode, field: Option<String>, message: impl Into<String>) -> Self {
+        ApiError {
+            status,
+            field,
+            message: message.into(),
+        }
+    }
+
+    pub fn bad(field: impl Into<String>, message: impl Into<String>) -> Self {
+        Self::new(StatusCode::BAD_REQUEST, Some(field.into()), message)
+    }
+
+    pub fn not_found(field: &str, message: impl Into<String>) -> Self {
+        Self::new(StatusCode::NOT_FOUND, Some(field.into()), message)
+    }
+
+    /// A JSON body that does not parse or has the wrong shape: the field is
+    /// the path serde stopped at, plus the missing or unknown field's name.
+    pub fn from_json(e: serde_path_to_error::Error<serde_json::Error>) -> Self {
+        let path = e.path().to_string();
+        let message = e.inner().to_string();
+        // serde's path stops at the container of a missing field, but at
+        // an unknown field itself.
+        let named = message
+            .strip_prefix("missing field `")
+            .and_then(|rest| rest.split('`').next());
+        let field = match (path.as_str(), named) {
+            (".", Some(name)) => name.to_owned(),
+            (_, Some(name)) => format!("{path}.{name}"),
+            (".", None) => "body".to_owned(),
+            _ => path,
+        };
+        Self::bad(field, message)
+    }
+
+    /// The JSON value of the body, also sent over the WebSocket.
+    pub fn body(&self) -> serde_json::Value {
+        serde_json::json!({"error": {
+            "status": self.status.as_u16(),
+            "field": self.field,
+            "message": self.message,
+        }})
+    }
+}
+
+impl From<hdlod::Error> for ApiError {
+    fn from(e: hdlod::Error) -> Self {
+        match e {
+            hdlod::Error::Argument { at, message } => Self::bad(at, message),
+            other => Self::new(StatusCode::INTERNAL_SERVER_ERROR, None, other.to_string()),
+        }
+    }
+}
+
+impl IntoResponse for ApiError {
+    fn into_response(self) -> Response {
+        (self.status, Json(self.body())).into_response()
+    }
+}

@@ -1,0 +1,233 @@
+//! The request handlers: each parses, looks the scene up in a snapshot of
+//! the state and answers JSON (or an [`ApiError`]).
+
+use std::sync::{Arc, OnceLock};
+
+use axum::Json;
+use axum::body::{Body, Bytes};
+use axum::extract::rejection::{BytesRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use hdlod::time::format_date;
+use serde_json::{Value, json};
+
+use super::cut::{self, CutRequest, scene_path};
+use super::error::ApiError;
+use super::{AppState, LoadedScene};
+
+type Answer<T> = Result<T, ApiError>;
+
+pub fn find(state: &AppState, name: &str) -> Answer<Arc<LoadedScene>> {
+    state
+        .scenes()
+        .get(name)
+        .cloned()
+        .ok_or_else(|| ApiError::not_found("scene", format!("no scene named {name:?}")))
+}
+
+fn time_json(scene: &LoadedScene) -> Value {
+    let t = &scene.tree.time;
+    json!({"start": format_date(t.start), "end": format_date(t.end()), "seconds": t.seconds})
+}
+
+pub async fn healthz(State(state): State<Arc<AppState>>) -> Json<Value> {
+    Json(json!({"status": "ok", "scenes": state.scenes().len()}))
+}
+
+pub async fn metrics(State(state): State<Arc<AppState>>) -> impl IntoResponse {
+    (
+        [(header::CONTENT_TYPE, "text/plain; version=0.0.4")],
+        state.metrics.render(),
+    )
+}
+
+/// `schemas/api/openapi.json` with every `components.schemas` entry that
+/// refers to a schema file replaced by that file (the schemas live once,
+/// in `schemas/api/`).
+pub fn openapi_document() -> &'static Value {
+    static DOC: OnceLock<Value> = OnceLock::new();
+    DOC.get_or_init(|| {
+        let files: [(&str, &str); 7] = [
+            (
+                "error.schema.json",
+                include_str!("../../../schemas/api/error.schema.json"),
+            ),
+            (
+                "health.schema.json",
+                include_str!("../../../schemas/api/health.schema.json"),
+            ),
+            (
+                "scene-list.schema.json",
+                include_str!("../../../schemas/api/scene-list.schema.json"),
+            ),
+            (
+                "scene.schema.json",
+                include_str!("../../../schemas/api/scene.schema.json"),
+            ),
+            (
+                "cut-request.schema.json",
+                include_str!("../../../schemas/api/cut-request.schema.json"),
+            ),
+            (
+                "cut-response.schema.json",
+                include_str!("../../../schemas/api/cut-response.schema.json"),
+            ),
+            (
+                "stream-message.schema.json",
+                include_str!("../../../schemas/api/stream-message.schema.json"),
+            ),
+        ];
+        let mut doc: Value =
+            serde_json::from_str(include_str!("../../../schemas/api/openapi.json"))
+                .expect("schemas/api/openapi.json is JSON (checked by the tests)");
+        if let Some(Value::Object(schemas)) = doc.pointer_mut("/components/schemas") {
+            for schema in schemas.values_mut() {
+                let file = schema
+                    .get("$ref")
+                    .and_then(Value::as_str)
+                    .map(|r| r.trim_start_matches("./").to_owned());
+                if let Some((_, text)) =
+                    file.and_then(|f| files.iter().find(|(name, _)| *name == f))
+                {
+                    *schema = serde_json::from_str(text)
+                        .expect("schema files are JSON (checked by the tests)");
+                }
+            }
+        }
+        doc
+    })
+}
+
+pub async fn openapi() -> Json<Value> {
+    Json(openapi_document().clone())
+}
+
+pub async fn scenes(State(state): State<Arc<AppState>>) -> Json<Value> {
+    let list: Vec<Value> = state
+        .scenes()
+        .values()
+        .map(|s| {
+            json!({
+                "name": s.tree.scene,
+                "url": scene_path(&s.tree.scene),
+                "time": time_json(s),
+                "clusters": s.summary.clusters,
+            })
+        })
+        .collect();
+    Json(json!({"scenes": list}))
+}
+
+pub async fn scene(
+    State(state): State<Arc<AppState>>,
+    Path(name): Path<String>,
+) -> Answer<Json<Value>> {
+    let s = find(&state, &name)?;
+    let tree = &s.tree;
+    let b = &tree.bounds;
+    Ok(Json(json!({
+        "name": tree.scene,
+        "time": time_json(&s),
+        "bounds": {"min": b.min.to_array(), "max": b.max.to_array()},
+        "up": tree.up,
+        "root": tree.root,
+        "clusters": s.summary.clusters,
+        "leaves": s.summary.leaves,
+        "leaf_triangles": s.summary.leaf_triangles,
+        "classes": s.summary.classes,
+        "levels": s.summary.levels,
+        "cut": format!("{}/cut", scene_path(&tree.scene)),
+        "stream": format!("{}/stream", scene_path(&tree.scene)),
+    })))
+}
+
+fn cut_answer(
+    state: &AppState,
+    name: &str,
+    request: &CutRequest,
+) -> Answer<Json<cut::CutResponse>> {
+    let s = find(state, name)?;
+    let answer = cut::answer(&s.tree, request)?;
+    state
+        .metrics
+        .cut(answer.stats.clusters, answer.stats.triangles);
+    Ok(Json(answer))
+}
+
+pub async fn cut_post(
+    State(state): State<Arc<AppState>>,
+    Path(name): Path<String>,
+    body: Result<Bytes, BytesRejection>,
+) -> Answer<Json<cut::CutResponse>> {
+    let body = body.map_err(|r| ApiError::new(r.status(), Some("body".into()), r.body_text()))?;
+    // The scene is checked first: an unknown scene is a 404 whatever the body.
+    find(&state, &name)?;
+    let request = cut::parse_json(&body)?;
+    cut_answer(&state, &name, &request)
+}
+
+pub async fn cut_get(
+    State(state): State<Arc<AppState>>,
+    Path(name): Path<String>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+) -> Answer<Json<cut::CutResponse>> {
+    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
+    find(&state, &name)?;
+    let request = cut::parse_query(&pairs)?;
+    cut_answer(&state, &name, &request)
+}
+
+pub async fn geometry(
+    State(state): State<Arc<AppState>>,
+    Path((name, file)): Path<(String, String)>,
+    headers: HeaderMap,
+) -> Answer<Response> {
+    let s = find(&state, &name)?;
+    let hash = file
+        .strip_suffix(".glb")
+        .filter(|h| hdlod::tree::is_hash(h))
+        .ok_or_else(|| ApiError::not_found("hash", format!("{file:?} is not HASH.glb")))?;
+    let etag = format!("\"{hash}\"");
+    let cache = HeaderValue::from_static("public, max-age=31536000, immutable");
+    let matches = headers
+        .get(header::IF_NONE_MATCH)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
+    let etag_value = HeaderValue::from_str(&etag).expect("hex in quotes");
+    if matches {
+        return Ok((
+            StatusCode::NOT_MODIFIED,
+            [(header::ETAG, etag_value), (header::CACHE_CONTROL, cache)],
+        )
+            .into_response());
+    }
+    let path = s.dir.join("geometry").join(format!("{hash}.glb"));
+    let bytes = tokio::fs::read(&path).await.map_err(|_| {
+        ApiError::not_found("hash", format!("no geometry {hash} in scene {name:?}"))
+    })?;
+    Ok((
+        [
+            (
+                header::CONTENT_TYPE,
+                HeaderValue::from_static("model/gltf-binary"),
+            ),
+            (header::ETAG, etag_value),
+            (header::CACHE_CONTROL, cache),
+        ],
+        Body::from(bytes),
+    )
+        .into_response())
+}
+
+pub async fn not_found() -> ApiError {
+    ApiError::not_found("path", "no such endpoint")
+}
+
+pub async fn method_not_allowed() -> ApiError {
+    ApiError::new(
+        StatusCode::METHOD_NOT_ALLOWED,
+        Some("method".into()),
+        "method not allowed here",
+    )
+}

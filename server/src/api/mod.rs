@@ -1,0 +1,143 @@
+//! The HTTP API (axum): `/api/v1/...`, `/healthz`, `/metrics`. The state
+//! holds the loaded trees behind one `RwLock<Arc<_>>`: a request clones the
+//! `Arc` and works on that snapshot, so a reload (SIGHUP) swaps in new trees
+//! without disturbing requests in flight.
+
+pub mod cut;
+pub mod error;
+mod handlers;
+pub mod metrics;
+mod stream;
+
+use std::collections::BTreeMap;
+use std::path::PathBuf;
+use std::sync::{Arc, RwLock};
+use std::time::Instant;
+
+use axum::Router;
+use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
+use axum::middleware::Next;
+use axum::response::Response;
+use axum::routing::get;
+use hdlod::tree::{Summary, Tree};
+use tower_http::compression::CompressionLayer;
+
+use self::metrics::Metrics;
+
+/// Largest request body: a cut request is well under 1 KiB.
+pub const BODY_LIMIT: usize = 64 * 1024;
+
+pub struct LoadedScene {
+    pub tree: Tree,
+    pub dir: PathBuf,
+    pub summary: Summary,
+}
+
+pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
+
+pub struct AppState {
+    scenes: RwLock<Arc<Scenes>>,
+    sources: Vec<PathBuf>,
+    pub metrics: Metrics,
+}
+
+fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
+    let tree = hdlod::tree::load(dir)?;
+    let summary = tree.summary();
+    Ok(LoadedScene {
+        tree,
+        dir: dir.clone(),
+        summary,
+    })
+}
+
+impl AppState {
+    /// Loads every tree; two trees of the same scene name are an error.
+    pub fn load(sources: Vec<PathBuf>) -> anyhow::Result<Arc<AppState>> {
+        let mut scenes = Scenes::new();
+        for dir in &sources {
+            let scene = load_one(dir)?;
+            let name = scene.tree.scene.clone();
+            if let Some(other) = scenes.insert(name.clone(), Arc::new(scene)) {
+                anyhow::bail!(
+                    "{} and {} both hold scene {name:?}",
+                    other.dir.display(),
+                    dir.display()
+                );
+            }
+        }
+        Ok(Arc::new(AppState {
+            scenes: RwLock::new(Arc::new(scenes)),
+            sources,
+            metrics: Metrics::default(),
+        }))
+    }
+
+    pub fn scenes(&self) -> Arc<Scenes> {
+        self.scenes.read().expect("no panic while holding").clone()
+    }
+
+    /// Re-reads every tree from disk. A tree that fails to load keeps its
+    /// previous version (and the error is returned for the log).
+    pub fn reload(&self) -> Vec<String> {
+        let old = self.scenes();
+        let mut next = Scenes::new();
+        let mut errors = Vec::new();
+        for dir in &self.sources {
+            match load_one(dir) {
+                Ok(scene) => {
+                    next.insert(scene.tree.scene.clone(), Arc::new(scene));
+                }
+                Err(e) => {
+                    errors.push(format!("{e:#}"));
+                    if let Some(previous) = old.values().find(|s| &s.dir == dir) {
+                        next.insert(previous.tree.scene.clone(), previous.clone());
+                    }
+                }
+            }
+        }
+        *self.scenes.write().expect("no panic while holding") = Arc::new(next);
+        self.metrics.reloaded();
+        errors
+    }
+}
+
+async fn record(State(state): State<Arc<AppState>>, request: Request, next: Next) -> Response {
+    let route = request
+        .extensions()
+        .get::<MatchedPath>()
+        .map(|p| p.as_str().to_owned())
+        .unwrap_or_else(|| "unmatched".into());
+    let start = Instant::now();
+    let response = next.run(request).await;
+    state.metrics.request(
+        &route,
+        response.status().as_u16(),
+        start.elapsed().as_secs_f64(),
+    );
+    response
+}
+
+pub fn router(state: Arc<AppState>) -> Router {
+    Router::new()
+        .route("/healthz", get(handlers::healthz))
+        .route("/metrics", get(handlers::metrics))
+        .route("/api/v1/openapi.json", get(handlers::openapi))
+        .route("/api/v1/scenes", get(handlers::scenes))
+        .route("/api/v1/scenes/{scene}", get(handlers::scene))
+        .route(
+            "/api/v1/scenes/{scene}/cut",
+            get(handlers::cut_get).post(handlers::cut_post),
+        )
+        .route(
+            "/api/v1/scenes/{scene}/geometry/{file}",
+            get(handlers::geometry),
+        )
+        .route("/api/v1/scenes/{scene}/stream", get(stream::stream))
+        .fallback(handlers::not_found)
+        .method_not_allowed_fallback(handlers::method_not_allowed)
+        .layer(axum::middleware::from_fn_with_state(state.clone(), record))
+        .layer(DefaultBodyLimit::max(BODY_LIMIT))
+        .layer(CompressionLayer::new())
+        .with_state(state)
+}

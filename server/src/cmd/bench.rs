@@ -1,0 +1,246 @@
+//! `hdlod bench paper TREE [--json]`: the paper's table 2 on a tree
+//! (`hdlod::tree::paper`), printed and written into docs/benchmarks.md.
+//! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
+//! their view at a fixed rate, bounded in time, reporting update latency.
+
+use std::path::PathBuf;
+use std::time::{Duration, Instant};
+
+use anyhow::Context;
+use futures_util::{SinkExt, StreamExt};
+use hdlod::tree::paper;
+use tokio_tungstenite::tungstenite::Message;
+
+#[derive(clap::Subcommand)]
+pub enum Bench {
+    /// The paper's table 2: cut against drawing every present object.
+    Paper(PaperArgs),
+    /// Concurrent WebSocket viewers against a running server.
+    Ws(WsArgs),
+}
+
+#[derive(clap::Args)]
+pub struct PaperArgs {
+    tree: PathBuf,
+    /// Print JSON rows instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// Frames of the animation across the period.
+    #[arg(long, default_value_t = 300)]
+    frames: usize,
+    /// Timings per cell (the median is reported).
+    #[arg(long, default_value_t = 21)]
+    repeats: usize,
+    /// Markdown file whose "paper table" section is replaced ("-": none).
+    #[arg(long, default_value = "docs/benchmarks.md")]
+    doc: String,
+}
+
+#[derive(clap::Args)]
+pub struct WsArgs {
+    /// The stream URL, ws://HOST:PORT/api/v1/scenes/NAME/stream.
+    #[arg(long)]
+    url: String,
+    /// The tree the server serves (for the scene's bounds and period).
+    #[arg(long)]
+    tree: PathBuf,
+    #[arg(long, default_value_t = 100)]
+    clients: usize,
+    /// View updates per second per client.
+    #[arg(long, default_value_t = 30.0)]
+    rate: f64,
+    #[arg(long, default_value_t = 10.0)]
+    seconds: f64,
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(bench: Bench) -> anyhow::Result<()> {
+    match bench {
+        Bench::Paper(a) => paper_table(a),
+        Bench::Ws(a) => ws(a),
+    }
+}
+
+const BEGIN: &str = "<!-- bench paper: begin -->";
+const END: &str = "<!-- bench paper: end -->";
+
+fn markdown(tree: &hdlod::tree::Tree, report: &paper::Report) -> String {
+    let mut out = format!(
+        "{BEGIN}\nScene `{}`, {} clusters; `hdlod bench paper`: 1920x1080, fov_y 60 degrees, 1 pixel of error.\n\n\
+         | time | screen | triangles | clusters | baseline triangles | baseline draws | ratio | cut (us) |\n\
+         |---|---|---|---|---|---|---|---|\n",
+        tree.scene,
+        tree.clusters.len()
+    );
+    for r in &report.rows {
+        out.push_str(&format!(
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1}x | {:.1} |\n",
+            r.time,
+            r.screen,
+            r.triangles,
+            r.clusters,
+            r.baseline_triangles,
+            r.baseline_draws,
+            r.baseline_triangles / r.triangles.max(1.0),
+            r.micros
+        ));
+    }
+    out.push_str(&format!(
+        "\nCut time over all {} views: median {:.1} us, p99 {:.1} us.\n{END}\n",
+        report.cuts, report.median_micros, report.p99_micros
+    ));
+    out
+}
+
+fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
+    let tree = hdlod::tree::load(&args.tree)?;
+    let report = paper::table(&tree, args.frames, args.repeats);
+    let table = markdown(&tree, &report);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print!("{table}");
+    }
+    if args.doc != "-" {
+        let path = PathBuf::from(&args.doc);
+        let old = std::fs::read_to_string(&path).unwrap_or_else(|_| "# Benchmarks\n".into());
+        let new = match (old.find(BEGIN), old.find(END)) {
+            (Some(a), Some(b)) if a < b => format!(
+                "{}{table}{}",
+                &old[..a],
+                &old[b + END.len()..].trim_start_matches('\n')
+            ),
+            _ => format!("{}\n## The paper's table 2\n\n{table}", old.trim_end()),
+        };
+        std::fs::write(&path, new).with_context(|| path.display().to_string())?;
+        eprintln!("table written into {}", path.display());
+    }
+    Ok(())
+}
+
+#[derive(Default)]
+struct ClientResult {
+    latencies: Vec<f64>,
+    errors: usize,
+}
+
+/// One viewer orbiting the scene while time runs over the period.
+async fn client(
+    url: String,
+    index: usize,
+    tree: std::sync::Arc<hdlod::tree::Tree>,
+    rate: f64,
+    seconds: f64,
+) -> ClientResult {
+    let mut result = ClientResult::default();
+    let Ok((mut socket, _)) = tokio_tungstenite::connect_async(&url).await else {
+        result.errors += 1;
+        return result;
+    };
+    let start = Instant::now();
+    let mut tick = tokio::time::interval(Duration::from_secs_f64(1.0 / rate));
+    let mut frame = 0usize;
+    while start.elapsed().as_secs_f64() < seconds {
+        tick.tick().await;
+        let phase = index as f64 * 0.37 + frame as f64 * 0.02;
+        let factor = 1.0 + (index % 4) as f64;
+        let mut camera = paper::camera(&tree, factor);
+        if let (Some(p), Some(c)) = (camera.position.as_mut(), camera.target) {
+            let (dx, dz) = (p[0] - c[0], p[2] - c[2]);
+            p[0] = c[0] + dx * phase.cos() - dz * phase.sin();
+            p[2] = c[2] + dx * phase.sin() + dz * phase.cos();
+        }
+        let t =
+            tree.time.seconds * ((frame as f64 / (rate * seconds)) + index as f64 / 100.0).fract();
+        let request = serde_json::json!({"time": t, "camera": camera, "viewport": {"width": 1920, "height": 1080}, "pixel_error": 1.0});
+        let sent = Instant::now();
+        if socket
+            .send(Message::text(request.to_string()))
+            .await
+            .is_err()
+        {
+            result.errors += 1;
+            break;
+        }
+        match socket.next().await {
+            Some(Ok(Message::Text(text))) if !text.as_str().starts_with("{\"error\"") => {
+                result.latencies.push(sent.elapsed().as_secs_f64() * 1000.0);
+            }
+            _ => result.errors += 1,
+        }
+        frame += 1;
+    }
+    let _ = socket.close(None).await;
+    result
+}
+
+fn ws(args: WsArgs) -> anyhow::Result<()> {
+    anyhow::ensure!(
+        args.rate > 0.0 && args.rate <= 1000.0,
+        "--rate must be in (0, 1000]"
+    );
+    anyhow::ensure!(
+        args.seconds > 0.0 && args.seconds <= 600.0,
+        "--seconds must be in (0, 600]"
+    );
+    anyhow::ensure!(
+        args.clients > 0 && args.clients <= 2000,
+        "--clients must be in [1, 2000]"
+    );
+    let tree = std::sync::Arc::new(hdlod::tree::load(&args.tree)?);
+    let runtime = tokio::runtime::Runtime::new()?;
+    let results = runtime.block_on(async {
+        let tasks: Vec<_> = (0..args.clients)
+            .map(|i| {
+                tokio::spawn(client(
+                    args.url.clone(),
+                    i,
+                    tree.clone(),
+                    args.rate,
+                    args.seconds,
+                ))
+            })
+            .collect();
+        let mut all = Vec::new();
+        for task in tasks {
+            all.push(task.await.unwrap_or_else(|_| ClientResult {
+                latencies: vec![],
+                errors: 1,
+            }));
+        }
+        all
+    });
+    let errors: usize = results.iter().map(|r| r.errors).sum();
+    let mut latencies: Vec<f64> = results.into_iter().flat_map(|r| r.latencies).collect();
+    latencies.sort_by(f64::total_cmp);
+    let pick = |p: f64| {
+        latencies
+            .get(((latencies.len().max(1) - 1) as f64 * p).round() as usize)
+            .copied()
+            .unwrap_or(0.0)
+    };
+    let summary = serde_json::json!({
+        "clients": args.clients, "rate": args.rate, "seconds": args.seconds,
+        "updates": latencies.len(), "errors": errors,
+        "updates_per_second": latencies.len() as f64 / args.seconds,
+        "latency_ms": {"p50": pick(0.5), "p90": pick(0.9), "p99": pick(0.99), "max": pick(1.0)},
+    });
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        println!(
+            "{} clients x {}/s for {} s: {} updates, {} errors, latency p50 {:.2} ms, p99 {:.2} ms, max {:.2} ms",
+            args.clients,
+            args.rate,
+            args.seconds,
+            latencies.len(),
+            errors,
+            pick(0.5),
+            pick(0.99),
+            pick(1.0)
+        );
+    }
+    anyhow::ensure!(errors == 0, "{errors} errors");
+    Ok(())
+}

@@ -1,0 +1,106 @@
+//! `hdlod cut TREE --time T (--camera-json FILE | --position .. --target ..)
+//! --pixel-error P [--viewport WxH] [--json]`: one cut from the command
+//! line; `--json` prints the same JSON as `POST /api/v1/scenes/{scene}/cut`.
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use hdlod::tree::CameraSpec;
+
+use crate::api::cut::{self, CutRequest};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// A tree directory (hdlod-tree/1).
+    tree: PathBuf,
+    /// Seconds since the scene's start, or an ISO 8601 date.
+    #[arg(long)]
+    time: String,
+    /// A file holding the `camera` object of the HTTP request.
+    #[arg(long, conflicts_with_all = ["position", "target", "up", "fov"])]
+    camera_json: Option<PathBuf>,
+    /// Eye position `x,y,z`.
+    #[arg(long, required_unless_present = "camera_json")]
+    position: Option<String>,
+    /// Point looked at, `x,y,z`.
+    #[arg(long, required_unless_present = "camera_json")]
+    target: Option<String>,
+    /// Up vector `x,y,z` (default: the scene's up axis).
+    #[arg(long)]
+    up: Option<String>,
+    /// Vertical field of view in degrees.
+    #[arg(long)]
+    fov: Option<f64>,
+    #[arg(long, default_value_t = 1.0)]
+    pixel_error: f64,
+    /// `WIDTHxHEIGHT`.
+    #[arg(long, default_value = "1920x1080")]
+    viewport: String,
+    /// Print the HTTP answer's JSON.
+    #[arg(long)]
+    json: bool,
+}
+
+fn api(e: crate::api::error::ApiError) -> anyhow::Error {
+    anyhow::anyhow!("{}: {}", e.field.unwrap_or_default(), e.message)
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let tree = hdlod::tree::load(&args.tree)?;
+    let camera = match &args.camera_json {
+        Some(file) => {
+            let text = std::fs::read(file).with_context(|| file.display().to_string())?;
+            let mut de = serde_json::Deserializer::from_slice(&text);
+            serde_path_to_error::deserialize(&mut de)
+                .map_err(|e| anyhow::anyhow!("{}: {}: {}", file.display(), e.path(), e.inner()))?
+        }
+        None => {
+            let mut pairs = Vec::new();
+            for (k, v) in [
+                ("position", &args.position),
+                ("target", &args.target),
+                ("up", &args.up),
+            ] {
+                if let Some(v) = v {
+                    pairs.push((k.to_owned(), v.clone()));
+                }
+            }
+            pairs.push(("time".into(), "0".into()));
+            let mut camera: CameraSpec = cut::parse_query(&pairs).map_err(api)?.camera;
+            camera.fov_y_deg = args.fov;
+            camera
+        }
+    };
+    let request = CutRequest {
+        time: cut::parse_time(&args.time),
+        camera,
+        viewport: cut::parse_viewport("--viewport", &args.viewport).map_err(api)?,
+        pixel_error: args.pixel_error,
+    };
+    let answer = cut::answer(&tree, &request).map_err(api)?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&answer)?);
+        return Ok(());
+    }
+    println!(
+        "{} at {} (t = {} s): {} clusters, {} triangles, {} visited, {:.1} us",
+        tree.scene,
+        answer.date,
+        answer.time,
+        answer.stats.clusters,
+        answer.stats.triangles,
+        answer.stats.visited,
+        answer.stats.micros
+    );
+    println!(
+        "{:>8} {:>15} {:>5} {:>10} {:>10} {:>6}",
+        "id", "class", "level", "triangles", "error", "v"
+    );
+    for c in &answer.clusters {
+        println!(
+            "{:>8} {:>15} {:>5} {:>10} {:>10.4} {:>6.3}",
+            c.id, c.class, c.level, c.triangles, c.error, c.visibility
+        );
+    }
+    Ok(())
+}
