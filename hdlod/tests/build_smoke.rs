@@ -2,7 +2,8 @@ use std::collections::HashMap;
 use std::sync::Mutex;
 
 use glam::{Mat4, Quat, Vec3};
-use hdlod::cluster::{BuildConfig, GeometrySink, Kind, Silent, build};
+use hdlod::cluster::{BuildConfig, GeometrySink, Silent, build};
+use hdlod::tree::ClusterClass;
 use hdlod::geometry::Mesh;
 use hdlod::scene::{Keyframe, Motion, Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility};
 use hdlod::time::{TimeSpan, parse_date};
@@ -102,9 +103,9 @@ fn scene(n: usize) -> Scene {
 fn builds_a_grid() {
     let s = scene(500);
     let sink = Memory(Mutex::new(HashMap::new()));
-    let built = build(&s, &BuildConfig::default(), &sink, &Silent).unwrap();
-    eprintln!("{:#?}", built.stats);
-    let leaves = built.clusters.iter().filter(|c| c.children.is_empty() && c.kind != Kind::Root).count();
+    let (tree, stats) = build(&s, &BuildConfig::default(), &sink, &Silent).unwrap();
+    eprintln!("{:#?}", stats);
+    let leaves = tree.clusters.iter().filter(|c| c.children.is_empty() && c.class != ClusterClass::Root).count();
     assert_eq!(leaves, 503);
 }
 

@@ -27,6 +27,8 @@ enum Command {
     Fixture(cmd::fixture::Fixture),
     /// Describe a scene (or a tree): counts per class, time span, bounds.
     Inspect(cmd::inspect::Args),
+    /// Build the HDLOD tree of a scene.
+    Build(cmd::build::Args),
     /// The cut of a tree for a time and camera.
     Cut(cmd::cut::Args),
     /// Serve trees over HTTP and WebSocket.
@@ -47,6 +49,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Fixture(c) => cmd::fixture::run(c),
         Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Build(a) => cmd::build::run(a),
         Command::Cut(a) => cmd::cut::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),

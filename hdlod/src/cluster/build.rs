@@ -5,10 +5,11 @@
 //! deterministic dynamics", Programming and Computer Software 46(3), 2020,
 //! appendix 2; the thresholds and errors are those of DESIGN.md.
 
+use std::path::Path;
 use std::time::Instant;
 
 use glam::{Mat4, Vec3};
-use obvhs::aabb::Aabb;
+use obvhs::aabb::Aabb as BvhBox;
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use rayon::prelude::*;
 
@@ -16,9 +17,10 @@ use super::config::{BuildConfig, Thresholds, level_count, thresholds};
 use super::dynamic::dynamic_chains;
 use super::hilbert::hilbert_key;
 use super::steps::Steps;
-use super::{Built, BuildStats, Cluster, GeometrySink, Kind, LevelStats, Progress};
+use super::{BuildStats, GeometrySink, LevelStats, Progress};
 use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy};
 use crate::scene::{Class, Scene};
+use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
 use crate::{Error, Result};
 
 /// A cluster while its level is being built: what the next level needs.
@@ -52,7 +54,7 @@ pub fn build(
     config: &BuildConfig,
     sink: &dyn GeometrySink,
     progress: &dyn Progress,
-) -> Result<Built> {
+) -> Result<(Tree, BuildStats)> {
     config
         .validate()
         .map_err(|(field, message)| Error::argument(format!("config.{field}"), message))?;
@@ -134,19 +136,20 @@ pub fn build(
         let w = f64::from((hi - lo).length());
         let id = clusters.len() as u32;
         clusters.push(Cluster {
+            id,
             parent: None,
             children: Vec::new(),
             level: 0,
-            kind: if tree == 0 {
-                Kind::Static
+            class: if tree == 0 {
+                ClusterClass::Static
             } else {
-                Kind::PseudoDynamic
+                ClusterClass::PseudoDynamic
             },
-            bounds: (lo, hi),
+            bounds: Aabb::from_f32(lo, hi),
             w,
             eps: 0.0,
             gamma: 0.0,
-            visibility: steps.clone(),
+            visibility: steps.to_tree(),
             motion: None,
             geometry: Some(hash),
             triangles: mesh.triangle_count() as u64,
@@ -186,8 +189,8 @@ pub fn build(
     let [static_leaves, pd_leaves] = leaves;
     let mut roots: Vec<u32> = Vec::new();
     for (kind, active) in [
-        (Kind::Static, static_leaves),
-        (Kind::PseudoDynamic, pd_leaves),
+        (ClusterClass::Static, static_leaves),
+        (ClusterClass::PseudoDynamic, pd_leaves),
     ] {
         let clock = Instant::now();
         let (top, level_stats) = cluster_class(
@@ -202,7 +205,7 @@ pub fn build(
         )?;
         roots.extend(top);
         let name = match kind {
-            Kind::Static => {
+            ClusterClass::Static => {
                 stats.static_levels = level_stats;
                 "static"
             }
@@ -226,10 +229,14 @@ pub fn build(
 
     // The virtual root: no geometry, w and v aggregated like any cluster.
     let root = clusters.len() as u32;
-    let parts: Vec<(f64, &Steps)> = roots
+    let root_steps: Vec<(f64, Steps)> = roots
         .iter()
-        .map(|&r| (clusters[r as usize].w, &clusters[r as usize].visibility))
+        .map(|&r| {
+            let c = &clusters[r as usize];
+            (c.w, Steps::from_tree(&c.visibility))
+        })
         .collect();
+    let parts: Vec<(f64, &Steps)> = root_steps.iter().map(|(w, s)| (*w, s)).collect();
     let visibility = Steps::weighted_mean(&parts).simplified(config.max_steps, span);
     let (rlo, rhi) = roots.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -252,38 +259,62 @@ pub fn build(
         clusters[r as usize].parent = Some(root);
     }
     clusters.push(Cluster {
+        id: root,
         parent: None,
         children: roots,
         level: clusters.iter().map(|c| c.level).max().unwrap_or(0) + 1,
-        kind: Kind::Root,
-        bounds,
+        class: ClusterClass::Root,
+        bounds: Aabb::from_f32(bounds.0, bounds.1),
         w: f64::from((bounds.1 - bounds.0).length()),
         eps,
         gamma: 0.0,
-        visibility,
+        visibility: visibility.to_tree(),
         motion: None,
         geometry: None,
         triangles: 0,
         objects: Vec::new(),
     });
     stats.phases.push(("root".into(), clock.elapsed().as_secs_f64()));
-    Ok(Built {
-        clusters,
+    let tree = Tree {
+        scene: scene.name.clone(),
+        time: scene.time,
+        bounds: clusters[root as usize].bounds,
+        up: scene.up,
         root,
-        stats,
-    })
+        config: serde_json::to_value(config).expect("the config serialises"),
+        stats: serde_json::to_value(&stats).expect("the statistics serialise"),
+        clusters,
+    };
+    Ok((tree, stats))
+}
+
+/// Builds the tree of `scene` into the directory `out`, atomically: a
+/// failed build leaves what was there before.
+pub fn build_to(
+    scene: &Scene,
+    config: &BuildConfig,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<(Tree, BuildStats)> {
+    let writer = TreeWriter::create(out)?;
+    let (tree, stats) = build(scene, config, &writer, progress)?;
+    progress.phase("write", 1);
+    writer.finish(&tree)?;
+    progress.advance(1);
+    Ok((tree, stats))
 }
 
 /// The box of a cluster in the world over the whole span: a dynamic
 /// cluster's own box moved by every keyframe.
 fn world_box(c: &Cluster) -> (Vec3, Vec3) {
+    let own = (c.bounds.min.as_vec3(), c.bounds.max.as_vec3());
     let Some(motion) = &c.motion else {
-        return c.bounds;
+        return own;
     };
     let mut lo = Vec3::splat(f32::INFINITY);
     let mut hi = Vec3::splat(f32::NEG_INFINITY);
     for k in motion.keyframes() {
-        let (a, b) = transform_box(&k.matrix(), c.bounds);
+        let (a, b) = transform_box(&k.matrix(), own);
         lo = lo.min(a);
         hi = hi.max(b);
     }
@@ -312,7 +343,7 @@ fn transform_box(m: &Mat4, (lo, hi): (Vec3, Vec3)) -> (Vec3, Vec3) {
 fn cluster_class(
     ctx: &Context,
     clusters: &mut Vec<Cluster>,
-    kind: Kind,
+    kind: ClusterClass,
     mut active: Vec<Active>,
     (scene_lo, scene_hi): (Vec3, Vec3),
     scene_w: f64,
@@ -329,7 +360,7 @@ fn cluster_class(
         let name = format!(
             "{} level {level}/{levels}",
             match kind {
-                Kind::Static => "static",
+                ClusterClass::Static => "static",
                 _ => "pseudo-dynamic",
             }
         );
@@ -369,15 +400,16 @@ fn cluster_class(
             stats.max_eps = stats.max_eps.max(eps);
             stats.max_gamma = stats.max_gamma.max(gamma);
             clusters.push(Cluster {
+                id,
                 parent: None,
                 children: children.iter().map(|c| c.id).collect(),
                 level,
-                kind,
-                bounds: (lo, hi),
+                class: kind,
+                bounds: Aabb::from_f32(lo, hi),
                 w,
                 eps,
                 gamma,
-                visibility: steps.clone(),
+                visibility: steps.to_tree(),
                 motion: None,
                 geometry: Some(hash),
                 triangles: mesh.triangle_count() as u64,
@@ -439,11 +471,11 @@ fn group(
     active: &[Active],
     th: &Thresholds,
     (scene_lo, scene_hi): (Vec3, Vec3),
-    kind: Kind,
+    kind: ClusterClass,
 ) -> Vec<Vec<usize>> {
-    let aabbs: Vec<Aabb> = active
+    let aabbs: Vec<BvhBox> = active
         .iter()
-        .map(|a| Aabb::new(a.lo.into(), a.hi.into()))
+        .map(|a| BvhBox::new(a.lo.into(), a.hi.into()))
         .collect();
     let bvh = PlocBuilder::new().build(
         PlocSearchDistance::Minimum,
@@ -473,7 +505,7 @@ fn group(
             continue;
         }
         let centre = (rep.lo + rep.hi) * 0.5;
-        let query = Aabb::new((rep.lo - w_max).into(), (rep.hi + w_max).into());
+        let query = BvhBox::new((rep.lo - w_max).into(), (rep.hi + w_max).into());
         candidates.clear();
         bvh.aabb_traverse(query, |bvh, node| {
             let node = &bvh.nodes[node as usize];
@@ -499,7 +531,7 @@ fn group(
             if diag(nlo, nhi) > w_max {
                 continue;
             }
-            if kind == Kind::PseudoDynamic {
+            if kind == ClusterClass::PseudoDynamic {
                 let mut trial: Vec<&Active> = members.iter().map(|&m| &active[m]).collect();
                 trial.push(c);
                 if temporal(ctx, &trial).2 > th.gamma {

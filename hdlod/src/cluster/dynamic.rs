@@ -11,7 +11,8 @@ use rayon::prelude::*;
 
 use super::build::Context;
 use super::steps::Steps;
-use super::{Cluster, Kind, LevelStats, Progress};
+use super::{LevelStats, Progress};
+use crate::tree::{Aabb, Cluster, ClusterClass};
 use crate::Result;
 use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions};
 use crate::scene::Scene;
@@ -120,7 +121,7 @@ pub(super) fn dynamic_chains(
     for &i in objects {
         let o = &scene.objects[i];
         let versions = &by_model[&key(i)];
-        let visibility = Steps::of_visibility(&o.visibility, ctx.span);
+        let visibility = Steps::of_visibility(&o.visibility, ctx.span).to_tree();
         let mut below: Option<u32> = None;
         for (level, v) in versions.iter().enumerate() {
             let id = clusters.len() as u32;
@@ -130,11 +131,12 @@ pub(super) fn dynamic_chains(
             let motion = o.motion.clone();
             let w = f64::from((v.bounds.1 - v.bounds.0).length());
             clusters.push(Cluster {
+                id,
                 parent: None,
                 children: below.into_iter().collect(),
                 level: level as u32,
-                kind: Kind::Dynamic,
-                bounds: v.bounds,
+                class: ClusterClass::Dynamic,
+                bounds: Aabb::from_f32(v.bounds.0, v.bounds.1),
                 w,
                 eps: v.eps,
                 gamma: 0.0,

@@ -9,13 +9,12 @@ mod dynamic;
 mod hilbert;
 mod steps;
 
-use glam::Vec3;
-
 use crate::Result;
 use crate::geometry::Mesh;
-use crate::scene::Motion;
+use crate::io::glb::mesh_to_glb;
+use crate::tree::TreeWriter;
 
-pub use build::build;
+pub use build::{build, build_to};
 pub use config::{BuildConfig, Thresholds, level_count, thresholds};
 pub use hilbert::hilbert_key;
 pub use steps::Steps;
@@ -24,6 +23,12 @@ pub use steps::Steps;
 /// which the mesh is stored. Called from several threads.
 pub trait GeometrySink: Sync {
     fn put(&self, mesh: &Mesh) -> Result<String>;
+}
+
+impl GeometrySink for TreeWriter {
+    fn put(&self, mesh: &Mesh) -> Result<String> {
+        self.put_geometry(&mesh_to_glb(mesh))
+    }
 }
 
 /// Progress of a long build: a phase with a known amount of work, then
@@ -39,36 +44,6 @@ pub struct Silent;
 impl Progress for Silent {
     fn phase(&self, _: &str, _: u64) {}
     fn advance(&self, _: u64) {}
-}
-
-/// The kind of a cluster in the tree.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
-pub enum Kind {
-    Root,
-    Static,
-    PseudoDynamic,
-    Dynamic,
-}
-
-/// One cluster `(g_c, v_c, p_c, b_c, w_c, eps_c, gamma_c)` as built. Its id
-/// is its index in [`Built::clusters`].
-#[derive(Debug, Clone)]
-pub struct Cluster {
-    pub parent: Option<u32>,
-    pub children: Vec<u32>,
-    pub level: u32,
-    pub kind: Kind,
-    /// Box in the cluster's own frame (world frame unless dynamic).
-    pub bounds: (Vec3, Vec3),
-    pub w: f64,
-    pub eps: f64,
-    pub gamma: f64,
-    pub visibility: Steps,
-    pub motion: Option<Motion>,
-    pub geometry: Option<String>,
-    pub triangles: u64,
-    /// Ids of the scene objects of a leaf.
-    pub objects: Vec<String>,
 }
 
 /// Per level of one class: clusters made and their triangles, and the
@@ -96,9 +71,3 @@ pub struct BuildStats {
     pub phases: Vec<(String, f64)>,
 }
 
-#[derive(Debug, Clone)]
-pub struct Built {
-    pub clusters: Vec<Cluster>,
-    pub root: u32,
-    pub stats: BuildStats,
-}

@@ -56,8 +56,20 @@ impl Steps {
         if i == 0 { 0.0 } else { self.points[i - 1].1 }
     }
 
-    pub fn max(&self) -> f64 {
-        self.points.iter().map(|p| p.1).fold(0.0, f64::max)
+    pub fn from_tree(steps: &crate::tree::Steps) -> Steps {
+        Steps::canonical(
+            steps
+                .steps()
+                .iter()
+                .map(|&(t, v)| (t, f64::from(v)))
+                .collect(),
+        )
+    }
+
+    /// The stored form (single-precision values, as the tree keeps them).
+    pub fn to_tree(&self) -> crate::tree::Steps {
+        crate::tree::Steps::new(self.points.iter().map(|&(t, v)| (t, v as f32)).collect())
+            .expect("canonical steps are sorted, finite and within [0, 1]")
     }
 
     /// `sum w_i f_i / sum w_i`, exact (every breakpoint of every input kept).

@@ -3,3 +3,5 @@ pub mod cut;
 pub mod fixture;
 pub mod inspect;
 pub mod serve;
+pub mod build;
+pub mod progress;

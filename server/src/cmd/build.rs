@@ -1,0 +1,159 @@
+//! `hdlod build SCENE --out TREE [--config FILE] [--json]`.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use hdlod::cluster::{BuildConfig, BuildStats, LevelStats, build_to};
+use hdlod::scene::format;
+use serde::Serialize;
+
+use super::progress::Report;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The scene: a directory with scene.json (hdlod-scene/1), or the file.
+    scene: PathBuf,
+    /// The tree directory to write (replaced atomically on success).
+    #[arg(long)]
+    out: PathBuf,
+    /// Build configuration (JSON, the fields of `BuildConfig`; see
+    /// docs/formats.md). Missing fields take their defaults.
+    #[arg(long)]
+    config: Option<PathBuf>,
+    /// Print a JSON summary on stdout instead of a table.
+    #[arg(long)]
+    json: bool,
+}
+
+/// The `--json` summary (schemas/build-summary.schema.json).
+#[derive(Serialize)]
+struct Summary<'a> {
+    scene: &'a str,
+    out: String,
+    seconds: f64,
+    objects: usize,
+    clusters: usize,
+    levels: u32,
+    absent_objects: usize,
+    phases: Vec<Phase<'a>>,
+    classes: Vec<ClassLevels<'a>>,
+}
+
+#[derive(Serialize)]
+struct Phase<'a> {
+    name: &'a str,
+    seconds: f64,
+}
+
+#[derive(Serialize)]
+struct ClassLevels<'a> {
+    class: &'static str,
+    levels: &'a [LevelStats],
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let started = Instant::now();
+    let config = match &args.config {
+        Some(path) => read_config(path)?,
+        None => BuildConfig::default(),
+    };
+    let report = Report::new(args.json);
+    let scene = format::load(&args.scene)
+        .with_context(|| format!("cannot load the scene {}", args.scene.display()))?;
+    let load_seconds = started.elapsed().as_secs_f64();
+    let (tree, stats) = build_to(&scene, &config, &args.out, &report)
+        .with_context(|| format!("cannot build the tree {}", args.out.display()))?;
+    report.finish();
+    let mut phases = vec![Phase {
+        name: "load",
+        seconds: load_seconds,
+    }];
+    phases.extend(stats.phases.iter().map(|(name, seconds)| Phase {
+        name,
+        seconds: *seconds,
+    }));
+    let summary = Summary {
+        scene: &scene.name,
+        out: args.out.display().to_string(),
+        seconds: started.elapsed().as_secs_f64(),
+        objects: scene.objects.len(),
+        clusters: tree.clusters.len(),
+        levels: stats.levels,
+        absent_objects: stats.absent_objects.len(),
+        phases,
+        classes: class_levels(&stats),
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&summary)?);
+    } else {
+        print!("{}", table(&summary));
+    }
+    Ok(())
+}
+
+fn class_levels(stats: &BuildStats) -> Vec<ClassLevels<'_>> {
+    vec![
+        ClassLevels {
+            class: "static",
+            levels: &stats.static_levels,
+        },
+        ClassLevels {
+            class: "pseudo_dynamic",
+            levels: &stats.pseudo_dynamic_levels,
+        },
+        ClassLevels {
+            class: "dynamic",
+            levels: &stats.dynamic_levels,
+        },
+    ]
+}
+
+fn read_config(path: &Path) -> anyhow::Result<BuildConfig> {
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let config: BuildConfig = serde_json::from_str(&text)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    config
+        .validate()
+        .map_err(|(field, message)| anyhow::anyhow!("{}: {field}: {message}", path.display()))?;
+    Ok(config)
+}
+
+fn table(s: &Summary) -> String {
+    let mut out = format!(
+        "built {} -> {}: {} objects, {} clusters, {} levels, {:.2} s\n",
+        s.scene, s.out, s.objects, s.clusters, s.levels, s.seconds
+    );
+    if s.absent_objects > 0 {
+        out += &format!("{} objects are never visible and were left out\n", s.absent_objects);
+    }
+    out += &format!(
+        "\n{:<16} {:>5} {:>9} {:>11} {:>7} {:>10} {:>9}\n",
+        "class", "level", "clusters", "triangles", "ratio", "max eps", "max gamma"
+    );
+    for c in &s.classes {
+        for l in c.levels {
+            let ratio = if l.children_triangles > 0 {
+                l.triangles as f64 / l.children_triangles as f64
+            } else {
+                1.0
+            };
+            out += &format!(
+                "{:<16} {:>5} {:>9} {:>11} {:>6.0}% {:>10.4} {:>9.4}\n",
+                c.class,
+                l.level,
+                l.clusters,
+                l.triangles,
+                ratio * 100.0,
+                l.max_eps,
+                l.max_gamma
+            );
+        }
+    }
+    out += "\nphase              seconds\n";
+    for p in &s.phases {
+        out += &format!("{:<16} {:>9.3}\n", p.name, p.seconds);
+    }
+    out
+}
