@@ -1,6 +1,7 @@
 //! Times `scene::format::save` and `load` on a synthetic scene of the
 //! paper's size (56,157 objects, about 4.26 M triangles; DESIGN.md
-//! section 5). Run with `cargo run --release --example scene_io_bench [DIR]`.
+//! section 5). Run with `cargo run --release --example scene_io_bench [DIR]`
+//! (a DIR given is kept).
 
 use std::collections::BTreeMap;
 use std::time::Instant;
@@ -120,9 +121,10 @@ fn paper_sized() -> Scene {
 }
 
 fn main() {
-    let dir = std::env::args()
-        .nth(1)
-        .map(std::path::PathBuf::from)
+    // A directory given on the command line is kept for inspection.
+    let given = std::env::args().nth(1).map(std::path::PathBuf::from);
+    let dir = given
+        .clone()
         .unwrap_or_else(|| std::env::temp_dir().join("hdlod-scene-io-bench"));
     let scene = paper_sized();
     let t = Instant::now();
@@ -144,5 +146,7 @@ fn main() {
         summary.meshes,
         glb as f64 / 1e6
     );
-    std::fs::remove_dir_all(&dir).unwrap();
+    if given.is_none() {
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
 }
