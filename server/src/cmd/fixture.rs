@@ -35,6 +35,12 @@ pub fn run(fixture: Fixture) -> anyhow::Result<()> {
         check,
     } = fixture;
     let scale = Scale::parse(&scale)?;
+    if let Some(dir) = out {
+        anyhow::bail!(
+            "{}: writing scene files needs the hdlod-scene/1 writer, which this build does not have yet",
+            dir.display()
+        );
+    }
     let started = Instant::now();
     let scene = skyscraper(scale, seed);
     let generated = started.elapsed().as_secs_f64();
@@ -73,12 +79,6 @@ pub fn run(fixture: Fixture) -> anyhow::Result<()> {
             .map_err(anyhow::Error::msg)
             .context("--check")?;
         println!("within 3% of table 1");
-    }
-    if let Some(dir) = out {
-        anyhow::bail!(
-            "{}: writing scene files needs the hdlod-scene/1 writer, which this build does not have yet",
-            dir.display()
-        );
     }
     Ok(())
 }
