@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Subcommand;
-use hdlod::fixture::{Census, Scale, skyscraper};
-use hdlod::scene::Class;
+use hdlod::fixture::{Scale, check_table_1, skyscraper};
+use hdlod::scene::{Summary, format};
 
 #[derive(Subcommand)]
 pub enum Fixture {
@@ -18,8 +18,9 @@ pub enum Fixture {
         scale: String,
         #[arg(long, default_value_t = 1)]
         seed: u64,
-        /// Directory to write the scene to (hdlod-scene/1).
-        #[arg(long)]
+        /// Directory to write the scene to (hdlod-scene/1); replaced only
+        /// when the whole scene is written.
+        #[arg(long, required_unless_present = "check")]
         out: Option<PathBuf>,
         /// Fail unless every count is within 3% of the paper's table 1.
         #[arg(long)]
@@ -35,16 +36,14 @@ pub fn run(fixture: Fixture) -> anyhow::Result<()> {
         check,
     } = fixture;
     let scale = Scale::parse(&scale)?;
-    if let Some(dir) = out {
-        anyhow::bail!(
-            "{}: writing scene files needs the hdlod-scene/1 writer, which this build does not have yet",
-            dir.display()
-        );
-    }
+    anyhow::ensure!(
+        !check || scale == Scale::Paper,
+        "--check compares with the paper's table 1: use it with --scale paper"
+    );
     let started = Instant::now();
     let scene = skyscraper(scale, seed);
     let generated = started.elapsed().as_secs_f64();
-    let census = Census::of(&scene);
+    let summary = Summary::of(&scene);
     println!(
         "{}: {} objects, {} meshes, {} tasks, {:.0} days",
         scene.name,
@@ -54,28 +53,33 @@ pub fn run(fixture: Fixture) -> anyhow::Result<()> {
         scene.time.seconds / 86_400.0
     );
     println!("{:<16} {:>9} {:>11}", "class", "objects", "triangles");
-    for class in Class::ALL {
+    for (class, counts) in &summary.classes {
         println!(
             "{:<16} {:>9} {:>11}",
             class.name(),
-            census.objects(class),
-            census.triangles(class)
+            counts.objects,
+            counts.triangles
         );
     }
-    let types: Vec<String> = census
-        .visibility
+    let types: Vec<String> = summary
+        .visibility_types
         .iter()
         .map(|(kind, n)| format!("{kind:?} {n}"))
         .collect();
     println!("visibility types: {}", types.join(", "));
     println!("generated in {generated:.2} s");
-    if check {
-        anyhow::ensure!(
-            scale == Scale::Paper,
-            "--check compares with the paper's table 1: use it with --scale paper"
+    if let Some(dir) = out {
+        let started = Instant::now();
+        format::save(&scene, &dir)
+            .with_context(|| format!("cannot write the scene to {}", dir.display()))?;
+        println!(
+            "written to {} in {:.2} s",
+            dir.display(),
+            started.elapsed().as_secs_f64()
         );
-        census
-            .check_table_1()
+    }
+    if check {
+        check_table_1(&summary)
             .map_err(anyhow::Error::msg)
             .context("--check")?;
         println!("within 3% of table 1");
