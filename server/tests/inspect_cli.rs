@@ -80,8 +80,10 @@ fn bad_scene_exits_non_zero_with_the_reason() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = saved_sample(tmp.path());
     let file = scene.join("scene.json");
-    let text = std::fs::read_to_string(&file).unwrap();
-    std::fs::write(&file, text.replace("\"C-1\"\n", "\"nobody\"\n")).unwrap();
+    let mut json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&file).unwrap()).unwrap();
+    json["tasks"][0]["objects"] = serde_json::json!(["nobody"]);
+    std::fs::write(&file, json.to_string()).unwrap();
     let out = hdlod(&["inspect".as_ref(), scene.as_os_str(), "--json".as_ref()]);
     assert!(!out.status.success());
     assert!(out.stdout.is_empty());

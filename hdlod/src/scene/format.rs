@@ -339,7 +339,9 @@ pub fn save(scene: &Scene, dir: &Path) -> Result<()> {
     check(scene)?;
     let model = format!("{}.glb", scene.name);
     let glb = scene_glb(scene)?;
-    let json = serde_json::to_vec_pretty(&scene_file(scene, &model))
+    // Compact: a paper-size scene has 150,000 keyframes, which pretty printing
+    // would spread over millions of lines.
+    let json = serde_json::to_vec(&scene_file(scene, &model))
         .map_err(|e| Error::argument("scene", e.to_string()))?;
 
     let parent = match dir.parent() {
