@@ -26,6 +26,8 @@ enum Command {
     Fixture(cmd::fixture::Fixture),
     /// Describe a scene (or a tree): counts per class, time span, bounds.
     Inspect(cmd::inspect::Args),
+    /// Simplify one mesh file and measure the result against it.
+    Simplify(cmd::simplify::Args),
 }
 
 fn main() -> ExitCode {
@@ -39,6 +41,7 @@ fn main() -> ExitCode {
     let result = match cli.command {
         Command::Fixture(c) => cmd::fixture::run(c),
         Command::Inspect(a) => cmd::inspect::run(a),
+        Command::Simplify(a) => cmd::simplify::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

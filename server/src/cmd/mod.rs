@@ -1,2 +1,3 @@
 pub mod fixture;
 pub mod inspect;
+pub mod simplify;
