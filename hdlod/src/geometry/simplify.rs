@@ -74,7 +74,7 @@ pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
     // An empty result (the budget let a step remove every component) is no
     // result: a cluster must keep some geometry.
     let mut best: Option<(Vec<u32>, Strategy)> = None;
-    let mut consider = |indices: Vec<u32>, strategy, best: &mut Option<(Vec<u32>, Strategy)>| {
+    let consider = |indices: Vec<u32>, strategy, best: &mut Option<(Vec<u32>, Strategy)>| {
         let current = best.as_ref().map_or(3 * n, |(b, _)| b.len());
         let gain = if best.is_some() { FALLBACK_GAIN } else { 1.0 };
         if !indices.is_empty() && (indices.len() as f32) < gain * current as f32 {
