@@ -159,6 +159,27 @@ fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
         .collect()
 }
 
+/// When the corners' nearest triangles do not settle a triangle, the one
+/// nearest to its centroid may: on coincident surfaces a corner is equally
+/// near to every triangle around it, the centroid only to the right one.
+/// The centroid's distance also raises the lower bound.
+fn centroid_bound(
+    distance: &mut impl FnMut(Vec3, Option<u32>) -> (f32, u32),
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    upper: f32,
+    lower: &mut f32,
+) -> f32 {
+    let (dc, tc) = distance((c[0] + c[1] + c[2]) / 3.0, Some(nearest[0]));
+    *lower = lower.max(dc);
+    if nearest.contains(&tc) {
+        return upper;
+    }
+    single_triangle_bound(b, c, d, nearest, tc, upper)
+}
+
 struct OneWay {
     upper: f32,
     lower: f32,
@@ -213,23 +234,34 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
         .fold(f32::INFINITY, f32::min);
     let mut best = lipschitz;
     for (k, &t) in nearest.iter().enumerate() {
-        if nearest[..k].contains(&t) {
-            continue;
+        if !nearest[..k].contains(&t) {
+            best = single_triangle_bound(b, c, d, nearest, t, best);
         }
-        let mut worst = 0.0f32;
-        for i in 0..3 {
-            worst = worst.max(if nearest[i] == t {
-                d[i]
-            } else {
-                b.distance_to(c[i], t)
-            });
-            if worst >= best {
-                break;
-            }
-        }
-        best = best.min(worst);
     }
     best
+}
+
+/// `min(best, max_i d(c_i, t))`, stopping early once it cannot beat `best`.
+fn single_triangle_bound(
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    t: u32,
+    best: f32,
+) -> f32 {
+    let mut worst = 0.0f32;
+    for i in 0..3 {
+        worst = worst.max(if nearest[i] == t {
+            d[i]
+        } else {
+            b.distance_to(c[i], t)
+        });
+        if worst >= best {
+            return best;
+        }
+    }
+    worst
 }
 
 /// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the
@@ -307,7 +339,10 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
     let mut settled = 0.0f32;
     let mut open = BinaryHeap::new();
     for (t, (d, near)) in a.iter().zip(&corners) {
-        let upper = triangle_upper(b, t, d, near);
+        let mut upper = triangle_upper(b, t, d, near);
+        if upper > lower + tolerance {
+            upper = centroid_bound(&mut distance, b, t, d, near, upper, &mut lower);
+        }
         if upper <= lower + tolerance {
             settled = settled.max(upper);
         } else {
@@ -341,7 +376,10 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
             ([m01, m12, m20], [e01, e12, e20], [k01, k12, k20]),
         ];
         for (c, d, near) in children {
-            let u = triangle_upper(b, &c, &d, &near);
+            let mut u = triangle_upper(b, &c, &d, &near);
+            if u > lower + tolerance {
+                u = centroid_bound(&mut distance, b, &c, &d, &near, u, &mut lower);
+            }
             if u <= lower + tolerance {
                 settled = settled.max(u);
             } else {
