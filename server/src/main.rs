@@ -36,6 +36,8 @@ enum Command {
     /// Benchmarks: the paper's table, WebSocket load.
     #[command(subcommand)]
     Bench(cmd::bench::Bench),
+    /// Simplify one mesh file and measure the result against it.
+    Simplify(cmd::simplify::Args),
 }
 
 fn main() -> ExitCode {
@@ -53,6 +55,7 @@ fn main() -> ExitCode {
         Command::Cut(a) => cmd::cut::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),
+        Command::Simplify(a) => cmd::simplify::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

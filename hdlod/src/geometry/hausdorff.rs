@@ -6,8 +6,10 @@
 //! The distance to the other surface, `d(p)`, is 1-Lipschitz. For a triangle
 //! with exact corner distances `d_i`, every point `p` of it satisfies
 //! `d(p) <= d_i + |p - c_i| <= d_i + max_j |c_j - c_i|` for each corner `i`,
-//! so `min_i (d_i + max_j |c_j - c_i|)` bounds `d` over the whole triangle,
-//! and any exact `d(p)` is a lower bound of the supremum. Triangles whose
+//! so `min_i (d_i + max_j |c_j - c_i|)` bounds `d` over the whole triangle;
+//! and the distance to any single triangle of the other mesh is convex, so
+//! its largest value over the triangle is at a corner, another bound (see
+//! `triangle_upper`). Any exact `d(p)` is a lower bound of the supremum. Triangles whose
 //! upper bound could still raise the running lower bound are split 4 ways at
 //! their edge midpoints, largest bound first, until the gap between the two
 //! is at most the tolerance. Every number returned as a bound is one.
@@ -30,7 +32,7 @@ use super::closest::TriangleSet;
 const MAX_DEPTH: u8 = 16;
 /// Open triangles kept at once; past this the search stops with the bound
 /// it has, to keep memory bounded on pathological inputs.
-const MAX_OPEN: usize = 1 << 22;
+const MAX_OPEN: usize = 1 << 20;
 /// Tolerances below this fraction of the scene diagonal are raised to it:
 /// finer than float precision is not meaningful and would not terminate.
 const MIN_RELATIVE_TOLERANCE: f32 = 1e-6;
@@ -124,7 +126,12 @@ pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
     let set_a = TriangleSet::new(tris_a.iter().copied());
     let set_b = TriangleSet::new(tris_b.iter().copied());
     let ab = one_way(&tris_a, &set_b, tolerance, options.seed);
-    let ba = one_way(&tris_b, &set_a, tolerance, options.seed ^ 0x9e37_79b9_7f4a_7c15);
+    let ba = one_way(
+        &tris_b,
+        &set_a,
+        tolerance,
+        options.seed ^ 0x9e37_79b9_7f4a_7c15,
+    );
     let n = (ab.samples + ba.samples).max(1) as f64;
     Hausdorff {
         bound: ab.upper.max(ba.upper) + slack,
@@ -152,6 +159,27 @@ fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
         .collect()
 }
 
+/// When the corners' nearest triangles do not settle a triangle, the one
+/// nearest to its centroid may: on coincident surfaces a corner is equally
+/// near to every triangle around it, the centroid only to the right one.
+/// The centroid's distance also raises the lower bound.
+fn centroid_bound(
+    distance: &mut impl FnMut(Vec3, Option<u32>) -> (f32, u32),
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    upper: f32,
+    lower: &mut f32,
+) -> f32 {
+    let (dc, tc) = distance((c[0] + c[1] + c[2]) / 3.0, Some(nearest[0]));
+    *lower = lower.max(dc);
+    if nearest.contains(&tc) {
+        return upper;
+    }
+    single_triangle_bound(b, c, d, nearest, tc, upper)
+}
+
 struct OneWay {
     upper: f32,
     lower: f32,
@@ -164,8 +192,9 @@ struct OneWay {
 struct Open {
     upper: f32,
     corners: [Vec3; 3],
+    /// Exact distance of each corner to B, and B's triangle that attains it.
     distances: [f32; 3],
-    hint: u32,
+    nearest: [u32; 3],
     depth: u8,
 }
 
@@ -186,15 +215,53 @@ impl Ord for Open {
     }
 }
 
-fn triangle_upper(c: &[Vec3; 3], d: &[f32; 3]) -> f32 {
-    (0..3)
+/// An upper bound of `d(p, B)` over triangle `c`, the least of two:
+/// - Lipschitz: `min_i (d_i + max_j |c_j - c_i|)`;
+/// - convexity: for any one triangle `t` of B, `p -> d(p, t)` is convex, so
+///   its maximum over `c` is at a corner, and `d(p, B) <= d(p, t)`; the
+///   triangles nearest to the corners are the candidates for `t`. This one
+///   is exact where a triangle of A lies over a single triangle of B (above
+///   all, coincident surfaces, where the first would need splitting down to
+///   the tolerance).
+fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 3]) -> f32 {
+    let lipschitz = (0..3)
         .map(|i| {
             let far = c[(i + 1) % 3]
                 .distance(c[i])
                 .max(c[(i + 2) % 3].distance(c[i]));
             d[i] + far
         })
-        .fold(f32::INFINITY, f32::min)
+        .fold(f32::INFINITY, f32::min);
+    let mut best = lipschitz;
+    for (k, &t) in nearest.iter().enumerate() {
+        if !nearest[..k].contains(&t) {
+            best = single_triangle_bound(b, c, d, nearest, t, best);
+        }
+    }
+    best
+}
+
+/// `min(best, max_i d(c_i, t))`, stopping early once it cannot beat `best`.
+fn single_triangle_bound(
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    t: u32,
+    best: f32,
+) -> f32 {
+    let mut worst = 0.0f32;
+    for i in 0..3 {
+        worst = worst.max(if nearest[i] == t {
+            d[i]
+        } else {
+            b.distance_to(c[i], t)
+        });
+        if worst >= best {
+            return best;
+        }
+    }
+    worst
 }
 
 /// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the
@@ -203,9 +270,9 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
     let mut hint = None;
     let mut distance = |p: Vec3, h: Option<u32>| -> (f32, u32) {
         // `b` is not empty, so a nearest triangle always exists.
-        let n = b.nearest(p, h.or(hint)).map_or((0.0, 0), |n| {
-            (n.distance_squared.sqrt(), n.triangle)
-        });
+        let n = b
+            .nearest(p, h.or(hint))
+            .map_or((0.0, 0), |n| (n.distance_squared.sqrt(), n.triangle));
         hint = Some(n.1);
         n
     };
@@ -219,15 +286,13 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
         std::collections::HashMap::with_capacity(a.len());
     for t in a {
         let mut d = [0.0; 3];
-        let mut h = 0;
+        let mut near = [0; 3];
         for (k, p) in t.iter().enumerate() {
             let key = p.to_array().map(f32::to_bits);
-            let (dist, tri) = *known.entry(key).or_insert_with(|| distance(*p, None));
-            d[k] = dist;
-            h = tri;
+            (d[k], near[k]) = *known.entry(key).or_insert_with(|| distance(*p, None));
         }
         lower = lower.max(d[0]).max(d[1]).max(d[2]);
-        corners.push((d, h));
+        corners.push((d, near));
     }
 
     let areas: Vec<f64> = a
@@ -252,7 +317,7 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
             let (u, v): (f32, f32) = (rng.random(), rng.random());
             let su = u.sqrt();
             let point = p * (1.0 - su) + q * (su * (1.0 - v)) + r * (su * v);
-            let (d, _) = distance(point, Some(corners[i].1));
+            let (d, _) = distance(point, Some(corners[i].1[0]));
             lower = lower.max(d);
             sum += f64::from(d);
             sum_squares += f64::from(d) * f64::from(d);
@@ -273,8 +338,11 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
     // could not raise the lower bound by more than the tolerance.
     let mut settled = 0.0f32;
     let mut open = BinaryHeap::new();
-    for (t, (d, h)) in a.iter().zip(&corners) {
-        let upper = triangle_upper(t, d);
+    for (t, (d, near)) in a.iter().zip(&corners) {
+        let mut upper = triangle_upper(b, t, d, near);
+        if upper > lower + tolerance {
+            upper = centroid_bound(&mut distance, b, t, d, near, upper, &mut lower);
+        }
         if upper <= lower + tolerance {
             settled = settled.max(upper);
         } else {
@@ -282,7 +350,7 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
                 upper,
                 corners: *t,
                 distances: *d,
-                hint: *h,
+                nearest: *near,
                 depth: 0,
             });
         }
@@ -295,19 +363,23 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
         }
         let [p0, p1, p2] = t.corners;
         let [d0, d1, d2] = t.distances;
+        let [n0, n1, n2] = t.nearest;
         let (m01, m12, m20) = ((p0 + p1) * 0.5, (p1 + p2) * 0.5, (p2 + p0) * 0.5);
-        let (e01, h) = distance(m01, Some(t.hint));
-        let (e12, _) = distance(m12, Some(h));
-        let (e20, _) = distance(m20, Some(h));
+        let (e01, k01) = distance(m01, Some(n0));
+        let (e12, k12) = distance(m12, Some(n1));
+        let (e20, k20) = distance(m20, Some(n2));
         lower = lower.max(e01).max(e12).max(e20);
         let children = [
-            ([p0, m01, m20], [d0, e01, e20]),
-            ([m01, p1, m12], [e01, d1, e12]),
-            ([m20, m12, p2], [e20, e12, d2]),
-            ([m01, m12, m20], [e01, e12, e20]),
+            ([p0, m01, m20], [d0, e01, e20], [n0, k01, k20]),
+            ([m01, p1, m12], [e01, d1, e12], [k01, n1, k12]),
+            ([m20, m12, p2], [e20, e12, d2], [k20, k12, n2]),
+            ([m01, m12, m20], [e01, e12, e20], [k01, k12, k20]),
         ];
-        for (c, d) in children {
-            let u = triangle_upper(&c, &d);
+        for (c, d, near) in children {
+            let mut u = triangle_upper(b, &c, &d, &near);
+            if u > lower + tolerance {
+                u = centroid_bound(&mut distance, b, &c, &d, &near, u, &mut lower);
+            }
             if u <= lower + tolerance {
                 settled = settled.max(u);
             } else {
@@ -315,7 +387,7 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
                     upper: u,
                     corners: c,
                     distances: d,
-                    hint: h,
+                    nearest: near,
                     depth: t.depth + 1,
                 });
             }

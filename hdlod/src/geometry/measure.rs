@@ -27,7 +27,9 @@ pub fn area(mesh: &Mesh) -> f64 {
 }
 
 pub fn volume(mesh: &Mesh) -> f64 {
-    triangles(mesh).map(|[a, b, c]| a.dot(b.cross(c)) / 6.0).sum()
+    triangles(mesh)
+        .map(|[a, b, c]| a.dot(b.cross(c)) / 6.0)
+        .sum()
 }
 
 #[cfg(test)]

@@ -62,15 +62,26 @@ pub fn merge(parts: &[Part<'_>], weld_tolerance: f32) -> Mesh {
         // Welded ids of this part's vertices, made on first use.
         let mut ids = vec![u32::MAX; n];
         for t in mesh.indices.chunks_exact(3) {
-            if t.iter().any(|&i| i as usize >= n || !positions[i as usize].is_finite()) {
+            if t.iter()
+                .any(|&i| i as usize >= n || !positions[i as usize].is_finite())
+            {
                 continue;
             }
             let mut tri = [0u32; 3];
             for (k, &i) in t.iter().enumerate() {
                 let i = i as usize;
                 if ids[i] == u32::MAX {
-                    let color = mesh.colors.get(i).copied().filter(|_| mesh.colors.len() == n);
-                    ids[i] = welder.insert(&mut out, positions[i], normals[i], color.unwrap_or(part.color));
+                    let color = mesh
+                        .colors
+                        .get(i)
+                        .copied()
+                        .filter(|_| mesh.colors.len() == n);
+                    ids[i] = welder.insert(
+                        &mut out,
+                        positions[i],
+                        normals[i],
+                        color.unwrap_or(part.color),
+                    );
                 }
                 tri[k] = ids[i];
             }
@@ -128,7 +139,13 @@ impl Welder {
         let next = out.positions.len() as u32;
         let id = if self.tolerance == 0.0 {
             let mut key = [0u32; 10];
-            for (k, x) in p.to_array().into_iter().chain(n.to_array()).chain(c).enumerate() {
+            for (k, x) in p
+                .to_array()
+                .into_iter()
+                .chain(n.to_array())
+                .chain(c)
+                .enumerate()
+            {
                 // +0.0 and -0.0 are the same vertex.
                 key[k] = (x + 0.0).to_bits();
             }

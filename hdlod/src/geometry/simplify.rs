@@ -71,23 +71,39 @@ pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
     }
     let stalled = |t: usize| t > target && t as f32 > STALL_RATIO * n as f32;
 
-    let mut best = (edge_collapse_indices(&mesh, options, false), Strategy::EdgeCollapse);
-    if options.prune && stalled(best.0.len() / 3) {
-        let pruned = edge_collapse_indices(&mesh, options, true);
-        if better(&pruned, &best.0) {
-            best = (pruned, Strategy::Pruned);
+    // An empty result (the budget let a step remove every component) is no
+    // result: a cluster must keep some geometry.
+    let mut best: Option<(Vec<u32>, Strategy)> = None;
+    let consider = |indices: Vec<u32>, strategy, best: &mut Option<(Vec<u32>, Strategy)>| {
+        let current = best.as_ref().map_or(3 * n, |(b, _)| b.len());
+        let gain = if best.is_some() { FALLBACK_GAIN } else { 1.0 };
+        if !indices.is_empty() && (indices.len() as f32) < gain * current as f32 {
+            *best = Some((indices, strategy));
         }
+    };
+    let count = |best: &Option<(Vec<u32>, Strategy)>| best.as_ref().map_or(n, |(b, _)| b.len() / 3);
+    consider(
+        edge_collapse_indices(&mesh, options, false),
+        Strategy::EdgeCollapse,
+        &mut best,
+    );
+    if options.prune && stalled(count(&best)) {
+        consider(
+            edge_collapse_indices(&mesh, options, true),
+            Strategy::Pruned,
+            &mut best,
+        );
     }
-    if stalled(best.0.len() / 3) {
-        let clustered = clustering_indices(&mesh, options);
-        if better(&clustered, &best.0) {
-            best = (clustered, Strategy::Clustering);
-        }
+    if stalled(count(&best)) {
+        consider(
+            clustering_indices(&mesh, options),
+            Strategy::Clustering,
+            &mut best,
+        );
     }
-    let (indices, strategy) = best;
-    if indices.is_empty() || indices.len() / 3 >= n {
+    let Some((indices, strategy)) = best else {
         return unchanged(mesh);
-    }
+    };
     let mesh = compact(&mesh, &indices);
     Simplified {
         triangles: mesh.triangle_count(),
@@ -98,7 +114,9 @@ pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
 
 /// Quadric edge collapse alone (with pruning if `options.prune`).
 pub fn edge_collapse(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
-    run_step(mesh, options, |m| edge_collapse_indices(m, options, options.prune))
+    run_step(mesh, options, |m| {
+        edge_collapse_indices(m, options, options.prune)
+    })
 }
 
 /// Vertex clustering alone.
@@ -116,10 +134,6 @@ fn run_step(mesh: &Mesh, options: &SimplifyOptions, step: impl Fn(&Mesh) -> Vec<
         return mesh;
     }
     compact(&mesh, &indices)
-}
-
-fn better(candidate: &[u32], current: &[u32]) -> bool {
-    !candidate.is_empty() && (candidate.len() as f32) < FALLBACK_GAIN * current.len() as f32
 }
 
 fn unchanged(mesh: Mesh) -> Simplified {

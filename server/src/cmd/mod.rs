@@ -5,3 +5,4 @@ pub mod inspect;
 pub mod serve;
 pub mod build;
 pub mod progress;
+pub mod simplify;

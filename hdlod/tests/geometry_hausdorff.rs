@@ -1,0 +1,171 @@
+//! The Hausdorff bound: known distances, bad input, and (proptest) that it
+//! bounds every brute-force distance of random surface points.
+
+use glam::{Vec3, Vec3A};
+use hdlod::geometry::{HausdorffOptions, Mesh, closest_point_on_triangle, hausdorff};
+use proptest::prelude::*;
+
+fn quad(z: f32, size: f32) -> Mesh {
+    Mesh {
+        positions: vec![
+            Vec3::new(0.0, 0.0, z),
+            Vec3::new(size, 0.0, z),
+            Vec3::new(size, size, z),
+            Vec3::new(0.0, size, z),
+        ],
+        indices: vec![0, 1, 2, 0, 2, 3],
+        ..Mesh::default()
+    }
+}
+
+fn opts(tolerance: f32) -> HausdorffOptions {
+    HausdorffOptions { tolerance, seed: 7 }
+}
+
+#[test]
+fn parallel_planes_are_their_offset_apart() {
+    let h = hausdorff(&quad(0.0, 1.0), &quad(0.25, 1.0), &opts(1e-4));
+    assert!(h.lower <= 0.25 + 1e-6 && h.bound >= 0.25, "{h:?}");
+    assert!(h.bound - 0.25 < 1e-3, "{h:?}");
+    assert!(
+        (h.mean - 0.25).abs() < 1e-5 && (h.rms - 0.25).abs() < 1e-5,
+        "{h:?}"
+    );
+}
+
+#[test]
+fn the_bound_is_tight_where_the_maximum_is_inside_a_triangle() {
+    // A big square against a small one at its corner: the farthest point of
+    // the big one is its opposite corner, sqrt(2) * 0.9 away in the plane.
+    let h = hausdorff(&quad(0.0, 1.0), &quad(0.0, 0.1), &opts(1e-3));
+    let exact = (2.0f32).sqrt() * 0.9;
+    assert!(h.bound >= exact && h.bound <= exact + 1.1e-3, "{h:?}");
+    assert!(h.ba <= 1.1e-3 && h.ab >= exact, "{h:?}");
+    // An interior maximum: a tent over a flat square, apex 0.5 high.
+    let mut tent = quad(0.0, 1.0);
+    tent.positions.push(Vec3::new(0.5, 0.5, 0.5));
+    tent.indices = vec![0, 1, 4, 1, 2, 4, 2, 3, 4, 3, 0, 4];
+    let h = hausdorff(&quad(0.0, 1.0), &tent, &opts(1e-3));
+    assert!(h.bound >= 0.5 && h.bound <= 0.5 + 1.1e-3, "{h:?}");
+}
+
+#[test]
+fn identical_meshes_are_zero_apart() {
+    // Coincident surfaces are the worst case of the corner bound: every
+    // triangle must shrink to the tolerance before it is settled.
+    let h = hausdorff(&quad(1.0, 2.0), &quad(1.0, 2.0), &opts(1e-3));
+    assert!(
+        h.bound <= 1e-3 + 1e-6 && h.lower < 1e-6 && h.mean < 1e-6,
+        "{h:?}"
+    );
+}
+
+#[test]
+fn empty_meshes_have_defined_results() {
+    let e = Mesh::default();
+    let h = hausdorff(&e, &e, &opts(0.0));
+    assert_eq!((h.bound, h.mean, h.rms), (0.0, 0.0, 0.0));
+    let h = hausdorff(&e, &quad(0.0, 1.0), &opts(0.0));
+    assert!(h.bound.is_infinite() && h.ab.is_infinite() && h.ba.is_infinite());
+}
+
+#[test]
+fn degenerate_nan_and_duplicate_triangles_do_not_poison_the_result() {
+    let mut a = quad(0.0, 1.0);
+    // A point triangle, a segment triangle, a duplicate and one with NaN.
+    a.positions.push(Vec3::new(f32::NAN, 0.0, 0.0));
+    a.indices.extend([0, 0, 0, 0, 1, 1, 0, 1, 2, 0, 1, 4]);
+    let h = hausdorff(&a, &quad(0.5, 1.0), &opts(1e-4));
+    assert!(
+        h.bound.is_finite() && h.mean.is_finite() && h.bound >= 0.5,
+        "{h:?}"
+    );
+    let segment_only = Mesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::X * 2.0],
+        indices: vec![0, 1, 2],
+        ..Mesh::default()
+    };
+    let h = hausdorff(&segment_only, &quad(1.0, 2.0), &opts(1e-4));
+    assert!(
+        h.bound.is_finite() && h.mean.is_finite() && h.bound >= 2.0f32.sqrt(),
+        "{h:?}"
+    );
+}
+
+#[test]
+fn results_are_deterministic() {
+    let a = quad(0.0, 1.0);
+    let mut b = quad(0.0, 1.0);
+    b.positions[2].z = 0.3;
+    assert_eq!(
+        hausdorff(&a, &b, &opts(1e-3)),
+        hausdorff(&a, &b, &opts(1e-3))
+    );
+}
+
+fn soup(max_triangles: usize) -> impl Strategy<Value = Mesh> {
+    prop::collection::vec(
+        prop::array::uniform3(prop::array::uniform3(-4.0f32..4.0)),
+        1..max_triangles,
+    )
+    .prop_map(|tris| Mesh {
+        positions: tris
+            .iter()
+            .flatten()
+            .map(|p| Vec3::from_array(*p))
+            .collect(),
+        indices: (0..tris.len() as u32 * 3).collect(),
+        ..Mesh::default()
+    })
+}
+
+fn brute_distance(p: Vec3, m: &Mesh) -> f32 {
+    m.triangles()
+        .map(|[a, b, c]| {
+            let p = Vec3A::from(p);
+            closest_point_on_triangle(p, a.into(), b.into(), c.into()).distance(p)
+        })
+        .fold(f32::INFINITY, f32::min)
+}
+
+/// Points on the surface of `m` from `(triangle, u, v)` triples.
+fn points_on(m: &Mesh, picks: &[(usize, f32, f32)]) -> Vec<Vec3> {
+    let tris: Vec<_> = m.triangles().collect();
+    picks
+        .iter()
+        .map(|&(i, u, v)| {
+            let [a, b, c] = tris[i % tris.len()];
+            let (u, v) = if u + v > 1.0 {
+                (1.0 - u, 1.0 - v)
+            } else {
+                (u, v)
+            };
+            a + (b - a) * u + (c - a) * v
+        })
+        .collect()
+}
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(64))]
+
+    #[test]
+    fn the_bound_bounds_every_sampled_distance(
+        a in soup(60),
+        b in soup(60),
+        picks in prop::collection::vec((0usize..1000, 0.0f32..1.0, 0.0f32..1.0), 64),
+        tolerance in 0.0f32..0.5,
+    ) {
+        let h = hausdorff(&a, &b, &opts(tolerance));
+        prop_assert!(h.bound.is_finite() && h.lower.is_finite() && h.mean.is_finite() && h.rms.is_finite());
+        prop_assert!(h.lower <= h.bound && h.mean <= h.rms + 1e-4 && h.rms <= h.bound);
+        prop_assert!(h.bound - h.lower <= tolerance.max(1e-4) + 1e-3, "{h:?}");
+        for p in points_on(&a, &picks) {
+            let d = brute_distance(p, &b);
+            prop_assert!(d <= h.ab, "a point of A is {d} from B, bound {h:?}");
+        }
+        for p in points_on(&b, &picks) {
+            let d = brute_distance(p, &a);
+            prop_assert!(d <= h.ba, "a point of B is {d} from A, bound {h:?}");
+        }
+    }
+}

@@ -1,0 +1,61 @@
+//! OBJ and PLY readers on the shared meshes and on bad files.
+
+use std::path::{Path, PathBuf};
+
+use hdlod::geometry::measure;
+
+fn data(name: &str) -> PathBuf {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    [
+        here.join("../../shared/data/meshes"),
+        here.join("../../../shared/data/meshes"),
+    ]
+    .into_iter()
+    .find(|d| d.exists())
+    .expect("shared/data/meshes next to the repository")
+    .join(name)
+}
+
+#[test]
+fn horse_ply_binary() {
+    let m = hdlod::io::ply::read_mesh(&data("horse.ply")).unwrap();
+    assert_eq!((m.positions.len(), m.triangle_count()), (48_485, 96_966));
+    assert_eq!(m.normals.len(), m.positions.len());
+    m.validate().unwrap();
+    assert!(measure::volume(&m).abs() > 0.0);
+}
+
+#[test]
+fn obj_meshes() {
+    for (name, triangles) in [
+        ("stanford-bunny.obj", 69_451),
+        ("fandisk.obj", 12_946),
+        ("rocker-arm.obj", 20_088),
+    ] {
+        let m = hdlod::io::obj::read_mesh(&data(name)).unwrap();
+        m.validate().unwrap();
+        assert_eq!(m.triangle_count(), triangles, "{name}");
+    }
+}
+
+#[test]
+fn unreadable_and_truncated_files() {
+    let e = hdlod::io::obj::read_mesh(Path::new("/nonexistent/x.obj"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("/nonexistent/x.obj"), "{e}");
+    let dir = tempfile::tempdir().unwrap();
+    let cut = dir.path().join("cut.ply");
+    let bytes = std::fs::read(data("horse.ply")).unwrap();
+    std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
+    let e = hdlod::io::ply::read_mesh(&cut).unwrap_err().to_string();
+    assert!(e.contains("cut.ply") && e.contains("face"), "{e}");
+    let binary = dir.path().join("binary.obj");
+    std::fs::write(&binary, [0xff, 0xfe, 0x00]).unwrap();
+    assert!(
+        hdlod::io::obj::read_mesh(&binary)
+            .unwrap_err()
+            .to_string()
+            .contains("binary.obj")
+    );
+}
