@@ -166,7 +166,9 @@ pub fn build(
             mesh,
         });
     }
-    stats.phases.push(("leaves".into(), clock.elapsed().as_secs_f64()));
+    stats
+        .phases
+        .push(("leaves".into(), clock.elapsed().as_secs_f64()));
 
     // Scene size W and the level count from every clustered object.
     let all = leaves.iter().flatten();
@@ -214,7 +216,9 @@ pub fn build(
                 "pseudo_dynamic"
             }
         };
-        stats.phases.push((name.into(), clock.elapsed().as_secs_f64()));
+        stats
+            .phases
+            .push((name.into(), clock.elapsed().as_secs_f64()));
     }
 
     let clock = Instant::now();
@@ -225,7 +229,9 @@ pub fn build(
     let (tops, dyn_stats) = dynamic_chains(scene, &dynamic, &ctx, &mut clusters, progress)?;
     roots.extend(tops);
     stats.dynamic_levels = dyn_stats;
-    stats.phases.push(("dynamic".into(), clock.elapsed().as_secs_f64()));
+    stats
+        .phases
+        .push(("dynamic".into(), clock.elapsed().as_secs_f64()));
 
     // The virtual root: no geometry, w and v aggregated like any cluster.
     let root = clusters.len() as u32;
@@ -274,7 +280,9 @@ pub fn build(
         triangles: 0,
         objects: Vec::new(),
     });
-    stats.phases.push(("root".into(), clock.elapsed().as_secs_f64()));
+    stats
+        .phases
+        .push(("root".into(), clock.elapsed().as_secs_f64()));
     let tree = Tree {
         scene: scene.name.clone(),
         time: scene.time,
@@ -385,7 +393,9 @@ fn cluster_class(
             let (mesh, eps, hash) = parent?;
             let children: Vec<&Active> = g.iter().map(|&i| &active[i]).collect();
             let (steps, vis, gamma) = temporal(ctx, &children);
-            let lo = children.iter().fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
+            let lo = children
+                .iter()
+                .fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
             let hi = children
                 .iter()
                 .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
@@ -449,7 +459,10 @@ fn cluster_class(
 fn temporal(ctx: &Context, children: &[&Active]) -> (Steps, Vec<u32>, f64) {
     let parts: Vec<(f64, &Steps)> = children.iter().map(|c| (c.w.max(1e-9), &c.steps)).collect();
     let steps = Steps::weighted_mean(&parts).simplified(ctx.config.max_steps, ctx.span);
-    let mut vis: Vec<u32> = children.iter().flat_map(|c| c.vis.iter().copied()).collect();
+    let mut vis: Vec<u32> = children
+        .iter()
+        .flat_map(|c| c.vis.iter().copied())
+        .collect();
     vis.sort_unstable();
     vis.dedup();
     let gamma = if ctx.span > 0.0 {

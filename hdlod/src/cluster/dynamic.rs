@@ -12,10 +12,13 @@ use rayon::prelude::*;
 use super::build::Context;
 use super::steps::Steps;
 use super::{LevelStats, Progress};
-use crate::tree::{Aabb, Cluster, ClusterClass};
 use crate::Result;
 use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions};
 use crate::scene::Scene;
+use crate::tree::{Aabb, Cluster, ClusterClass};
+
+/// The largest error of a coarser version, as a share of the model's size.
+const MAX_LOD_ERROR: f64 = 0.25;
 
 /// One version of a model: its stored geometry and what the tree records.
 #[derive(Clone)]
@@ -69,11 +72,18 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
             },
         );
         let eps = f64::from(h.bound).max(previous.eps);
+        // A version off by a large part of the model is no level of detail
+        // of it: the chain ends there.
+        if eps > MAX_LOD_ERROR * f64::from(size) {
+            break;
+        }
+        // Contains the finer versions' boxes, as a parent's box must.
+        let (lo, hi) = s.mesh.bounds().unwrap_or(bounds);
         out.push(Version {
             hash: ctx.sink.put(&s.mesh)?,
             triangles: s.triangles as u64,
             eps,
-            bounds: s.mesh.bounds().unwrap_or(bounds),
+            bounds: (lo.min(previous.bounds.0), hi.max(previous.bounds.1)),
         });
     }
     Ok(out)

@@ -70,4 +70,3 @@ pub struct BuildStats {
     /// Seconds per phase, in the order run.
     pub phases: Vec<(String, f64)>,
 }
-

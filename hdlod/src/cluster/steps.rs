@@ -218,11 +218,21 @@ impl Steps {
             if segs[j].next != NONE {
                 let k = segs[j].next;
                 segs[k].prev = i;
-                heap.push(Cand(cost(&segs[i], &segs[k]), i, segs[i].version, segs[k].version));
+                heap.push(Cand(
+                    cost(&segs[i], &segs[k]),
+                    i,
+                    segs[i].version,
+                    segs[k].version,
+                ));
             }
             if segs[i].prev != NONE {
                 let p = segs[i].prev;
-                heap.push(Cand(cost(&segs[p], &segs[i]), p, segs[p].version, segs[i].version));
+                heap.push(Cand(
+                    cost(&segs[p], &segs[i]),
+                    p,
+                    segs[p].version,
+                    segs[i].version,
+                ));
             }
             alive -= 1;
         }
@@ -247,8 +257,14 @@ mod tests {
     fn from_visibility() {
         let v = Visibility::from_intervals(vec![(2.0, 5.0), (7.0, f64::INFINITY)]);
         let s = Steps::of_visibility(&v, 10.0);
-        assert_eq!(s.points(), &[(0.0, 0.0), (2.0, 1.0), (5.0, 0.0), (7.0, 1.0)]);
-        assert_eq!(Steps::of_visibility(&Visibility::always(), 10.0).points(), &[(0.0, 1.0)]);
+        assert_eq!(
+            s.points(),
+            &[(0.0, 0.0), (2.0, 1.0), (5.0, 0.0), (7.0, 1.0)]
+        );
+        assert_eq!(
+            Steps::of_visibility(&Visibility::always(), 10.0).points(),
+            &[(0.0, 1.0)]
+        );
     }
 
     #[test]

@@ -7,8 +7,8 @@
 //! nearest-neighbour traversal (depth-first, nearer child first, pruned by
 //! the squared distance to each node's box) is written here.
 
-use glam::Vec3;
 use glam::Vec3A;
+use glam::{DVec3, Vec3};
 use obvhs::aabb::Aabb;
 use obvhs::bvh2::Bvh2;
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
@@ -21,6 +21,14 @@ const BRUTE_FORCE_MAX: usize = 32;
 /// segments) are handled: the answer is then the closest point of the
 /// triangle's edges.
 pub fn closest_point_on_triangle(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3A {
+    // In double precision: on long thin triangles (scaffold tubes, rails)
+    // the barycentric terms cancel badly in f32, which moved the answer by
+    // millimetres, more than the error budgets the bound must respect.
+    let q = closest_point_f64(p.as_dvec3(), a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
+    q.as_vec3a()
+}
+
+fn closest_point_f64(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
     let ab = b - a;
     let ac = c - a;
     let ap = p - a;
@@ -64,9 +72,9 @@ pub fn closest_point_on_triangle(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3
         q
     } else {
         let candidates = [
-            closest_point_on_segment(p, a, b),
-            closest_point_on_segment(p, b, c),
-            closest_point_on_segment(p, c, a),
+            segment_f64(p, a, b),
+            segment_f64(p, b, c),
+            segment_f64(p, c, a),
         ];
         candidates
             .into_iter()
@@ -75,7 +83,7 @@ pub fn closest_point_on_triangle(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3
     }
 }
 
-fn closest_point_on_segment(p: Vec3A, a: Vec3A, b: Vec3A) -> Vec3A {
+fn segment_f64(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
     let ab = b - a;
     let len2 = ab.length_squared();
     if len2 <= 0.0 {

@@ -112,8 +112,8 @@ fn class_levels(stats: &BuildStats) -> Vec<ClassLevels<'_>> {
 fn read_config(path: &Path) -> anyhow::Result<BuildConfig> {
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
-    let config: BuildConfig = serde_json::from_str(&text)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    let config: BuildConfig =
+        serde_json::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     config
         .validate()
         .map_err(|(field, message)| anyhow::anyhow!("{}: {field}: {message}", path.display()))?;
@@ -126,7 +126,10 @@ fn table(s: &Summary) -> String {
         s.scene, s.out, s.objects, s.clusters, s.levels, s.seconds
     );
     if s.absent_objects > 0 {
-        out += &format!("{} objects are never visible and were left out\n", s.absent_objects);
+        out += &format!(
+            "{} objects are never visible and were left out\n",
+            s.absent_objects
+        );
     }
     out += &format!(
         "\n{:<16} {:>5} {:>9} {:>11} {:>7} {:>10} {:>9}\n",

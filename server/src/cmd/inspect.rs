@@ -4,6 +4,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use hdlod::scene::{Summary, format};
+use hdlod::time::format_date;
+use hdlod::tree::{LevelSummary, Tree};
+use serde::Serialize;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -17,10 +20,15 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     // A directory with a manifest.json is a tree (hdlod-tree/1).
     if args.path.join("manifest.json").is_file() {
-        anyhow::bail!(
-            "{}: inspecting an HDLOD tree is not supported yet",
-            args.path.display()
-        );
+        let tree = hdlod::tree::load(&args.path)
+            .with_context(|| format!("cannot load the tree {}", args.path.display()))?;
+        let summary = TreeSummary::of(&tree);
+        if args.json {
+            println!("{}", serde_json::to_string_pretty(&summary)?);
+        } else {
+            print!("{}", tree_table(&summary));
+        }
+        return Ok(());
     }
     let summary = scene_summary(&args.path)?;
     if args.json {
@@ -93,6 +101,91 @@ fn thousands(n: usize) -> String {
             out.push(',');
         }
         out.push(c);
+    }
+    out
+}
+
+/// `inspect --json` of a tree (schemas/inspect-tree.schema.json).
+#[derive(Serialize)]
+struct TreeSummary {
+    kind: &'static str,
+    name: String,
+    clusters: usize,
+    leaves: usize,
+    leaf_triangles: u64,
+    time: TreeTime,
+    bounds: TreeBounds,
+    /// Clusters per class.
+    classes: std::collections::BTreeMap<&'static str, usize>,
+    /// Level 0 holds the original objects.
+    levels: Vec<LevelSummary>,
+}
+
+#[derive(Serialize)]
+struct TreeTime {
+    start: String,
+    end: String,
+    seconds: f64,
+}
+
+#[derive(Serialize)]
+struct TreeBounds {
+    min: [f64; 3],
+    max: [f64; 3],
+}
+
+impl TreeSummary {
+    fn of(tree: &Tree) -> TreeSummary {
+        let s = tree.summary();
+        TreeSummary {
+            kind: "tree",
+            name: tree.scene.clone(),
+            clusters: s.clusters,
+            leaves: s.leaves,
+            leaf_triangles: s.leaf_triangles,
+            time: TreeTime {
+                start: format_date(tree.time.start),
+                end: format_date(tree.time.end()),
+                seconds: tree.time.seconds,
+            },
+            bounds: TreeBounds {
+                min: tree.bounds.min.to_array(),
+                max: tree.bounds.max.to_array(),
+            },
+            classes: s.classes,
+            levels: s.levels,
+        }
+    }
+}
+
+fn tree_table(s: &TreeSummary) -> String {
+    let mut out = format!(
+        "tree {}: {} clusters, {} leaves with {} triangles\n",
+        s.name,
+        thousands(s.clusters),
+        thousands(s.leaves),
+        thousands(s.leaf_triangles as usize)
+    );
+    out += &format!("time    {} .. {}\n", s.time.start, s.time.end);
+    let v = |p: [f64; 3]| format!("[{:.2}, {:.2}, {:.2}]", p[0], p[1], p[2]);
+    out += &format!("bounds  {} .. {}\n\n", v(s.bounds.min), v(s.bounds.max));
+    out += &format!("{:<16} {:>10}\n", "class", "clusters");
+    for (class, n) in &s.classes {
+        out += &format!("{class:<16} {:>10}\n", thousands(*n));
+    }
+    out += &format!(
+        "\n{:>5} {:>10} {:>12} {:>10} {:>10}\n",
+        "level", "clusters", "triangles", "max eps", "max gamma"
+    );
+    for l in &s.levels {
+        out += &format!(
+            "{:>5} {:>10} {:>12} {:>10.4} {:>10.4}\n",
+            l.level,
+            thousands(l.clusters),
+            thousands(l.triangles as usize),
+            l.max_eps,
+            l.max_gamma
+        );
     }
     out
 }

@@ -1,8 +1,8 @@
 pub mod bench;
+pub mod build;
 pub mod cut;
 pub mod fixture;
 pub mod inspect;
-pub mod serve;
-pub mod build;
 pub mod progress;
+pub mod serve;
 pub mod simplify;

@@ -83,7 +83,7 @@ impl hdlod::cluster::Progress for Report {
         }
         let mut p = self.plain.lock().expect("progress lock");
         p.done += n;
-        let percent = if p.total == 0 { 100 } else { p.done * 100 / p.total };
+        let percent = (p.done * 100).checked_div(p.total).unwrap_or(100);
         // One line per quarter keeps logs short on big builds.
         if !self.quiet && percent >= p.last_percent + 25 {
             p.last_percent = percent - percent % 25;

@@ -1,0 +1,113 @@
+//! `hdlod build` and `hdlod inspect TREE` on the committed tiny fixture: the
+//! JSON follows the schemas, bad configurations are clear errors, a failed
+//! build leaves the previous tree as it was.
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn hdlod(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap()
+}
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn assert_schema(json: &serde_json::Value, schema: &str) {
+    let path = root().join("schemas").join(schema);
+    let schema: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    let errors: Vec<String> = validator.iter_errors(json).map(|e| e.to_string()).collect();
+    assert!(errors.is_empty(), "{errors:?}");
+}
+
+#[test]
+fn builds_the_tiny_fixture_and_inspects_the_tree() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = tmp.path().join("tree");
+    let fixture = root().join("fixtures/skyscraper-tiny");
+    let out = hdlod(&[
+        "build".as_ref(),
+        fixture.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_schema(&summary, "build-summary.schema.json");
+    assert_eq!(summary["objects"], 628);
+
+    let out = hdlod(&["inspect".as_ref(), tree.as_os_str(), "--json".as_ref()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let inspect: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_schema(&inspect, "inspect-tree.schema.json");
+    assert_eq!(inspect["clusters"], summary["clusters"]);
+    // Level 0 holds the visible objects: every object but the absent ones.
+    let levels = inspect["levels"].as_array().unwrap();
+    assert_eq!(levels[0]["level"], 0);
+    assert_eq!(
+        levels[0]["clusters"].as_u64().unwrap(),
+        628 - summary["absent_objects"].as_u64().unwrap()
+    );
+
+    let table = hdlod(&["inspect".as_ref(), tree.as_os_str()]);
+    let text = String::from_utf8_lossy(&table.stdout);
+    assert!(
+        text.contains("tree skyscraper-tiny") && text.contains("max eps"),
+        "{text}"
+    );
+}
+
+#[test]
+fn a_bad_configuration_names_the_field_and_keeps_the_old_tree() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = tmp.path().join("tree");
+    std::fs::create_dir_all(&tree).unwrap();
+    std::fs::write(tree.join("marker"), "the previous tree").unwrap();
+    let fixture = root().join("fixtures/skyscraper-tiny");
+    for (config, field) in [
+        (r#"{"max_children": 1}"#, "max_children"),
+        (r#"{"k_eps": -1}"#, "k_eps"),
+        (r#"{"gamma_maxx": 0.1}"#, "gamma_maxx"),
+    ] {
+        let path = tmp.path().join("config.json");
+        std::fs::write(&path, config).unwrap();
+        let out = hdlod(&[
+            "build".as_ref(),
+            fixture.as_os_str(),
+            "--out".as_ref(),
+            tree.as_os_str(),
+            "--config".as_ref(),
+            path.as_os_str(),
+        ]);
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("config.json") && err.contains(field), "{err}");
+    }
+    let out = hdlod(&[
+        "build".as_ref(),
+        tmp.path().join("no-such-scene").as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+    ]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("no-such-scene"));
+    assert_eq!(
+        std::fs::read_to_string(tree.join("marker")).unwrap(),
+        "the previous tree"
+    );
+}
