@@ -17,6 +17,8 @@ pub enum Bench {
     Paper(PaperArgs),
     /// Concurrent WebSocket viewers against a running server.
     Ws(WsArgs),
+    /// Build time per object as the scene grows (n log n, not n^2).
+    Build(super::bench_build::Args),
 }
 
 #[derive(clap::Args)]
@@ -58,6 +60,7 @@ pub struct WsArgs {
 pub fn run(bench: Bench) -> anyhow::Result<()> {
     match bench {
         Bench::Paper(a) => paper_table(a),
+        Bench::Build(a) => super::bench_build::run(a),
         Bench::Ws(a) => ws(a),
     }
 }

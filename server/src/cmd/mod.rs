@@ -1,4 +1,5 @@
 pub mod bench;
+pub mod bench_build;
 pub mod build;
 pub mod cut;
 pub mod fixture;

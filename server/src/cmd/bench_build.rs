@@ -1,0 +1,187 @@
+//! `hdlod bench build`: build time per object as the scene grows, to show
+//! the builder's n log n growth (issue: the scaling benchmark). Writes the
+//! table and an SVG plot into docs/.
+
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use anyhow::Context;
+use hdlod::cluster::{BuildConfig, Silent, build_to};
+use hdlod::fixture::{Scale, skyscraper};
+use plotters::prelude::*;
+use serde::Serialize;
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// Storeys of the paper's tower to build (about 830 objects each).
+    #[arg(long, value_delimiter = ',', default_value = "12,24,48,96")]
+    storeys: Vec<usize>,
+    /// Where the trees are built (removed afterwards).
+    #[arg(long, default_value = "out/bench-build")]
+    work: PathBuf,
+    /// Write the table into this markdown file (between the markers
+    /// `<!-- build-scaling -->` and `<!-- /build-scaling -->`) and the plot
+    /// beside it as build-scaling.svg.
+    #[arg(long)]
+    docs: Option<PathBuf>,
+    #[arg(long)]
+    json: bool,
+}
+
+#[derive(Serialize)]
+struct Row {
+    storeys: usize,
+    objects: usize,
+    triangles: usize,
+    clusters: usize,
+    seconds: f64,
+    micros_per_object: f64,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let mut rows = Vec::new();
+    for &storeys in &args.storeys {
+        let scene = skyscraper(Scale::Storeys(storeys), 1);
+        let triangles = scene
+            .objects
+            .iter()
+            .map(|o| scene.meshes[o.mesh].triangle_count())
+            .sum();
+        let out = args.work.join(format!("storeys-{storeys}"));
+        let started = Instant::now();
+        let (tree, _) = build_to(&scene, &BuildConfig::default(), &out, &Silent)
+            .with_context(|| format!("building {}", out.display()))?;
+        let seconds = started.elapsed().as_secs_f64();
+        std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
+        let row = Row {
+            storeys,
+            objects: scene.objects.len(),
+            triangles,
+            clusters: tree.clusters.len(),
+            seconds,
+            micros_per_object: seconds * 1e6 / scene.objects.len() as f64,
+        };
+        if !args.json {
+            eprintln!(
+                "{} storeys: {} objects, {:.2} s, {:.1} us per object",
+                row.storeys, row.objects, row.seconds, row.micros_per_object
+            );
+        }
+        rows.push(row);
+    }
+    let table = table(&rows);
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&rows)?);
+    } else {
+        print!("{table}");
+    }
+    if let Some(doc) = &args.docs {
+        let svg = doc.with_file_name("build-scaling.svg");
+        plot(&rows, &svg)?;
+        replace_section(doc, "build-scaling", &table)?;
+    }
+    Ok(())
+}
+
+/// The table, with the growth exponent between consecutive sizes:
+/// `log(t2/t1) / log(n2/n1)` is 1 for linear time, a little above 1 for
+/// n log n, 2 for quadratic.
+fn table(rows: &[Row]) -> String {
+    let mut out = String::from(
+        "| storeys | objects | triangles | clusters | build s | us per object | growth exponent |\n\
+         |---|---|---|---|---|---|---|\n",
+    );
+    for (i, r) in rows.iter().enumerate() {
+        let exponent = match i.checked_sub(1).map(|p| &rows[p]) {
+            Some(p) => format!(
+                "{:.2}",
+                (r.seconds / p.seconds).ln() / (r.objects as f64 / p.objects as f64).ln()
+            ),
+            None => "".into(),
+        };
+        out += &format!(
+            "| {} | {} | {} | {} | {:.2} | {:.1} | {} |\n",
+            r.storeys, r.objects, r.triangles, r.clusters, r.seconds, r.micros_per_object, exponent
+        );
+    }
+    out
+}
+
+fn plot(rows: &[Row], path: &Path) -> anyhow::Result<()> {
+    let max_n = rows.iter().map(|r| r.objects).max().unwrap_or(1) as f64;
+    let max_us = rows
+        .iter()
+        .map(|r| r.micros_per_object)
+        .fold(0.0, f64::max)
+        .max(1.0);
+    let root = SVGBackend::new(path, (640, 400)).into_drawing_area();
+    root.fill(&WHITE)?;
+    let mut chart = ChartBuilder::on(&root)
+        .caption("Build time per object", ("sans-serif", 20))
+        .margin(12)
+        .x_label_area_size(40)
+        .y_label_area_size(56)
+        .build_cartesian_2d(0.0..max_n * 1.05, 0.0..max_us * 1.3)?;
+    chart
+        .configure_mesh()
+        .x_desc("objects")
+        .y_desc("microseconds per object")
+        .draw()?;
+    let points: Vec<(f64, f64)> = rows
+        .iter()
+        .map(|r| (r.objects as f64, r.micros_per_object))
+        .collect();
+    chart
+        .draw_series(LineSeries::new(points.clone(), &BLUE))?
+        .label("measured")
+        .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], BLUE));
+    chart.draw_series(points.iter().map(|&p| Circle::new(p, 4, BLUE.filled())))?;
+    // What n log n growth predicts from the smallest size, and what
+    // quadratic growth would: the measured line should follow the first.
+    if let Some(first) = rows.first() {
+        let n0 = first.objects as f64;
+        let per = first.micros_per_object;
+        let nlogn: Vec<(f64, f64)> = rows
+            .iter()
+            .map(|r| {
+                let n = r.objects as f64;
+                (n, per * n.log2() / n0.log2())
+            })
+            .collect();
+        chart
+            .draw_series(LineSeries::new(nlogn, &GREEN))?
+            .label("n log n from the first point")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], GREEN));
+        let quadratic: Vec<(f64, f64)> = rows
+            .iter()
+            .map(|r| (r.objects as f64, per * r.objects as f64 / n0))
+            .take_while(|p| p.1 <= max_us * 1.3)
+            .collect();
+        chart
+            .draw_series(LineSeries::new(quadratic, &RED))?
+            .label("n^2 from the first point")
+            .legend(|(x, y)| PathElement::new(vec![(x, y), (x + 16, y)], RED));
+    }
+    chart
+        .configure_series_labels()
+        .background_style(WHITE.mix(0.8))
+        .border_style(BLACK)
+        .draw()?;
+    root.present()?;
+    Ok(())
+}
+
+/// Replaces the text between `<!-- name -->` and `<!-- /name -->` in a
+/// markdown file, or appends the section when the markers are missing.
+pub fn replace_section(doc: &Path, name: &str, body: &str) -> anyhow::Result<()> {
+    let text = std::fs::read_to_string(doc).unwrap_or_default();
+    let (open, close) = (format!("<!-- {name} -->"), format!("<!-- /{name} -->"));
+    let section = format!("{open}\n{body}{close}");
+    let new = match (text.find(&open), text.find(&close)) {
+        (Some(a), Some(b)) if a < b => {
+            format!("{}{section}{}", &text[..a], &text[b + close.len()..])
+        }
+        _ => format!("{text}\n{section}\n"),
+    };
+    std::fs::write(doc, new).with_context(|| format!("writing {}", doc.display()))
+}
