@@ -1,3 +1,7 @@
-//! Mesh file formats: glTF/GLB in and out, OBJ and PLY in.
+//! Mesh file formats: glTF/GLB in ([`gltf`]) and out ([`glb`]), OBJ in and
+//! out ([`obj`]), PLY in ([`ply`]).
+
+pub mod glb;
+pub mod gltf;
 pub mod obj;
 pub mod ply;

@@ -22,9 +22,9 @@ pub enum Method {
 #[derive(clap::Args)]
 #[command(group(clap::ArgGroup::new("goal").required(true).args(["ratio", "error"])))]
 pub struct Args {
-    /// Input mesh: .obj or .ply.
+    /// Input mesh: .obj, .ply, .glb or .gltf (all its meshes, placed).
     input: PathBuf,
-    /// Output mesh: .obj.
+    /// Output mesh: .obj or .glb.
     output: PathBuf,
     #[arg(long, value_enum, default_value = "qem")]
     method: Method,
