@@ -90,6 +90,16 @@ fn main() {
         timing(t, n),
         qem.triangle_count()
     );
+    // The same without the normals as attributes: what the attribute-aware
+    // quadrics cost.
+    let bare = Mesh {
+        normals: Vec::new(),
+        ..mesh.clone()
+    };
+    let t = median_seconds(9, || {
+        edge_collapse(&bare, &ten);
+    });
+    println!("qem to 10%, no normals {}", timing(t, n));
     let mut clustered = Mesh::default();
     let t = median_seconds(9, || clustered = clustering(&mesh, &ten));
     println!(

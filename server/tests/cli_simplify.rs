@@ -80,6 +80,30 @@ fn both_methods_report_valid_json() {
 }
 
 #[test]
+fn glb_out_and_back_in() {
+    let dir = tempfile::tempdir().unwrap();
+    let (glb, again) = (dir.path().join("o.glb"), dir.path().join("again.obj"));
+    let f = fandisk();
+    let first = report(&[
+        "simplify",
+        f.to_str().unwrap(),
+        glb.to_str().unwrap(),
+        "--ratio",
+        "0.5",
+        "--json",
+    ]);
+    let second = report(&[
+        "simplify",
+        glb.to_str().unwrap(),
+        again.to_str().unwrap(),
+        "--ratio",
+        "1",
+        "--json",
+    ]);
+    assert_eq!(first["triangles_out"], second["triangles_in"]);
+}
+
+#[test]
 fn an_error_budget_and_a_ratio_above_one() {
     let dir = tempfile::tempdir().unwrap();
     let (input, out) = (fandisk(), dir.path().join("o.obj"));

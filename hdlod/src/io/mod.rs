@@ -1,5 +1,5 @@
-//! Mesh file formats: glTF/GLB in ([`gltf`]) and out ([`glb`]), OBJ and PLY
-//! in ([`obj`], [`ply`]).
+//! Mesh file formats: glTF/GLB in ([`gltf`]) and out ([`glb`]), OBJ in and
+//! out ([`obj`]), PLY in ([`ply`]).
 
 pub mod glb;
 pub mod gltf;

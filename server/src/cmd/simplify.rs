@@ -22,9 +22,9 @@ pub enum Method {
 #[derive(clap::Args)]
 #[command(group(clap::ArgGroup::new("goal").required(true).args(["ratio", "error"])))]
 pub struct Args {
-    /// Input mesh: .obj or .ply.
+    /// Input mesh: .obj, .ply, .glb or .gltf (all its meshes, placed).
     input: PathBuf,
-    /// Output mesh: .obj.
+    /// Output mesh: .obj or .glb.
     output: PathBuf,
     #[arg(long, value_enum, default_value = "qem")]
     method: Method,
@@ -167,8 +167,9 @@ fn read(path: &Path) -> anyhow::Result<Mesh> {
     let mesh = match extension(path).as_str() {
         "obj" => hdlod::io::obj::read_mesh(path)?,
         "ply" => hdlod::io::ply::read_mesh(path)?,
+        "glb" | "gltf" => hdlod::io::gltf::read_mesh(path)?,
         other => bail!(
-            "{}: unknown mesh format {other:?} (expected .obj or .ply)",
+            "{}: unknown mesh format {other:?} (expected .obj, .ply, .glb or .gltf)",
             path.display()
         ),
     };
@@ -181,8 +182,9 @@ fn read(path: &Path) -> anyhow::Result<Mesh> {
 fn write(mesh: &Mesh, path: &Path) -> anyhow::Result<()> {
     match extension(path).as_str() {
         "obj" => hdlod::io::obj::write_mesh(mesh, path)?,
+        "glb" => hdlod::io::glb::write_mesh(mesh, path)?,
         other => bail!(
-            "{}: unknown output format {other:?} (expected .obj)",
+            "{}: unknown output format {other:?} (expected .obj or .glb)",
             path.display()
         ),
     }
