@@ -1,1 +1,4 @@
-//! Mesh file formats: glTF/GLB in and out, OBJ and PLY in.
+//! Mesh file formats: glTF/GLB in ([`gltf`]) and out ([`glb`]).
+
+pub mod glb;
+pub mod gltf;

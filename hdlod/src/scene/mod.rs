@@ -3,8 +3,10 @@
 //! schedule that drives visibility, and the classification of DESIGN.md
 //! section 1.
 
+pub mod format;
 mod motion;
 mod schedule;
+mod summary;
 mod visibility;
 
 use std::collections::BTreeMap;
@@ -17,6 +19,7 @@ use crate::time::TimeSpan;
 
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
+pub use summary::{Bounds, Counts, Summary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
 
 /// Which axis points up in the scene's world frame.

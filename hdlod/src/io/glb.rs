@@ -1,0 +1,290 @@
+//! GLB (binary glTF 2.0) writer, after the Khronos glTF 2.0 specification
+//! (<https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html>). The JSON
+//! types and the GLB container are the `gltf` crate's; this file lays out
+//! the binary buffer and the objects that point into it.
+//!
+//! Attributes are written as tightly packed little-endian `f32` (positions,
+//! normals, RGBA colours) and `u32` indices, copied in bulk from the mesh's
+//! own vectors (`bytemuck`), so that writing a scene of millions of triangles
+//! costs little more than a memcpy. A mesh written once can be placed by any
+//! number of nodes and coloured by any number of materials: its accessors
+//! are shared, which is how a scene keeps its instancing in the file.
+
+use std::collections::HashMap;
+use std::io::Write;
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use gltf::json::{self, validation::Checked::Valid, validation::USize64};
+
+use crate::error::{Error, Result};
+use crate::geometry::Mesh;
+
+// The bulk copies below write the in-memory representation; glTF is
+// little-endian.
+#[cfg(target_endian = "big")]
+compile_error!("the GLB writer copies memory as little-endian bytes");
+
+/// One mesh as a GLB: positions, normals and `COLOR_0` when the mesh has
+/// them, and indices; one node, no material (the glTF default). The bytes
+/// depend only on the mesh, so they can be hashed for content addressing.
+/// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
+/// an empty scene.
+pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
+    let mut glb = GlbBuilder::new();
+    let mut nodes = Vec::new();
+    if !mesh.is_empty() {
+        let accessors = glb.add_mesh(mesh);
+        let m = glb.add_primitive(&accessors, None);
+        nodes.push(glb.add_node(m, &Mat4::IDENTITY, None));
+    }
+    glb.finish(nodes)
+}
+
+/// Writes [`mesh_to_glb`] to `path`, after checking the mesh.
+pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
+    mesh.validate()
+        .map_err(|m| Error::invalid(path, "mesh", m))?;
+    std::fs::write(path, mesh_to_glb(mesh)).map_err(|e| Error::io(path, e))
+}
+
+/// The accessors of one mesh written into the buffer.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct MeshAccessors {
+    positions: json::Index<json::Accessor>,
+    normals: Option<json::Index<json::Accessor>>,
+    colors: Option<json::Index<json::Accessor>>,
+    indices: json::Index<json::Accessor>,
+}
+
+/// Builds one GLB: meshes into the binary chunk, then primitives, materials
+/// and nodes that refer to them.
+pub(crate) struct GlbBuilder {
+    root: json::Root,
+    bin: Vec<u8>,
+    materials: HashMap<[u32; 4], json::Index<json::Material>>,
+}
+
+impl GlbBuilder {
+    pub(crate) fn new() -> Self {
+        let mut root = json::Root::default();
+        root.asset.generator = Some(format!("hdlod {}", env!("CARGO_PKG_VERSION")));
+        GlbBuilder {
+            root,
+            bin: Vec::new(),
+            materials: HashMap::new(),
+        }
+    }
+
+    /// Appends the mesh's attributes to the buffer. The mesh must have at
+    /// least one triangle (glTF accessors cannot be empty).
+    pub(crate) fn add_mesh(&mut self, mesh: &Mesh) -> MeshAccessors {
+        let n = mesh.positions.len();
+        let (lo, hi) = mesh.positions.iter().fold(
+            (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+            |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+        );
+        let positions = self.accessor(
+            bytemuck::cast_slice(&mesh.positions),
+            n,
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::F32,
+            json::buffer::Target::ArrayBuffer,
+            Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
+        );
+        let normals = (!mesh.normals.is_empty()).then(|| {
+            self.accessor(
+                bytemuck::cast_slice(&mesh.normals),
+                n,
+                json::accessor::Type::Vec3,
+                json::accessor::ComponentType::F32,
+                json::buffer::Target::ArrayBuffer,
+                None,
+            )
+        });
+        let colors = (!mesh.colors.is_empty()).then(|| {
+            self.accessor(
+                bytemuck::cast_slice(&mesh.colors),
+                n,
+                json::accessor::Type::Vec4,
+                json::accessor::ComponentType::F32,
+                json::buffer::Target::ArrayBuffer,
+                None,
+            )
+        });
+        let indices = self.accessor(
+            bytemuck::cast_slice(&mesh.indices),
+            mesh.indices.len(),
+            json::accessor::Type::Scalar,
+            json::accessor::ComponentType::U32,
+            json::buffer::Target::ElementArrayBuffer,
+            None,
+        );
+        MeshAccessors {
+            positions,
+            normals,
+            colors,
+            indices,
+        }
+    }
+
+    fn accessor(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        kind: json::accessor::Type,
+        component: json::accessor::ComponentType,
+        target: json::buffer::Target,
+        min_max: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
+        // Every attribute is 4-byte components, so the buffer stays aligned.
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        let view = self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: Some(Valid(target)),
+            extensions: None,
+            extras: None,
+        });
+        let (min, max) = match min_max {
+            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            None => (None, None),
+        };
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: None,
+            type_: Valid(kind),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    /// A glTF mesh of one triangle primitive over the given accessors.
+    pub(crate) fn add_primitive(
+        &mut self,
+        accessors: &MeshAccessors,
+        material: Option<json::Index<json::Material>>,
+    ) -> json::Index<json::Mesh> {
+        let mut attributes = std::collections::BTreeMap::new();
+        attributes.insert(Valid(json::mesh::Semantic::Positions), accessors.positions);
+        if let Some(a) = accessors.normals {
+            attributes.insert(Valid(json::mesh::Semantic::Normals), a);
+        }
+        if let Some(a) = accessors.colors {
+            attributes.insert(Valid(json::mesh::Semantic::Colors(0)), a);
+        }
+        self.root.push(json::Mesh {
+            extensions: None,
+            extras: None,
+            name: None,
+            primitives: vec![json::mesh::Primitive {
+                attributes,
+                extensions: None,
+                extras: None,
+                indices: Some(accessors.indices),
+                material,
+                mode: Valid(json::mesh::Mode::Triangles),
+                targets: None,
+            }],
+            weights: None,
+        })
+    }
+
+    /// The material of a linear RGBA base colour (components in `[0, 1]`),
+    /// one per distinct colour.
+    pub(crate) fn material(&mut self, color: [f32; 4]) -> json::Index<json::Material> {
+        let key = color.map(f32::to_bits);
+        if let Some(&m) = self.materials.get(&key) {
+            return m;
+        }
+        let material = json::Material {
+            alpha_mode: Valid(if color[3] < 1.0 {
+                json::material::AlphaMode::Blend
+            } else {
+                json::material::AlphaMode::Opaque
+            }),
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                base_color_factor: json::material::PbrBaseColorFactor(color),
+                metallic_factor: json::material::StrengthFactor(0.0),
+                ..Default::default()
+            },
+            ..Default::default()
+        };
+        let m = self.root.push(material);
+        self.materials.insert(key, m);
+        m
+    }
+
+    /// A node placing `mesh` by `transform`, with `extras: {"id": id}`.
+    pub(crate) fn add_node(
+        &mut self,
+        mesh: json::Index<json::Mesh>,
+        transform: &Mat4,
+        id: Option<&str>,
+    ) -> json::Index<json::Node> {
+        let extras = id.map(|id| {
+            let text = serde_json::json!({ "id": id }).to_string();
+            serde_json::value::RawValue::from_string(text).expect("serde_json writes valid JSON")
+        });
+        self.root.push(json::Node {
+            mesh: Some(mesh),
+            matrix: (*transform != Mat4::IDENTITY).then(|| transform.to_cols_array()),
+            extras,
+            ..Default::default()
+        })
+    }
+
+    /// The GLB bytes, with `nodes` as the roots of the one scene.
+    pub(crate) fn finish(mut self, nodes: Vec<json::Index<json::Node>>) -> Vec<u8> {
+        if !self.bin.is_empty() {
+            self.root.push(json::Buffer {
+                byte_length: USize64::from(self.bin.len()),
+                name: None,
+                uri: None,
+                extensions: None,
+                extras: None,
+            });
+        }
+        let scene = self.root.push(json::Scene {
+            extensions: None,
+            extras: None,
+            name: None,
+            nodes,
+        });
+        self.root.scene = Some(scene);
+        let json_bytes = json::serialize::to_vec(&self.root).expect("glTF JSON serialises");
+        let mut out = Vec::with_capacity(json_bytes.len() + self.bin.len() + 40);
+        write_container(&mut out, &json_bytes, &self.bin).expect("writing to a Vec cannot fail");
+        out
+    }
+
+    /// The byte size of the binary chunk so far.
+    pub(crate) fn bin_len(&self) -> usize {
+        self.bin.len()
+    }
+}
+
+fn write_container(out: &mut impl Write, json_bytes: &[u8], bin: &[u8]) -> std::io::Result<()> {
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            // Recomputed by the writer.
+            length: 0,
+        },
+        json: json_bytes.into(),
+        bin: (!bin.is_empty()).then_some(bin.into()),
+    };
+    glb.to_writer(out).map_err(std::io::Error::other)
+}

@@ -1,0 +1,374 @@
+//! glTF 2.0 / GLB reader on top of the `gltf` crate (Khronos glTF 2.0
+//! specification, <https://registry.khronos.org/glTF/specs/2.0/glTF-2.0.html>).
+//!
+//! Every node with a mesh is read with its world transform (the parent
+//! chain). The node's mesh becomes one [`Mesh`]: its primitives merged, and
+//! when their materials differ, the material colours baked into vertex
+//! colours. Meshes are shared by key of the accessors they read (and of the
+//! baked colours), not by glTF mesh index: a writer that gives each
+//! (mesh, material) pair its own glTF mesh over the same accessors, as ours
+//! does, still reads back as one shared mesh.
+
+use std::collections::HashMap;
+use std::path::Path;
+
+use glam::{Mat4, Vec3};
+use gltf::mesh::Mode;
+
+use crate::error::{Error, Result};
+use crate::geometry::Mesh;
+
+/// The meshes of a glTF file and the nodes that place them.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Model {
+    pub meshes: Vec<Mesh>,
+    pub nodes: Vec<ModelNode>,
+}
+
+/// A node with a mesh.
+#[derive(Debug, Clone)]
+pub(crate) struct ModelNode {
+    /// Index of the node in the file, for error messages.
+    pub index: usize,
+    /// `extras.id` if present, else the node name.
+    pub id: Option<String>,
+    /// Index into [`Model::meshes`].
+    pub mesh: usize,
+    /// World transform (the parent chain).
+    pub transform: Mat4,
+    /// The material's base colour (linear RGBA), white when the primitives'
+    /// materials differ (their colours are then vertex colours).
+    pub color: [f32; 4],
+}
+
+impl ModelNode {
+    /// `node 3 "C-12"` or `node 3`, for error messages.
+    pub fn describe(&self) -> String {
+        match &self.id {
+            Some(id) => format!("node {} {id:?}", self.index),
+            None => format!("node {}", self.index),
+        }
+    }
+}
+
+/// Every mesh node of a .gltf/.glb flattened with its world transform into
+/// one mesh. Vertex colours are kept when any node has them or the nodes'
+/// colours differ (node colours then fill in); normals when every node has
+/// them.
+pub fn read_mesh(path: &Path) -> Result<Mesh> {
+    let model = read_model(path)?;
+    let used = |node: &ModelNode| &model.meshes[node.mesh];
+    let first_color = model.nodes.first().map(|n| n.color);
+    let want_colors = model
+        .nodes
+        .iter()
+        .any(|n| !used(n).colors.is_empty() || Some(n.color) != first_color);
+    let want_normals = model.nodes.iter().all(|n| !used(n).normals.is_empty());
+    let mut out = Mesh::default();
+    for node in &model.nodes {
+        let part = used(node).transformed(&node.transform);
+        let offset = out.positions.len() as u32;
+        if want_colors {
+            if part.colors.is_empty() {
+                out.colors
+                    .extend(std::iter::repeat_n(node.color, part.positions.len()));
+            } else {
+                out.colors.extend(
+                    part.colors
+                        .iter()
+                        .map(|c| std::array::from_fn(|k| c[k] * node.color[k])),
+                );
+            }
+        }
+        if want_normals {
+            out.normals.extend_from_slice(&part.normals);
+        }
+        out.positions.extend_from_slice(&part.positions);
+        out.indices.extend(part.indices.iter().map(|i| i + offset));
+    }
+    Ok(out)
+}
+
+/// What makes two glTF meshes the same scene mesh: the accessors each
+/// primitive reads, and the colours baked into it when the materials differ.
+#[derive(Debug, Clone, PartialEq, Eq, Hash)]
+struct MeshKey {
+    primitives: Vec<[Option<usize>; 4]>,
+    baked_colors: Option<Vec<[u32; 4]>>,
+}
+
+pub(crate) fn read_model(path: &Path) -> Result<Model> {
+    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(&bytes)
+        .map_err(|e| Error::invalid(path, "glTF", format!("not a valid glTF/GLB file: {e}")))?;
+    drop(bytes);
+    let buffers = gltf::import_buffers(&document, path.parent(), blob)
+        .map_err(|e| Error::invalid(path, "buffers", e.to_string()))?;
+    let worlds = world_transforms(&document).map_err(|(at, m)| Error::invalid(path, at, m))?;
+
+    let mut model = Model::default();
+    let mut shared: HashMap<MeshKey, usize> = HashMap::new();
+    for node in document.nodes() {
+        let Some(mesh) = node.mesh() else { continue };
+        let id = node_id(&node)
+            .map_err(|m| Error::invalid(path, format!("node {}", node.index()), m))?;
+        let mut placed = ModelNode {
+            index: node.index(),
+            id,
+            mesh: 0,
+            transform: worlds[node.index()],
+            color: [1.0; 4],
+        };
+        let at = |m: &gltf::Mesh| {
+            let name = m.name().map(|n| format!(" {n:?}")).unwrap_or_default();
+            format!("{} mesh {}{name}", placed.describe(), m.index())
+        };
+        let key = mesh_key(&mesh).map_err(|m| Error::invalid(path, at(&mesh), m))?;
+        placed.mesh = match shared.get(&key) {
+            Some(&found) => found,
+            None => {
+                let m = read_node_mesh(&mesh, &buffers)
+                    .map_err(|m| Error::invalid(path, at(&mesh), m))?;
+                model.meshes.push(m);
+                shared.insert(key.clone(), model.meshes.len() - 1);
+                model.meshes.len() - 1
+            }
+        };
+        // Instances share the mesh but each has its own material.
+        if key.baked_colors.is_none() {
+            placed.color = mesh
+                .primitives()
+                .next()
+                .map_or([1.0; 4], |p| base_color(&p));
+        }
+        model.nodes.push(placed);
+    }
+    Ok(model)
+}
+
+/// The node's id: `extras.id` (a string) if present, else its name.
+fn node_id(node: &gltf::Node) -> Result<Option<String>, String> {
+    if let Some(raw) = node.extras() {
+        let extras: serde_json::Value =
+            serde_json::from_str(raw.get()).map_err(|e| format!("extras: {e}"))?;
+        match extras.get("id") {
+            Some(serde_json::Value::String(id)) => return Ok(Some(id.clone())),
+            Some(other) => return Err(format!("extras.id must be a string, not {other}")),
+            None => {}
+        }
+    }
+    Ok(node.name().map(str::to_owned))
+}
+
+/// World transform of every node: its local transform after its parents'.
+fn world_transforms(document: &gltf::Document) -> Result<Vec<Mat4>, (String, String)> {
+    let n = document.nodes().len();
+    let mut parent = vec![None; n];
+    for node in document.nodes() {
+        for child in node.children() {
+            if let Some(other) = parent[child.index()].replace(node.index()) {
+                return Err((
+                    format!("node {}", child.index()),
+                    format!("is a child of both node {other} and node {}", node.index()),
+                ));
+            }
+        }
+    }
+    let local: Vec<Mat4> = document
+        .nodes()
+        .map(|node| Mat4::from_cols_array_2d(&node.transform().matrix()))
+        .collect();
+    let mut world: Vec<Option<Mat4>> = vec![None; n];
+    for start in 0..n {
+        // Walk up to the first node whose world transform is known; a chain
+        // longer than the node count is a cycle.
+        let mut chain = vec![start];
+        while let Some(p) = parent[*chain.last().expect("not empty")] {
+            if world[p].is_some() {
+                break;
+            }
+            if chain.len() > n {
+                return Err((
+                    format!("node {start}"),
+                    "its parent chain is a cycle".into(),
+                ));
+            }
+            chain.push(p);
+        }
+        for &i in chain.iter().rev() {
+            let above = parent[i].and_then(|p| world[p]).unwrap_or(Mat4::IDENTITY);
+            world[i] = Some(above * local[i]);
+        }
+    }
+    Ok(world
+        .into_iter()
+        .map(|m| m.expect("every node visited"))
+        .collect())
+}
+
+fn base_color(primitive: &gltf::Primitive) -> [f32; 4] {
+    primitive
+        .material()
+        .pbr_metallic_roughness()
+        .base_color_factor()
+}
+
+fn mesh_key(mesh: &gltf::Mesh) -> Result<MeshKey, String> {
+    let mut primitives = Vec::new();
+    for p in mesh.primitives() {
+        if p.mode() != Mode::Triangles {
+            return Err(format!(
+                "primitive {}: mode {:?} is not supported (only TRIANGLES)",
+                p.index(),
+                p.mode()
+            ));
+        }
+        let attr = |s: gltf::Semantic| p.get(&s).map(|a| a.index());
+        primitives.push([
+            attr(gltf::Semantic::Positions),
+            attr(gltf::Semantic::Normals),
+            attr(gltf::Semantic::Colors(0)),
+            p.indices().map(|a| a.index()),
+        ]);
+    }
+    let colors: Vec<[f32; 4]> = mesh.primitives().map(|p| base_color(&p)).collect();
+    let uniform = colors.windows(2).all(|w| w[0] == w[1]);
+    Ok(MeshKey {
+        primitives,
+        baked_colors: (!uniform).then(|| colors.iter().map(|c| c.map(f32::to_bits)).collect()),
+    })
+}
+
+/// Checks what the `gltf` crate's reader takes on trust: a non-empty
+/// accessor of the expected type (it would misread or panic otherwise).
+fn check_accessor(
+    accessor: &gltf::Accessor,
+    what: &str,
+    dimensions: &[gltf::accessor::Dimensions],
+    float_only: bool,
+) -> Result<(), String> {
+    if accessor.count() == 0 {
+        return Err(format!("{what} accessor {} is empty", accessor.index()));
+    }
+    if !dimensions.contains(&accessor.dimensions())
+        || (float_only && accessor.data_type() != gltf::accessor::DataType::F32)
+        || (float_only && accessor.normalized())
+    {
+        return Err(format!(
+            "{what} accessor {} has unsupported type {:?} {:?}",
+            accessor.index(),
+            accessor.dimensions(),
+            accessor.data_type()
+        ));
+    }
+    Ok(())
+}
+
+/// One glTF mesh as one scene mesh, its primitives merged.
+fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<Mesh, String> {
+    use gltf::accessor::Dimensions::{Scalar, Vec3 as D3, Vec4 as D4};
+    let prims: Vec<gltf::Primitive> = mesh.primitives().collect();
+    if prims.is_empty() {
+        return Err("has no primitives".into());
+    }
+    let colors: Vec<[f32; 4]> = prims.iter().map(base_color).collect();
+    let uniform = colors.windows(2).all(|w| w[0] == w[1]);
+    let has = |s: gltf::Semantic| prims.iter().map(move |p| p.get(&s).is_some());
+    let want_colors = !uniform || has(gltf::Semantic::Colors(0)).any(|b| b);
+    let want_normals = has(gltf::Semantic::Normals).all(|b| b);
+
+    let mut out = Mesh::default();
+    for (p, material_color) in prims.iter().zip(&colors) {
+        let at = |m: String| format!("primitive {}: {m}", p.index());
+        let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+        let unreadable = |what: &str, a: Option<gltf::Accessor>| {
+            at(format!(
+                "{what} accessor {} lies outside its buffer",
+                a.map_or(0, |a| a.index())
+            ))
+        };
+        let positions_acc = p
+            .get(&gltf::Semantic::Positions)
+            .ok_or_else(|| at("has no POSITION attribute".into()))?;
+        check_accessor(&positions_acc, "POSITION", &[D3], true).map_err(at)?;
+        let offset = out.positions.len();
+        out.positions.extend(
+            reader
+                .read_positions()
+                .ok_or_else(|| unreadable("POSITION", Some(positions_acc.clone())))?
+                .map(Vec3::from),
+        );
+        let count = out.positions.len() - offset;
+        if want_normals {
+            let acc = p.get(&gltf::Semantic::Normals).expect("checked above");
+            check_accessor(&acc, "NORMAL", &[D3], true).map_err(at)?;
+            let before = out.normals.len();
+            out.normals.extend(
+                reader
+                    .read_normals()
+                    .ok_or_else(|| unreadable("NORMAL", Some(acc)))?
+                    .map(Vec3::from),
+            );
+            if out.normals.len() - before != count {
+                return Err(at("NORMAL and POSITION counts differ".into()));
+            }
+        }
+        if want_colors {
+            let tint = if uniform { [1.0; 4] } else { *material_color };
+            let before = out.colors.len();
+            match p.get(&gltf::Semantic::Colors(0)) {
+                Some(acc) => {
+                    check_accessor(&acc, "COLOR_0", &[D3, D4], false).map_err(at)?;
+                    out.colors.extend(
+                        reader
+                            .read_colors(0)
+                            .ok_or_else(|| unreadable("COLOR_0", Some(acc)))?
+                            .into_rgba_f32()
+                            .map(|c| std::array::from_fn(|k| c[k] * tint[k])),
+                    );
+                }
+                None => out.colors.extend(std::iter::repeat_n(tint, count)),
+            }
+            if out.colors.len() - before != count {
+                return Err(at("COLOR_0 and POSITION counts differ".into()));
+            }
+        }
+        let base = offset as u32;
+        match p.indices() {
+            Some(acc) => {
+                check_accessor(&acc, "indices", &[Scalar], false).map_err(at)?;
+                let indices = reader
+                    .read_indices()
+                    .ok_or_else(|| unreadable("indices", Some(acc)))?
+                    .into_u32();
+                let before = out.indices.len();
+                out.indices.extend(indices.map(|i| i.saturating_add(base)));
+                if let Some(i) = out.indices[before..]
+                    .iter()
+                    .find(|&&i| (i - base) as usize >= count)
+                {
+                    return Err(at(format!(
+                        "index {} is out of range ({count} vertices)",
+                        i - base
+                    )));
+                }
+            }
+            None => out.indices.extend(base..base + count as u32),
+        }
+        if !(out.indices.len()).is_multiple_of(3) {
+            return Err(at("the indices are not a whole number of triangles".into()));
+        }
+    }
+    out.validate()?;
+    if let Some(i) = out.normals.iter().position(|n| !n.is_finite()) {
+        return Err(format!("normal {i} is not finite"));
+    }
+    if let Some(i) = out
+        .colors
+        .iter()
+        .position(|c| c.iter().any(|x| !x.is_finite()))
+    {
+        return Err(format!("colour {i} is not finite"));
+    }
+    Ok(out)
+}

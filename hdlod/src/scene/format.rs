@@ -1,0 +1,567 @@
+//! The scene format `hdlod-scene/1` (docs/formats.md, schemas/scene.schema.json):
+//! a `scene.json` with the schedule, the motion and per-object properties,
+//! beside the glTF/GLB files that hold the geometry. Every mesh node of the
+//! models is an object; its id is `extras.id`, else the node name.
+//!
+//! Loading checks everything a later stage would trip over and names the
+//! file and the task, object or field at fault; saving writes into a
+//! temporary directory beside the target and renames it into place, so a
+//! failed save leaves nothing half-written.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::{Path, PathBuf};
+
+use glam::{Quat, Vec3};
+use serde::{Deserialize, Serialize};
+
+use super::{Keyframe, Motion, Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility};
+use crate::error::{Error, Result};
+use crate::io::glb::GlbBuilder;
+use crate::io::gltf::read_model;
+use crate::time::{TimeSpan, TimeValue, format_date, parse_date};
+
+/// The value of the `format` field.
+pub const FORMAT: &str = "hdlod-scene/1";
+/// The scene file inside a scene directory.
+pub const SCENE_FILE: &str = "scene.json";
+
+/// Times further than this from the scene's start (about 300 years) are
+/// taken for mistakes (and would overflow date arithmetic long before
+/// `f64` does).
+const MAX_SECONDS: f64 = 1e10;
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct SceneFile {
+    format: String,
+    name: String,
+    #[serde(default)]
+    up: Up,
+    time: TimeFile,
+    models: Vec<String>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    objects: BTreeMap<String, ObjectEntry>,
+    #[serde(default)]
+    tasks: Vec<TaskFile>,
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    motion: BTreeMap<String, Vec<KeyframeFile>>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    schedule_options: Option<ScheduleOptions>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TimeFile {
+    start: String,
+    end: TimeValue,
+}
+
+#[derive(Debug, Default, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ObjectEntry {
+    #[serde(default, skip_serializing_if = "BTreeMap::is_empty")]
+    properties: BTreeMap<String, String>,
+    /// Leaves the mesh node out of the scene.
+    #[serde(default, skip_serializing_if = "std::ops::Not::not")]
+    skip: bool,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct TaskFile {
+    id: String,
+    #[serde(default)]
+    name: String,
+    #[serde(rename = "type")]
+    kind: String,
+    start: TimeValue,
+    finish: TimeValue,
+    objects: Vec<String>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct KeyframeFile {
+    t: TimeValue,
+    #[serde(default = "zero3")]
+    translation: [f32; 3],
+    #[serde(default = "identity_rotation")]
+    rotation: [f32; 4],
+    #[serde(default = "one3")]
+    scale: [f32; 3],
+}
+
+fn zero3() -> [f32; 3] {
+    [0.0; 3]
+}
+fn one3() -> [f32; 3] {
+    [1.0; 3]
+}
+fn identity_rotation() -> [f32; 4] {
+    [0.0, 0.0, 0.0, 1.0]
+}
+
+/// Loads a scene from its directory or its `scene.json`, reads the models,
+/// checks the schedule and motion, and applies the schedule.
+pub fn load(path: &Path) -> Result<Scene> {
+    let file = if path.is_dir() {
+        path.join(SCENE_FILE)
+    } else {
+        path.to_path_buf()
+    };
+    let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+    let de = &mut serde_json::Deserializer::from_str(&text);
+    let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
+        let at = e.path().to_string();
+        let at = if at == "." { "JSON".to_owned() } else { at };
+        Error::invalid(&file, at, e.into_inner().to_string())
+    })?;
+    Loader {
+        file: &file,
+        base: file.parent().unwrap_or(Path::new(".")),
+    }
+    .scene(parsed)
+}
+
+struct Loader<'a> {
+    file: &'a Path,
+    base: &'a Path,
+}
+
+impl Loader<'_> {
+    fn err(&self, at: impl Into<String>, message: impl Into<String>) -> Error {
+        Error::invalid(self.file, at, message)
+    }
+
+    fn time(&self, span: &TimeSpan, value: &TimeValue, at: &str) -> Result<f64> {
+        let t = span.resolve(value).map_err(|m| self.err(at, m))?;
+        if t.abs() > MAX_SECONDS {
+            return Err(self.err(
+                at,
+                format!(
+                    "{} is more than {MAX_SECONDS:e} s from the scene start",
+                    show(value)
+                ),
+            ));
+        }
+        Ok(t)
+    }
+
+    fn scene(&self, f: SceneFile) -> Result<Scene> {
+        if f.format != FORMAT {
+            return Err(self.err(
+                "format",
+                format!("{:?} is not supported (expected {FORMAT:?})", f.format),
+            ));
+        }
+        let start = parse_date(&f.time.start).map_err(|m| self.err("time.start", m))?;
+        let mut time = TimeSpan {
+            start,
+            seconds: 0.0,
+        };
+        time.seconds = self.time(&time, &f.time.end, "time.end")?;
+        if time.seconds <= 0.0 {
+            return Err(self.err(
+                "time.end",
+                format!(
+                    "{} is not after the start {}",
+                    show(&f.time.end),
+                    f.time.start
+                ),
+            ));
+        }
+
+        let (meshes, mut objects) = self.objects(&f)?;
+        let index: HashMap<String, usize> = objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (o.id.clone(), i))
+            .collect();
+        let lookup = |id: &str, at: &str| -> Result<usize> {
+            index.get(id).copied().ok_or_else(|| {
+                let why = if f.objects.get(id).is_some_and(|o| o.skip) {
+                    "is skipped (objects.skip)"
+                } else {
+                    "does not exist in the models"
+                };
+                self.err(at, format!("object {id:?} {why}"))
+            })
+        };
+
+        let mut tasks = Vec::with_capacity(f.tasks.len());
+        let mut task_ids = HashMap::new();
+        for (i, t) in f.tasks.iter().enumerate() {
+            let at = format!("tasks[{i}] {:?}", t.id);
+            if let Some(first) = task_ids.insert(t.id.as_str(), i) {
+                return Err(self.err(at, format!("the id is also the id of tasks[{first}]")));
+            }
+            let kind = TaskType::parse(&t.kind).ok_or_else(|| {
+                self.err(
+                    format!("{at}.type"),
+                    format!("{:?} is not a task type; use {}", t.kind, TaskType::NAMES),
+                )
+            })?;
+            let start = self.time(&time, &t.start, &format!("{at}.start"))?;
+            let finish = self.time(&time, &t.finish, &format!("{at}.finish"))?;
+            if finish < start {
+                return Err(self.err(
+                    at,
+                    format!(
+                        "finish {} is before start {}",
+                        show(&t.finish),
+                        show(&t.start)
+                    ),
+                ));
+            }
+            for id in &t.objects {
+                lookup(id, &format!("{at}.objects"))?;
+            }
+            tasks.push(Task {
+                id: t.id.clone(),
+                name: t.name.clone(),
+                kind,
+                start,
+                finish,
+                objects: t.objects.clone(),
+            });
+        }
+
+        for (id, keys) in &f.motion {
+            let at = format!("motion.{id:?}");
+            let i = lookup(id, &at)?;
+            let mut frames = Vec::with_capacity(keys.len());
+            for (k, key) in keys.iter().enumerate() {
+                frames.push(Keyframe {
+                    t: self.time(&time, &key.t, &format!("{at}[{k}].t"))?,
+                    translation: Vec3::from(key.translation),
+                    rotation: Quat::from_array(key.rotation),
+                    scale: Vec3::from(key.scale),
+                });
+            }
+            objects[i].motion =
+                Some(Motion::new(frames).map_err(|m| self.err(format!("object {id:?}"), m))?);
+        }
+
+        let mut scene = Scene {
+            name: f.name,
+            up: f.up,
+            time,
+            meshes,
+            objects,
+            tasks,
+            schedule_options: f.schedule_options.unwrap_or_default(),
+        };
+        scene.apply_schedule();
+        Ok(scene)
+    }
+
+    /// Reads the models: the meshes (only those some object uses, in order
+    /// of first use) and one object per mesh node not skipped.
+    fn objects(&self, f: &SceneFile) -> Result<(Vec<crate::geometry::Mesh>, Vec<Object>)> {
+        let mut meshes = Vec::new();
+        let mut objects: Vec<Object> = Vec::new();
+        let mut seen: HashMap<String, String> = HashMap::new();
+        for (m, name) in f.models.iter().enumerate() {
+            let path = self.base.join(name);
+            let model = read_model(&path).map_err(|e| match e {
+                Error::Io { source, .. } => self.err(
+                    format!("models[{m}]"),
+                    format!("cannot read {}: {source}", path.display()),
+                ),
+                other => other,
+            })?;
+            // Model mesh index -> scene mesh index, filled on first use.
+            let mut remap: Vec<Option<usize>> = vec![None; model.meshes.len()];
+            let mut model_meshes: Vec<Option<crate::geometry::Mesh>> =
+                model.meshes.into_iter().map(Some).collect();
+            for node in model.nodes {
+                let id = node.id.clone().ok_or_else(|| {
+                    Error::invalid(
+                        &path,
+                        node.describe(),
+                        "has a mesh but neither extras.id nor a name, so it cannot be an object",
+                    )
+                })?;
+                let entry = f.objects.get(&id);
+                if entry.is_some_and(|e| e.skip) {
+                    continue;
+                }
+                let here = format!("{} {}", path.display(), node.describe());
+                if let Some(first) = seen.insert(id.clone(), here) {
+                    return Err(Error::invalid(
+                        &path,
+                        node.describe(),
+                        format!("object id {id:?} is also the id of {first}"),
+                    ));
+                }
+                let mesh = *remap[node.mesh].get_or_insert_with(|| {
+                    meshes.push(model_meshes[node.mesh].take().expect("taken once"));
+                    meshes.len() - 1
+                });
+                objects.push(Object {
+                    id,
+                    mesh,
+                    transform: node.transform,
+                    color: node.color,
+                    visibility: Visibility::always(),
+                    motion: None,
+                    properties: entry.map(|e| e.properties.clone()).unwrap_or_default(),
+                });
+            }
+        }
+        if let Some(id) = f
+            .objects
+            .keys()
+            .find(|id| !seen.contains_key(id.as_str()) && !f.objects[id.as_str()].skip)
+        {
+            return Err(self.err(
+                format!("objects.{id:?}"),
+                "names no mesh node in the models",
+            ));
+        }
+        Ok((meshes, objects))
+    }
+}
+
+/// A time as the user wrote it, for messages.
+fn show(value: &TimeValue) -> String {
+    match value {
+        TimeValue::Seconds(s) if s.abs() < 1e15 => format!("{s} s"),
+        TimeValue::Seconds(s) => format!("{s:e} s"),
+        TimeValue::Iso(text) => text.clone(),
+    }
+}
+
+/// Writes `dir/scene.json` and `dir/<name>.glb`. The files are written into
+/// a temporary directory beside `dir` which then replaces `dir`, so on any
+/// error nothing is left half-written and an existing `dir` is untouched.
+pub fn save(scene: &Scene, dir: &Path) -> Result<()> {
+    check(scene)?;
+    let model = format!("{}.glb", scene.name);
+    let glb = scene_glb(scene)?;
+    let json = serde_json::to_vec_pretty(&scene_file(scene, &model))
+        .map_err(|e| Error::argument("scene", e.to_string()))?;
+
+    let parent = match dir.parent() {
+        Some(p) if !p.as_os_str().is_empty() => p.to_path_buf(),
+        _ => PathBuf::from("."),
+    };
+    let leaf = dir
+        .file_name()
+        .ok_or_else(|| {
+            Error::argument("output directory", format!("{} has no name", dir.display()))
+        })?
+        .to_string_lossy()
+        .into_owned();
+    std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+    let tmp = parent.join(format!(".{leaf}.tmp-{}", std::process::id()));
+    let write = || -> Result<()> {
+        if tmp.exists() {
+            std::fs::remove_dir_all(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        }
+        std::fs::create_dir(&tmp).map_err(|e| Error::io(&tmp, e))?;
+        for (name, bytes) in [(SCENE_FILE, &json), (model.as_str(), &glb)] {
+            let p = tmp.join(name);
+            std::fs::write(&p, bytes).map_err(|e| Error::io(&p, e))?;
+        }
+        Ok(())
+    };
+    if let Err(e) = write() {
+        let _ = std::fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    replace_dir(&tmp, dir).inspect_err(|_| {
+        let _ = std::fs::remove_dir_all(&tmp);
+    })
+}
+
+/// Moves `tmp` to `dir`, replacing an existing `dir` only once the new one
+/// is in place.
+fn replace_dir(tmp: &Path, dir: &Path) -> Result<()> {
+    if !dir.exists() {
+        return std::fs::rename(tmp, dir).map_err(|e| Error::io(dir, e));
+    }
+    let old = tmp.with_extension("old");
+    std::fs::rename(dir, &old).map_err(|e| Error::io(dir, e))?;
+    if let Err(e) = std::fs::rename(tmp, dir) {
+        let _ = std::fs::rename(&old, dir);
+        return Err(Error::io(dir, e));
+    }
+    std::fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))
+}
+
+/// Rejects what `load` would reject, before anything is written.
+fn check(scene: &Scene) -> Result<()> {
+    let bad = |at: String, m: String| Err(Error::argument(at, m));
+    let name = &scene.name;
+    if name.is_empty() || name.starts_with('.') || name.contains(['/', '\\', ':', '\0']) {
+        return bad(
+            "scene name".into(),
+            format!("{name:?} cannot be a file name"),
+        );
+    }
+    let in_range = |t: f64| t.abs() <= MAX_SECONDS;
+    if !(in_range(scene.time.seconds) && scene.time.seconds > 0.0) {
+        return bad(
+            "scene time".into(),
+            format!("span of {} s", scene.time.seconds),
+        );
+    }
+    let mut ids = HashMap::new();
+    for (i, o) in scene.objects.iter().enumerate() {
+        let at = format!("object {:?}", o.id);
+        if o.id.is_empty() {
+            return bad(format!("objects[{i}]"), "the id is empty".into());
+        }
+        if let Some(first) = ids.insert(o.id.as_str(), i) {
+            return bad(
+                at,
+                format!("objects[{first}] and objects[{i}] share the id"),
+            );
+        }
+        let Some(mesh) = scene.meshes.get(o.mesh) else {
+            return bad(at, format!("mesh {} does not exist", o.mesh));
+        };
+        if mesh.is_empty() {
+            return bad(at, format!("mesh {} has no triangles", o.mesh));
+        }
+        if !o.transform.is_finite() {
+            return bad(at, "the transform is not finite".into());
+        }
+        if !o.color.iter().all(|c| (0.0..=1.0).contains(c)) {
+            return bad(at, format!("colour {:?} is not within [0, 1]", o.color));
+        }
+        if let Some(k) = o
+            .motion
+            .iter()
+            .flat_map(|m| m.keyframes())
+            .find(|k| !in_range(k.t))
+        {
+            return bad(at, format!("keyframe time {} is out of range", k.t));
+        }
+    }
+    for (m, mesh) in scene.meshes.iter().enumerate() {
+        mesh.validate()
+            .map_err(|e| Error::argument(format!("mesh {m}"), e))?;
+    }
+    for t in &scene.tasks {
+        let at = format!("task {:?}", t.id);
+        if !(in_range(t.start) && in_range(t.finish) && t.start <= t.finish) {
+            return bad(at, format!("start {} and finish {}", t.start, t.finish));
+        }
+        if let Some(id) = t.objects.iter().find(|id| !ids.contains_key(id.as_str())) {
+            return bad(at, format!("object {id:?} does not exist"));
+        }
+    }
+    Ok(())
+}
+
+/// One GLB for the whole scene: each mesh written once, a glTF mesh per
+/// (mesh, colour) pair over the same accessors, a node per object.
+fn scene_glb(scene: &Scene) -> Result<Vec<u8>> {
+    let mut glb = GlbBuilder::new();
+    let mut accessors = vec![None; scene.meshes.len()];
+    let mut primitives = HashMap::new();
+    let mut nodes = Vec::with_capacity(scene.objects.len());
+    for o in &scene.objects {
+        let acc = *accessors[o.mesh].get_or_insert_with(|| glb.add_mesh(&scene.meshes[o.mesh]));
+        let key = (o.mesh, o.color.map(f32::to_bits));
+        let mesh = match primitives.get(&key) {
+            Some(&m) => m,
+            None => {
+                let material = glb.material(o.color);
+                let m = glb.add_primitive(&acc, Some(material));
+                primitives.insert(key, m);
+                m
+            }
+        };
+        nodes.push(glb.add_node(mesh, &o.transform, Some(&o.id)));
+    }
+    // GLB lengths are 32-bit.
+    if glb.bin_len() > (u32::MAX as usize) - (64 << 20) {
+        return Err(Error::argument(
+            "scene",
+            format!(
+                "{} bytes of geometry exceed the 4 GiB of a GLB",
+                glb.bin_len()
+            ),
+        ));
+    }
+    Ok(glb.finish(nodes))
+}
+
+fn scene_file(scene: &Scene, model: &str) -> SceneFile {
+    let span = &scene.time;
+    let whole_start = span.start.timestamp_subsec_nanos() == 0;
+    // ISO dates where they are exact (whole seconds), seconds otherwise, so
+    // that a saved scene loads back identical.
+    let time = |t: f64| {
+        if whole_start && t.fract() == 0.0 {
+            TimeValue::Iso(format_date(span.date_at(t)))
+        } else {
+            TimeValue::Seconds(t)
+        }
+    };
+    let start = span
+        .start
+        .to_rfc3339_opts(chrono::SecondsFormat::AutoSi, true);
+    SceneFile {
+        format: FORMAT.into(),
+        name: scene.name.clone(),
+        up: scene.up,
+        time: TimeFile {
+            start,
+            end: time(span.seconds),
+        },
+        models: vec![model.into()],
+        objects: scene
+            .objects
+            .iter()
+            .filter(|o| !o.properties.is_empty())
+            .map(|o| {
+                (
+                    o.id.clone(),
+                    ObjectEntry {
+                        properties: o.properties.clone(),
+                        skip: false,
+                    },
+                )
+            })
+            .collect(),
+        tasks: scene
+            .tasks
+            .iter()
+            .map(|t| TaskFile {
+                id: t.id.clone(),
+                name: t.name.clone(),
+                kind: task_type_name(t.kind).into(),
+                start: time(t.start),
+                finish: time(t.finish),
+                objects: t.objects.clone(),
+            })
+            .collect(),
+        motion: scene
+            .objects
+            .iter()
+            .filter_map(|o| {
+                let keys = o.motion.as_ref()?.keyframes().iter().map(|k| KeyframeFile {
+                    t: TimeValue::Seconds(k.t),
+                    translation: k.translation.to_array(),
+                    rotation: k.rotation.to_array(),
+                    scale: k.scale.to_array(),
+                });
+                Some((o.id.clone(), keys.collect()))
+            })
+            .collect(),
+        schedule_options: Some(scene.schedule_options),
+    }
+}
+
+fn task_type_name(kind: TaskType) -> &'static str {
+    match kind {
+        TaskType::Construct => "construct",
+        TaskType::Demolish => "demolish",
+        TaskType::Temporary => "temporary",
+        TaskType::Maintain => "maintain",
+    }
+}

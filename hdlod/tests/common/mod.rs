@@ -1,0 +1,150 @@
+//! Small hand-built scenes shared by the scene tests.
+#![allow(dead_code)]
+
+use std::collections::BTreeMap;
+
+use glam::{Mat4, Quat, Vec3};
+use hdlod::geometry::Mesh;
+use hdlod::scene::{
+    Instant, Keyframe, Motion, Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility,
+};
+use hdlod::time::{TimeSpan, parse_date};
+
+/// A unit cube with flat normals (24 vertices, 12 triangles).
+pub fn unit_box() -> Mesh {
+    let mut mesh = Mesh::default();
+    for axis in 0..3 {
+        for sign in [-1.0f32, 1.0] {
+            let n = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
+            let u = Vec3::from_array(std::array::from_fn(|k| {
+                if k == (axis + 1) % 3 { 1.0 } else { 0.0 }
+            }));
+            let v = n.cross(u);
+            let base = mesh.positions.len() as u32;
+            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
+                mesh.positions.push(0.5 * (n + a * u + b * v));
+                mesh.normals.push(n);
+            }
+            mesh.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+    }
+    mesh
+}
+
+/// A tetrahedron with vertex colours and no normals.
+pub fn coloured_tetra() -> Mesh {
+    Mesh {
+        positions: vec![Vec3::ZERO, Vec3::X, Vec3::Y, Vec3::Z],
+        normals: vec![],
+        colors: vec![
+            [1.0, 0.0, 0.0, 1.0],
+            [0.0, 1.0, 0.0, 1.0],
+            [0.0, 0.0, 1.0, 1.0],
+            [1.0, 1.0, 0.0, 0.5],
+        ],
+        indices: vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3],
+    }
+}
+
+fn object(id: &str, mesh: usize, transform: Mat4, color: [f32; 4]) -> Object {
+    Object {
+        id: id.into(),
+        mesh,
+        transform,
+        color,
+        visibility: Visibility::always(),
+        motion: None,
+        properties: BTreeMap::new(),
+    }
+}
+
+/// Two instances of one box in different colours, a tetra that moves, a
+/// third box with properties; a schedule with whole and fractional times.
+pub fn sample_scene() -> Scene {
+    let day = 86400.0;
+    let mut column = object(
+        "C-1",
+        0,
+        Mat4::from_translation(Vec3::new(1.0, 0.5, 0.0)),
+        [0.8, 0.8, 0.8, 1.0],
+    );
+    column.properties.insert("storey".into(), "L01".into());
+    column.properties.insert("ifc".into(), "IfcColumn".into());
+    let beam = object(
+        "B-1",
+        0,
+        Mat4::from_scale_rotation_translation(
+            Vec3::new(4.0, 0.3, 0.3),
+            Quat::from_rotation_y(0.25),
+            Vec3::new(2.0, 3.0, 0.0),
+        ),
+        [0.5, 0.2, 0.1, 1.0],
+    );
+    let mut truck = object("truck-1", 1, Mat4::IDENTITY, [1.0; 4]);
+    truck.motion = Some(
+        Motion::new(vec![
+            Keyframe {
+                t: 0.0,
+                translation: Vec3::ZERO,
+                rotation: Quat::IDENTITY,
+                scale: Vec3::ONE,
+            },
+            Keyframe {
+                t: 2.5 * day,
+                translation: Vec3::new(10.0, 0.0, -3.0),
+                rotation: Quat::from_xyzw(0.0, 1.0, 0.0, 0.0),
+                scale: Vec3::ONE,
+            },
+        ])
+        .unwrap(),
+    );
+    let scaffold = object(
+        "S-1",
+        0,
+        Mat4::from_translation(Vec3::new(-5.0, 1.0, 2.0)),
+        [0.8, 0.8, 0.8, 1.0],
+    );
+    let mut scene = Scene {
+        name: "sample".into(),
+        up: Up::Y,
+        time: TimeSpan {
+            start: parse_date("2025-03-01T00:00:00Z").unwrap(),
+            seconds: 10.0 * day,
+        },
+        meshes: vec![unit_box(), coloured_tetra()],
+        objects: vec![column, beam, truck, scaffold],
+        tasks: vec![
+            Task {
+                id: "T1".into(),
+                name: "Level 1 columns".into(),
+                kind: TaskType::Construct,
+                start: day,
+                finish: 2.0 * day + 0.25,
+                objects: vec!["C-1".into()],
+            },
+            Task {
+                id: "T2".into(),
+                name: "Beams".into(),
+                kind: TaskType::Construct,
+                start: 3.0 * day,
+                finish: 4.0 * day,
+                objects: vec!["B-1".into()],
+            },
+            Task {
+                id: "T3".into(),
+                name: "Scaffolding".into(),
+                kind: TaskType::Temporary,
+                start: 0.5,
+                finish: 6.0 * day,
+                objects: vec!["S-1".into()],
+            },
+        ],
+        schedule_options: ScheduleOptions {
+            construct_at: Instant::Finish,
+            demolish_at: Instant::Start,
+        },
+    };
+    scene.apply_schedule();
+    scene
+}

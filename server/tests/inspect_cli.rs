@@ -1,0 +1,99 @@
+//! `hdlod inspect` on a saved scene: the JSON follows its schema and has the
+//! right counts, the table is readable, bad input exits non-zero.
+
+#[path = "../../hdlod/tests/common/mod.rs"]
+mod common;
+
+use std::path::{Path, PathBuf};
+use std::process::{Command, Output};
+
+fn hdlod(args: &[&std::ffi::OsStr]) -> Output {
+    Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(args)
+        .env("RUST_LOG", "warn")
+        .output()
+        .unwrap()
+}
+
+fn saved_sample(dir: &Path) -> PathBuf {
+    let out = dir.join("sample");
+    hdlod::scene::format::save(&common::sample_scene(), &out).unwrap();
+    out
+}
+
+#[test]
+fn json_follows_the_schema_and_counts() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = saved_sample(tmp.path());
+    let out = hdlod(&["inspect".as_ref(), scene.as_os_str(), "--json".as_ref()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let schema_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/inspect.schema.json");
+    let schema: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(schema_path).unwrap()).unwrap();
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    let errors: Vec<String> = validator
+        .iter_errors(&json)
+        .map(|e| e.to_string())
+        .collect();
+    assert!(errors.is_empty(), "{errors:?}\n{json}");
+    assert_eq!(json["classes"]["pseudo_dynamic"]["objects"], 3);
+    assert_eq!(json["classes"]["pseudo_dynamic"]["triangles"], 36);
+    assert_eq!(json["classes"]["dynamic"]["triangles"], 4);
+    assert_eq!(json["visibility_types"]["appearing"], 2);
+    assert_eq!(json["bounds"]["max"][0], 10.0);
+    assert_eq!(json["time"]["end"], "2025-03-11T00:00:00Z");
+}
+
+#[test]
+fn table_is_readable() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = saved_sample(tmp.path());
+    let out = hdlod(&["inspect".as_ref(), scene.join("scene.json").as_os_str()]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let text = String::from_utf8(out.stdout).unwrap();
+    assert!(
+        text.contains("scene sample: 4 objects, 2 distinct meshes, 40 triangles"),
+        "{text}"
+    );
+    assert!(
+        text.lines()
+            .any(|l| l.split_whitespace().collect::<Vec<_>>() == ["pseudo_dynamic", "3", "36"]),
+        "{text}"
+    );
+    assert!(
+        text.contains("2025-03-01T00:00:00Z .. 2025-03-11T00:00:00Z"),
+        "{text}"
+    );
+}
+
+#[test]
+fn bad_scene_exits_non_zero_with_the_reason() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = saved_sample(tmp.path());
+    let file = scene.join("scene.json");
+    let text = std::fs::read_to_string(&file).unwrap();
+    std::fs::write(&file, text.replace("\"C-1\"\n", "\"nobody\"\n")).unwrap();
+    let out = hdlod(&["inspect".as_ref(), scene.as_os_str(), "--json".as_ref()]);
+    assert!(!out.status.success());
+    assert!(out.stdout.is_empty());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("scene.json")
+            && stderr.contains("tasks[0] \"T1\"")
+            && stderr.contains("\"nobody\""),
+        "{stderr}"
+    );
+
+    let out = hdlod(&["inspect".as_ref(), tmp.path().join("missing").as_os_str()]);
+    assert!(!out.status.success());
+    assert!(String::from_utf8_lossy(&out.stderr).contains("missing"));
+}
