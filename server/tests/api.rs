@@ -283,7 +283,7 @@ fn bad_requests_name_the_field() {
     let response = http.delete(&cut).send().unwrap();
     assert_eq!(response.status(), StatusCode::METHOD_NOT_ALLOWED);
 
-    let huge = format!("{{\"time\": 0, \"pad\": \"{}\"}}", "x".repeat(200_000));
+    let huge = format!("{{\"time\": 0, \"pad\": \"{}\"}}", "x".repeat(100_000));
     let response = http
         .post(&cut)
         .header("content-type", "application/json")
@@ -293,9 +293,14 @@ fn bad_requests_name_the_field() {
     assert_eq!(response.status(), StatusCode::PAYLOAD_TOO_LARGE);
     assert_eq!(response.json::<Value>().unwrap()["error"]["status"], 413);
 
-    // None of it hurt the server.
+    // None of it hurt the server. (A fresh client: after a 413 the server
+    // closes that connection without reading the rest of the body.)
     assert_eq!(
-        http.get(server.url("/healthz")).send().unwrap().status(),
+        client()
+            .get(server.url("/healthz"))
+            .send()
+            .unwrap()
+            .status(),
         StatusCode::OK
     );
 }
