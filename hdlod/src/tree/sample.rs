@@ -18,6 +18,7 @@ use rand_chacha::ChaCha8Rng;
 use super::{Aabb, Cluster, ClusterClass, Steps, Tree, TreeWriter};
 use crate::error::Result;
 use crate::geometry::Mesh;
+use crate::io::glb::mesh_to_glb;
 use crate::scene::{Keyframe, Motion, Up};
 use crate::time::{TimeSpan, parse_date};
 
@@ -50,51 +51,9 @@ fn box_mesh(b: &Aabb, k: u32) -> Mesh {
     mesh
 }
 
-/// A minimal glTF 2.0 binary: one mesh of positions and `u32` indices.
-fn glb(mesh: &Mesh) -> Vec<u8> {
-    let mut bin: Vec<u8> = mesh
-        .positions
-        .iter()
-        .flat_map(|p| p.to_array())
-        .flat_map(f32::to_le_bytes)
-        .collect();
-    let positions_len = bin.len();
-    bin.extend(mesh.indices.iter().flat_map(|i| i.to_le_bytes()));
-    let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
-    let json = serde_json::json!({
-        "asset": {"version": "2.0", "generator": "hdlod sample tree"},
-        "scene": 0, "scenes": [{"nodes": [0]}], "nodes": [{"mesh": 0}],
-        "meshes": [{"primitives": [{"attributes": {"POSITION": 0}, "indices": 1}]}],
-        "buffers": [{"byteLength": bin.len()}],
-        "bufferViews": [
-            {"buffer": 0, "byteOffset": 0, "byteLength": positions_len, "target": 34962},
-            {"buffer": 0, "byteOffset": positions_len, "byteLength": bin.len() - positions_len, "target": 34963}
-        ],
-        "accessors": [
-            {"bufferView": 0, "componentType": 5126, "count": mesh.positions.len(), "type": "VEC3",
-             "min": lo.to_array(), "max": hi.to_array()},
-            {"bufferView": 1, "componentType": 5125, "count": mesh.indices.len(), "type": "SCALAR"}
-        ]
-    });
-    let mut json = serde_json::to_vec(&json).expect("plain JSON");
-    while !json.len().is_multiple_of(4) {
-        json.push(b' ');
-    }
-    let total = 12 + 8 + json.len() + 8 + bin.len();
-    let mut out = Vec::with_capacity(total);
-    out.extend_from_slice(b"glTF");
-    out.extend_from_slice(&2u32.to_le_bytes());
-    out.extend_from_slice(&(total as u32).to_le_bytes());
-    out.extend_from_slice(&(json.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"JSON");
-    out.extend_from_slice(&json);
-    out.extend_from_slice(&(bin.len() as u32).to_le_bytes());
-    out.extend_from_slice(b"BIN\0");
-    out.extend_from_slice(&bin);
-    out
-}
+const MAX_STEPS: usize = 64;
 
-/// `sum w_i v_i(t) / sum w_i` as steps at every child's breakpoint.
+/// `sum w_i v_i(t) / sum w_i` as steps at the children's breakpoints.
 fn weighted(children: &[(f64, &Steps)]) -> Steps {
     let mut times: Vec<f64> = children
         .iter()
@@ -102,6 +61,12 @@ fn weighted(children: &[(f64, &Steps)]) -> Steps {
         .collect();
     times.sort_by(f64::total_cmp);
     times.dedup();
+    // Like a real build, keep a bounded number of steps (the loss shows in
+    // gamma, which is measured against the leaves).
+    if times.len() > MAX_STEPS {
+        let n = times.len();
+        times = (0..MAX_STEPS).map(|i| times[i * n / MAX_STEPS]).collect();
+    }
     let total: f64 = children.iter().map(|c| c.0).sum();
     let steps = times
         .into_iter()
@@ -152,7 +117,7 @@ impl Builder<'_> {
         motion: Option<Motion>,
     ) -> Result<u32> {
         let mesh = box_mesh(&bounds, k);
-        let hash = self.writer.put_geometry(&glb(&mesh))?;
+        let hash = self.writer.put_geometry(&mesh_to_glb(&mesh))?;
         let n = self.clusters.len() as u32;
         self.clusters.push(Cluster {
             id: n,
@@ -227,7 +192,7 @@ impl Builder<'_> {
         } else {
             let mesh = box_mesh(&bounds, 1);
             (
-                Some(self.writer.put_geometry(&glb(&mesh))?),
+                Some(self.writer.put_geometry(&mesh_to_glb(&mesh))?),
                 mesh.triangle_count() as u64,
             )
         };

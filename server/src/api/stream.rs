@@ -13,9 +13,9 @@ use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, State};
 use axum::response::Response;
 use hdlod::tree::Cut;
-use serde_json::json;
+use serde::Serialize;
 
-use super::cut::{self, cluster_out, scene_path};
+use super::cut::{self, ClusterOut, StatsOut, cluster_out, scene_path};
 use super::error::ApiError;
 use super::handlers::find;
 use super::{AppState, LoadedScene};
@@ -31,6 +31,25 @@ pub async fn stream(
         .on_upgrade(move |socket| serve(state, name, socket)))
 }
 
+/// Typed rather than `serde_json::Value` so that transforms keep their
+/// shortest `f32` text, exactly as `POST .../cut` writes them.
+#[derive(Serialize)]
+struct Update {
+    seq: u64,
+    reset: bool,
+    time: f64,
+    add: Vec<ClusterOut>,
+    remove: Vec<u32>,
+    update: Vec<Moved>,
+    stats: StatsOut,
+}
+
+#[derive(Serialize)]
+struct Moved {
+    id: u32,
+    transform: Option<[f32; 16]>,
+}
+
 struct Session {
     scene: Option<Arc<LoadedScene>>,
     /// Cluster id -> its transform in the last answer.
@@ -41,12 +60,7 @@ struct Session {
 }
 
 impl Session {
-    fn update(
-        &mut self,
-        state: &AppState,
-        name: &str,
-        text: &str,
-    ) -> Result<serde_json::Value, ApiError> {
+    fn update(&mut self, state: &AppState, name: &str, text: &str) -> Result<String, ApiError> {
         let scene = find(state, name)?;
         let request = cut::parse_json(text.as_bytes())?;
         let tree = &scene.tree;
@@ -69,9 +83,10 @@ impl Session {
             let transform = item.transform.map(|m| m.to_cols_array());
             match self.held.remove(&item.id) {
                 None => add.push(cluster_out(tree, &prefix, item)),
-                Some(old) if old != transform => {
-                    update.push(json!({"id": item.id, "transform": transform}))
-                }
+                Some(old) if old != transform => update.push(Moved {
+                    id: item.id,
+                    transform,
+                }),
                 Some(_) => {}
             }
             next.insert(item.id, transform);
@@ -81,20 +96,21 @@ impl Session {
         self.held = next;
         self.scene = Some(scene.clone());
         self.seq += 1;
-        Ok(json!({
-            "seq": self.seq,
-            "reset": reset,
-            "time": t,
-            "add": add,
-            "remove": remove,
-            "update": update,
-            "stats": {
-                "clusters": self.cut.stats.clusters,
-                "triangles": self.cut.stats.triangles,
-                "visited": self.cut.stats.visited,
-                "micros": micros,
+        let message = Update {
+            seq: self.seq,
+            reset,
+            time: t,
+            add,
+            remove,
+            update,
+            stats: StatsOut {
+                clusters: self.cut.stats.clusters,
+                triangles: self.cut.stats.triangles,
+                visited: self.cut.stats.visited,
+                micros,
             },
-        }))
+        };
+        Ok(serde_json::to_string(&message).expect("plain data serialises"))
     }
 }
 
@@ -117,9 +133,11 @@ async fn serve(state: Arc<AppState>, name: String, mut socket: WebSocket) {
                     state.metrics.ws_update();
                     value
                 }
-                Err(e) => e.body(),
+                Err(e) => e.body().to_string(),
             },
-            Message::Binary(_) => ApiError::bad("message", "send cut requests as JSON text").body(),
+            Message::Binary(_) => ApiError::bad("message", "send cut requests as JSON text")
+                .body()
+                .to_string(),
             Message::Close(_) => break,
             Message::Ping(_) | Message::Pong(_) => continue,
         };

@@ -114,7 +114,7 @@ fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
                 &old[..a],
                 &old[b + END.len()..].trim_start_matches('\n')
             ),
-            _ => format!("{}\n## The paper's table 2\n\n{table}", old.trim_end()),
+            _ => format!("{}\n\n## The paper's table 2\n\n{table}", old.trim_end()),
         };
         std::fs::write(&path, new).with_context(|| path.display().to_string())?;
         eprintln!("table written into {}", path.display());

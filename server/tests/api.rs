@@ -1,0 +1,522 @@
+//! The real server on loopback: `hdlod serve --addr 127.0.0.1:0` over a
+//! sample tree, answers checked against the OpenAPI document it serves.
+
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Stdio};
+use std::time::{Duration, Instant};
+
+use reqwest::StatusCode;
+use reqwest::blocking::Client;
+use serde_json::{Value, json};
+
+struct Server {
+    child: Child,
+    base: String,
+    _dir: tempfile::TempDir,
+    tree: PathBuf,
+}
+
+impl Server {
+    fn start() -> Server {
+        let dir = tempfile::tempdir().unwrap();
+        let tree = dir.path().join("tree");
+        hdlod::tree::sample::write_sample_tree(&tree, 1, 6).unwrap();
+        let mut child = Command::new(env!("CARGO_BIN_EXE_hdlod"))
+            .args(["serve", "--addr", "127.0.0.1:0"])
+            .arg(&tree)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let mut line = String::new();
+        BufReader::new(child.stdout.take().unwrap())
+            .read_line(&mut line)
+            .unwrap();
+        let base = line
+            .trim()
+            .strip_prefix("listening on ")
+            .expect("the address line")
+            .to_owned();
+        Server {
+            child,
+            base,
+            _dir: dir,
+            tree,
+        }
+    }
+
+    fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn client() -> Client {
+    Client::builder()
+        .timeout(Duration::from_secs(10))
+        .build()
+        .unwrap()
+}
+
+/// A validator for one schema of the served document's components; the
+/// other components ride along so that references between them resolve.
+fn validator(doc: &Value, name: &str) -> jsonschema::Validator {
+    let schema = json!({"$defs": doc["components"]["schemas"], "$ref": format!("#/$defs/{name}")});
+    jsonschema::validator_for(&schema).unwrap()
+}
+
+fn check(doc: &Value, name: &str, value: &Value) {
+    let errors: Vec<String> = validator(doc, name)
+        .iter_errors(value)
+        .map(|e| format!("{}: {e}", e.instance_path()))
+        .take(5)
+        .collect();
+    assert!(errors.is_empty(), "{name}: {errors:?} in {value}");
+}
+
+fn cut_body(time: Value) -> Value {
+    json!({"time": time, "camera": {"position": [150.0, 120.0, 150.0], "target": [0.0, 20.0, 0.0], "far": 2000.0},
+           "viewport": {"width": 1280, "height": 720}, "pixel_error": 2.0})
+}
+
+#[test]
+fn responses_match_the_openapi_document() {
+    let server = Server::start();
+    let http = client();
+    let doc: Value = http
+        .get(server.url("/api/v1/openapi.json"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    assert_eq!(doc["openapi"], "3.1.0");
+    // The served components are the files in schemas/api/.
+    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/api");
+    for (name, file) in [
+        ("CutRequest", "cut-request"),
+        ("CutResponse", "cut-response"),
+        ("StreamMessage", "stream-message"),
+    ] {
+        let text = std::fs::read_to_string(dir.join(format!("{file}.schema.json"))).unwrap();
+        assert_eq!(
+            doc["components"]["schemas"][name],
+            serde_json::from_str::<Value>(&text).unwrap()
+        );
+    }
+    for path in [
+        "/healthz",
+        "/api/v1/scenes",
+        "/api/v1/scenes/{scene}",
+        "/api/v1/scenes/{scene}/cut",
+        "/api/v1/scenes/{scene}/stream",
+    ] {
+        assert!(doc["paths"].get(path).is_some(), "{path} documented");
+    }
+
+    let get = |path: &str| -> Value { http.get(server.url(path)).send().unwrap().json().unwrap() };
+    check(&doc, "Health", &get("/healthz"));
+    let scenes = get("/api/v1/scenes");
+    check(&doc, "SceneList", &scenes);
+    assert_eq!(scenes["scenes"][0]["name"], "sample-1");
+    let scene = get("/api/v1/scenes/sample-1");
+    check(&doc, "Scene", &scene);
+    assert!(scene["classes"]["dynamic"].as_u64().unwrap() > 0);
+
+    let mut seen_dynamic = false;
+    for time in [
+        json!(0.0),
+        json!("2024-04-15T12:00:00Z"),
+        json!(6e6),
+        json!(9e6),
+    ] {
+        let body = cut_body(time);
+        check(&doc, "CutRequest", &body);
+        let response = http
+            .post(server.url("/api/v1/scenes/sample-1/cut"))
+            .json(&body)
+            .send()
+            .unwrap();
+        assert_eq!(response.status(), StatusCode::OK);
+        let cut: Value = response.json().unwrap();
+        check(&doc, "CutResponse", &cut);
+        assert_eq!(
+            cut["stats"]["clusters"].as_u64().unwrap() as usize,
+            cut["clusters"].as_array().unwrap().len()
+        );
+        seen_dynamic |= cut["clusters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|c| c["transform"].is_array());
+    }
+    assert!(seen_dynamic, "the cranes are in some cut");
+
+    // GET with query parameters answers the same cut as POST.
+    let post: Value = http
+        .post(server.url("/api/v1/scenes/sample-1/cut"))
+        .json(&cut_body(json!(5e6)))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let get_cut = get(
+        "/api/v1/scenes/sample-1/cut?time=5000000&position=150,120,150&target=0,20,0&far=2000&viewport=1280x720&pixel_error=2",
+    );
+    check(&doc, "CutResponse", &get_cut);
+    assert_eq!(get_cut["clusters"], post["clusters"]);
+
+    let error: Value = http
+        .get(server.url("/api/v1/scenes/nope"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    check(&doc, "Error", &error);
+
+    let metrics = http
+        .get(server.url("/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    assert!(
+        metrics.contains(
+            "hdlod_http_requests_total{route=\"/api/v1/scenes/{scene}/cut\",status=\"200\"}"
+        ),
+        "{metrics}"
+    );
+    assert!(metrics.contains("hdlod_cut_clusters_count"));
+}
+
+#[test]
+fn bad_requests_name_the_field() {
+    let server = Server::start();
+    let http = client();
+    let cut = server.url("/api/v1/scenes/sample-1/cut");
+    let with = |edit: &dyn Fn(&mut Value)| {
+        let mut body = cut_body(json!(1000.0));
+        edit(&mut body);
+        body
+    };
+    let cases: Vec<(Value, &str)> = vec![
+        (
+            with(&|b| b.as_object_mut().unwrap().remove("time").map(drop).unwrap()),
+            "time",
+        ),
+        (with(&|b| b["time"] = json!("yesterday")), "time"),
+        (with(&|b| b["time"] = json!(true)), "time"),
+        (
+            with(&|b| b["camera"]["position"] = json!([1, 2])),
+            "camera.position",
+        ),
+        (
+            with(&|b| b["camera"]["target"] = json!([150.0, 120.0, 150.0])),
+            "camera.target",
+        ),
+        (
+            with(&|b| b["camera"]["fov_y_deg"] = json!(0)),
+            "camera.fov_y_deg",
+        ),
+        (
+            with(&|b| b["camera"]["fov_y_deg"] = json!("wide")),
+            "camera.fov_y_deg",
+        ),
+        (with(&|b| b["camera"]["near"] = json!(-1)), "camera.near"),
+        (with(&|b| b["camera"]["far"] = json!(0.01)), "camera.far"),
+        (with(&|b| b["camera"]["up"] = json!([0, 0, 0])), "camera.up"),
+        (with(&|b| b["camera"]["aspect"] = json!(0)), "camera.aspect"),
+        (with(&|b| b["camera"]["zoom"] = json!(2)), "camera.zoom"),
+        (
+            with(&|b| b["camera"] = json!({"view_projection": [1, 2, 3]})),
+            "camera.view_projection",
+        ),
+        (
+            with(&|b| b["viewport"]["width"] = json!(0)),
+            "viewport.width",
+        ),
+        (
+            with(&|b| b["viewport"]["height"] = json!(-5)),
+            "viewport.height",
+        ),
+        (with(&|b| b["pixel_error"] = json!(0)), "pixel_error"),
+        (with(&|b| b["extra"] = json!(1)), "extra"),
+    ];
+    for (body, field) in cases {
+        let response = http.post(&cut).json(&body).send().unwrap();
+        assert_eq!(response.status(), StatusCode::BAD_REQUEST, "{body}");
+        let error: Value = response.json().unwrap();
+        assert_eq!(error["error"]["field"], field, "{body} -> {error}");
+    }
+    let response = http.post(&cut).body("{not json").send().unwrap();
+    assert_eq!(response.status(), StatusCode::BAD_REQUEST);
+    let response = http
+        .get(format!("{cut}?time=1&position=1,2&target=0,0,0"))
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::BAD_REQUEST);
+    assert_eq!(
+        response.json::<Value>().unwrap()["error"]["field"],
+        "position"
+    );
+    let response = http
+        .get(format!("{cut}?time=1&position=1,2,3&target=0,0,0&bogus=1"))
+        .send()
+        .unwrap();
+    assert_eq!(response.json::<Value>().unwrap()["error"]["field"], "bogus");
+
+    let response = http
+        .post(server.url("/api/v1/scenes/nope/cut"))
+        .json(&cut_body(json!(0)))
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::NOT_FOUND);
+    assert_eq!(response.json::<Value>().unwrap()["error"]["field"], "scene");
+    let response = http.get(server.url("/api/v1/nothing")).send().unwrap();
+    assert_eq!(response.status(), StatusCode::NOT_FOUND);
+    let response = http.delete(&cut).send().unwrap();
+    assert_eq!(response.status(), StatusCode::METHOD_NOT_ALLOWED);
+
+    let huge = format!("{{\"time\": 0, \"pad\": \"{}\"}}", "x".repeat(100_000));
+    let response = http
+        .post(&cut)
+        .header("content-type", "application/json")
+        .body(huge)
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::PAYLOAD_TOO_LARGE);
+    assert_eq!(response.json::<Value>().unwrap()["error"]["status"], 413);
+
+    // None of it hurt the server. (A fresh client: after a 413 the server
+    // closes that connection without reading the rest of the body.)
+    assert_eq!(
+        client()
+            .get(server.url("/healthz"))
+            .send()
+            .unwrap()
+            .status(),
+        StatusCode::OK
+    );
+}
+
+#[test]
+fn geometry_is_immutable_cacheable_and_compressed() {
+    let server = Server::start();
+    let http = client();
+    let cut: Value = http
+        .post(server.url("/api/v1/scenes/sample-1/cut"))
+        .json(&cut_body(json!(9e6)))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let url = cut["clusters"][0]["geometry"].as_str().unwrap().to_owned();
+    let hash = url
+        .rsplit('/')
+        .next()
+        .unwrap()
+        .trim_end_matches(".glb")
+        .to_owned();
+
+    let response = http.get(server.url(&url)).send().unwrap();
+    assert_eq!(response.status(), StatusCode::OK);
+    let headers = response.headers().clone();
+    assert_eq!(headers["content-type"], "model/gltf-binary");
+    assert_eq!(headers["etag"], format!("\"{hash}\"").as_str());
+    assert!(
+        headers["cache-control"]
+            .to_str()
+            .unwrap()
+            .contains("immutable")
+    );
+    let bytes = response.bytes().unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+    assert_eq!(blake3::hash(&bytes).to_hex().as_str(), hash);
+    assert_eq!(
+        bytes.as_ref(),
+        std::fs::read(server.tree.join("geometry").join(format!("{hash}.glb"))).unwrap()
+    );
+
+    let response = http
+        .get(server.url(&url))
+        .header("if-none-match", format!("\"{hash}\""))
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::NOT_MODIFIED);
+    for encoding in ["gzip", "br"] {
+        let response = http
+            .get(server.url(&url))
+            .header("accept-encoding", encoding)
+            .send()
+            .unwrap();
+        assert_eq!(response.headers()["content-encoding"], encoding);
+        assert!(response.bytes().unwrap().len() < bytes.len());
+    }
+    let missing = format!("/api/v1/scenes/sample-1/geometry/{}.glb", "0".repeat(64));
+    assert_eq!(
+        http.get(server.url(&missing)).send().unwrap().status(),
+        StatusCode::NOT_FOUND
+    );
+    let traversal = "/api/v1/scenes/sample-1/geometry/..%2Fmanifest.json";
+    assert_eq!(
+        http.get(server.url(traversal)).send().unwrap().status(),
+        StatusCode::NOT_FOUND
+    );
+}
+
+#[test]
+fn stream_sends_the_changes_of_the_cut() {
+    use futures_util::{SinkExt, StreamExt};
+    use tokio_tungstenite::tungstenite::Message;
+
+    let server = Server::start();
+    let http = client();
+    let doc: Value = http
+        .get(server.url("/api/v1/openapi.json"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let ws_url = server
+        .url("/api/v1/scenes/sample-1/stream")
+        .replace("http://", "ws://");
+    let views: Vec<Value> = (0..12)
+        .map(|i| {
+            let mut body = cut_body(json!(i as f64 * 8e5));
+            body["camera"]["position"] = json!([150.0 - i as f64 * 25.0, 120.0, 150.0]);
+            body
+        })
+        .collect();
+    let expected: Vec<Value> = views
+        .iter()
+        .map(|v| {
+            http.post(server.url("/api/v1/scenes/sample-1/cut"))
+                .json(v)
+                .send()
+                .unwrap()
+                .json()
+                .unwrap()
+        })
+        .collect();
+
+    let runtime = tokio::runtime::Runtime::new().unwrap();
+    runtime.block_on(async {
+        let (mut socket, _) = tokio_tungstenite::connect_async(&ws_url).await.unwrap();
+        let mut held: std::collections::BTreeMap<u64, Value> = Default::default();
+        for (i, (view, want)) in views.iter().zip(&expected).enumerate() {
+            socket.send(Message::text(view.to_string())).await.unwrap();
+            let Some(Ok(Message::Text(text))) = socket.next().await else {
+                panic!("no answer")
+            };
+            let message: Value = serde_json::from_str(text.as_str()).unwrap();
+            check(&doc, "StreamMessage", &message);
+            assert_eq!(message["seq"], i + 1);
+            assert_eq!(message["reset"], i == 0);
+            for id in message["remove"].as_array().unwrap() {
+                assert!(
+                    held.remove(&id.as_u64().unwrap()).is_some(),
+                    "removes only what it sent"
+                );
+            }
+            for c in message["add"].as_array().unwrap() {
+                assert!(
+                    held.insert(c["id"].as_u64().unwrap(), c["transform"].clone())
+                        .is_none()
+                );
+            }
+            for u in message["update"].as_array().unwrap() {
+                *held.get_mut(&u["id"].as_u64().unwrap()).unwrap() = u["transform"].clone();
+            }
+            let want: std::collections::BTreeMap<u64, Value> = want["clusters"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|c| (c["id"].as_u64().unwrap(), c["transform"].clone()))
+                .collect();
+            assert_eq!(held, want, "view {i}");
+        }
+        // A bad message gets an error naming the field; the stream goes on.
+        socket
+            .send(Message::text(
+                r#"{"time": 0, "camera": {"position": [1, 2, 3]}}"#,
+            ))
+            .await
+            .unwrap();
+        let Some(Ok(Message::Text(text))) = socket.next().await else {
+            panic!("no answer")
+        };
+        let error: Value = serde_json::from_str(text.as_str()).unwrap();
+        check(&doc, "StreamMessage", &error);
+        assert_eq!(error["error"]["field"], "camera.target");
+        socket
+            .send(Message::text(views[0].to_string()))
+            .await
+            .unwrap();
+        let Some(Ok(Message::Text(text))) = socket.next().await else {
+            panic!("no answer")
+        };
+        assert_eq!(
+            serde_json::from_str::<Value>(text.as_str()).unwrap()["seq"],
+            views.len() + 1
+        );
+    });
+}
+
+#[test]
+fn sighup_reloads_the_tree_without_dropping_requests() {
+    let server = Server::start();
+    let url = server.url("/api/v1/scenes/sample-1/cut");
+    let clusters = |http: &Client| -> u64 {
+        let scene: Value = http
+            .get(server.url("/api/v1/scenes/sample-1"))
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        scene["clusters"].as_u64().unwrap()
+    };
+    let before = clusters(&client());
+    let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+    let load = {
+        let stop = stop.clone();
+        std::thread::spawn(move || {
+            let http = client();
+            let mut statuses = Vec::new();
+            while !stop.load(std::sync::atomic::Ordering::Relaxed) {
+                statuses.push(
+                    http.post(&url)
+                        .json(&cut_body(json!(4e6)))
+                        .send()
+                        .map(|r| r.status()),
+                );
+            }
+            statuses
+        })
+    };
+    hdlod::tree::sample::write_sample_tree(&server.tree, 1, 9).unwrap();
+    let status = Command::new("kill")
+        .args(["-HUP", &server.child.id().to_string()])
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let deadline = Instant::now() + Duration::from_secs(10);
+    let http = client();
+    while clusters(&http) == before {
+        assert!(Instant::now() < deadline, "the new tree was not picked up");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(100));
+    stop.store(true, std::sync::atomic::Ordering::Relaxed);
+    let statuses = load.join().unwrap();
+    assert!(statuses.len() > 5);
+    assert!(
+        statuses.iter().all(|s| matches!(s, Ok(StatusCode::OK))),
+        "{statuses:?}"
+    );
+}

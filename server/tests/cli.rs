@@ -1,0 +1,141 @@
+//! `hdlod cut` and `hdlod bench paper` on a sample tree.
+
+use std::path::Path;
+use std::process::Command;
+
+use serde_json::Value;
+
+fn hdlod(args: &[&str]) -> (bool, String, String) {
+    let out = Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        out.status.success(),
+        String::from_utf8(out.stdout).unwrap(),
+        String::from_utf8(out.stderr).unwrap(),
+    )
+}
+
+#[test]
+fn cut_prints_the_http_answer() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    hdlod::tree::sample::write_sample_tree(&tree, 1, 4).unwrap();
+    let tree = tree.to_str().unwrap();
+    let camera = dir.path().join("camera.json");
+    std::fs::write(
+        &camera,
+        r#"{"position": [150, 120, 150], "target": [0, 20, 0], "fov_y_deg": 50}"#,
+    )
+    .unwrap();
+
+    let flags = [
+        "cut",
+        tree,
+        "--time",
+        "2024-04-20",
+        "--position",
+        "150,120,150",
+        "--target",
+        "0,20,0",
+        "--fov",
+        "50",
+        "--pixel-error",
+        "2",
+        "--viewport",
+        "1280x720",
+        "--json",
+    ];
+    let (ok, by_flags, err) = hdlod(&flags);
+    assert!(ok, "{err}");
+    let (ok, by_file, err) = hdlod(&[
+        "cut",
+        tree,
+        "--time",
+        "2024-04-20",
+        "--camera-json",
+        camera.to_str().unwrap(),
+        "--pixel-error",
+        "2",
+        "--viewport",
+        "1280x720",
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let a: Value = serde_json::from_str(&by_flags).unwrap();
+    let b: Value = serde_json::from_str(&by_file).unwrap();
+    assert_eq!(a["clusters"], b["clusters"]);
+    assert!(!a["clusters"].as_array().unwrap().is_empty());
+
+    let schema_path =
+        Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/api/cut-response.schema.json");
+    let schema: Value = serde_json::from_slice(&std::fs::read(schema_path).unwrap()).unwrap();
+    assert!(jsonschema::is_valid(&schema, &a));
+
+    let (ok, _, err) = hdlod(&[
+        "cut",
+        tree,
+        "--time",
+        "0",
+        "--position",
+        "1,2",
+        "--target",
+        "0,0,0",
+    ]);
+    assert!(!ok && err.contains("position"), "{err}");
+    let (ok, _, err) = hdlod(&[
+        "cut",
+        tree,
+        "--time",
+        "0",
+        "--position",
+        "0,0,0",
+        "--target",
+        "0,0,0",
+    ]);
+    assert!(!ok && err.contains("camera.target"), "{err}");
+}
+
+#[test]
+fn bench_paper_writes_the_table() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    hdlod::tree::sample::write_sample_tree(&tree, 1, 4).unwrap();
+    let doc = dir.path().join("benchmarks.md");
+    std::fs::write(&doc, "# Benchmarks\n\nOther text.\n").unwrap();
+    let args = [
+        "bench",
+        "paper",
+        tree.to_str().unwrap(),
+        "--frames",
+        "20",
+        "--repeats",
+        "3",
+        "--doc",
+        doc.to_str().unwrap(),
+        "--json",
+    ];
+    for _ in 0..2 {
+        let (ok, out, err) = hdlod(&args);
+        assert!(ok, "{err}");
+        let report: Value = serde_json::from_str(&out).unwrap();
+        let rows = report["rows"].as_array().unwrap();
+        assert_eq!(rows.len(), 15);
+        for key in [
+            "time",
+            "screen",
+            "triangles",
+            "clusters",
+            "baseline_triangles",
+            "baseline_draws",
+            "micros",
+        ] {
+            assert!(rows[0].get(key).is_some(), "{key}");
+        }
+    }
+    // Written twice, the section is replaced, not repeated.
+    let text = std::fs::read_to_string(&doc).unwrap();
+    assert!(text.starts_with("# Benchmarks\n\nOther text.\n"));
+    assert_eq!(text.matches("| animation | 1/16 |").count(), 1, "{text}");
+}
