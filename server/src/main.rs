@@ -27,6 +27,8 @@ enum Command {
     Fixture(cmd::fixture::Fixture),
     /// Describe a scene (or a tree): counts per class, time span, bounds.
     Inspect(cmd::inspect::Args),
+    /// The main job: generate the demo scene, build its tree, serve it.
+    Demo(cmd::demo::Args),
     /// Build the HDLOD tree of a scene.
     Build(cmd::build::Args),
     /// The cut of a tree for a time and camera.
@@ -52,6 +54,7 @@ fn main() -> ExitCode {
         Command::Fixture(c) => cmd::fixture::run(c),
         Command::Inspect(a) => cmd::inspect::run(a),
         Command::Build(a) => cmd::build::run(a),
+        Command::Demo(a) => cmd::demo::run(a),
         Command::Cut(a) => cmd::cut::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),

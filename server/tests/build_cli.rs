@@ -111,3 +111,37 @@ fn a_bad_configuration_names_the_field_and_keeps_the_old_tree() {
         "the previous tree"
     );
 }
+
+/// The README's main command: `hdlod demo` generates, builds and serves.
+#[test]
+fn demo_generates_builds_and_serves() {
+    use std::io::{BufRead, BufReader};
+    let tmp = tempfile::tempdir().unwrap();
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(["demo", "--scale", "tiny", "--addr", "127.0.0.1:0", "--dir"])
+        .arg(tmp.path())
+        .env("RUST_LOG", "warn")
+        .stdout(std::process::Stdio::piped())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let stdout = child.stdout.take().unwrap();
+    let line = BufReader::new(stdout)
+        .lines()
+        .map_while(Result::ok)
+        .find(|l| l.starts_with("listening on "));
+    let answer = line.map(|l| {
+        let base = l.trim_start_matches("listening on ").to_string();
+        reqwest::blocking::get(format!("{base}/api/v1/scenes"))
+            .and_then(|r| r.json::<serde_json::Value>())
+    });
+    child.kill().unwrap();
+    child.wait().unwrap();
+    let scenes = answer.expect("the demo prints its address").unwrap();
+    assert_eq!(scenes["scenes"][0]["name"], "skyscraper-tiny");
+    assert!(
+        tmp.path()
+            .join("skyscraper-tiny-tree/manifest.json")
+            .is_file()
+    );
+}

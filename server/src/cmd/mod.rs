@@ -2,6 +2,7 @@ pub mod bench;
 pub mod bench_build;
 pub mod build;
 pub mod cut;
+pub mod demo;
 pub mod fixture;
 pub mod inspect;
 pub mod progress;

@@ -4,6 +4,8 @@
 
 use std::path::PathBuf;
 
+use anyhow::Context;
+
 use crate::api::{self, AppState};
 
 #[derive(clap::Args)]
@@ -18,10 +20,17 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let state = AppState::load(args.trees)?;
+    serve(&args.addr, args.trees)
+}
+
+/// Serves `trees` on `addr` until Ctrl-C (also what `hdlod demo` runs).
+pub fn serve(addr: &str, trees: Vec<PathBuf>) -> anyhow::Result<()> {
+    let state = AppState::load(trees)?;
     let runtime = tokio::runtime::Runtime::new()?;
     runtime.block_on(async move {
-        let listener = tokio::net::TcpListener::bind(&args.addr).await?;
+        let listener = tokio::net::TcpListener::bind(addr)
+            .await
+            .with_context(|| format!("cannot listen on {addr}"))?;
         let addr = listener.local_addr()?;
         for name in state.scenes().keys() {
             tracing::info!(
