@@ -36,10 +36,14 @@ fn built() -> &'static Built {
     })
 }
 
+/// Every visible object is in the leaves, and the leaves naming it share
+/// out its visibility without overlap: one leaf, or a moving leaf and the
+/// pseudo-dynamic leaves where it stands still before and after its motion.
 #[test]
-fn every_visible_object_is_a_leaf_exactly_once() {
+fn the_leaves_of_an_object_partition_its_visibility() {
     let b = built();
-    let mut seen: HashMap<&str, usize> = HashMap::new();
+    let span = b.tree.time.seconds;
+    let mut leaves: HashMap<&str, Vec<Steps>> = HashMap::new();
     for c in &b.tree.clusters {
         assert!(
             c.objects.is_empty() || c.is_leaf(),
@@ -47,25 +51,39 @@ fn every_visible_object_is_a_leaf_exactly_once() {
             c.id
         );
         for o in &c.objects {
-            *seen.entry(o.as_str()).or_default() += 1;
+            leaves
+                .entry(o.as_str())
+                .or_default()
+                .push(Steps::from_tree(&c.visibility));
         }
     }
+    let mut split = 0;
     for o in &b.scene.objects {
-        let expected = usize::from(b.scene.class_of(o) != Class::Absent);
-        assert_eq!(
-            seen.get(o.id.as_str()).copied().unwrap_or(0),
-            expected,
+        let Some(parts) = leaves.get(o.id.as_str()) else {
+            assert_eq!(
+                b.scene.class_of(o),
+                Class::Absent,
+                "object {} has no leaf",
+                o.id
+            );
+            continue;
+        };
+        let n = parts.len() as f64;
+        split += usize::from(parts.len() > 1);
+        let whole = Steps::of_visibility(&o.visibility, span);
+        let zero = Steps::constant(0.0);
+        // The mean of the parts is whole / n exactly when they partition it.
+        let mean = Steps::weighted_mean(&parts.iter().map(|p| (1.0, p)).collect::<Vec<_>>());
+        let expected = Steps::weighted_mean(&[(1.0, &whole), (n - 1.0, &zero)]);
+        assert!(
+            mean.l1_distance(&expected, span) <= 1e-9 * span,
             "object {}",
             o.id
         );
     }
-    assert_eq!(
-        seen.len(),
-        b.scene
-            .objects
-            .iter()
-            .filter(|o| b.scene.class_of(o) != Class::Absent)
-            .count()
+    assert!(
+        split > 0,
+        "no moving object stands still at either end of its motion"
     );
 }
 
@@ -152,11 +170,22 @@ fn temporal_error_is_measured_against_the_objects() {
         .filter(|c| c.class == ClusterClass::PseudoDynamic)
     {
         let v = Steps::from_tree(&c.visibility);
+        // A leaf is an object, or the part of a moving object's life where
+        // it stands still: its visibility is that part's.
         let worst = leaves_below(&b.tree, c.id)
             .iter()
-            .flat_map(|&l| &b.tree.clusters[l as usize].objects)
-            .map(|id| Steps::of_visibility(&objects[id.as_str()].visibility, span))
-            .map(|s| v.l1_distance(&s, span) / span)
+            .map(|&l| {
+                let leaf = &b.tree.clusters[l as usize];
+                let object = objects[leaf.objects[0].as_str()];
+                let own = Steps::of_visibility(&object.visibility, span);
+                let part = Steps::from_tree(&leaf.visibility);
+                // The leaf's part never shows the object where it is absent.
+                assert!(
+                    part.l1_distance(&own, span) <= own.l1_distance(&Steps::constant(0.0), span),
+                    "leaf {l}"
+                );
+                v.l1_distance(&part, span) / span
+            })
             .fold(0.0, f64::max);
         assert!(
             c.gamma >= worst - 1e-6,
@@ -202,17 +231,25 @@ fn stored_eps_bounds_the_distance_to_the_original_objects() {
                 .join(format!("{}.glb", c.geometry.as_ref().unwrap())),
         )
         .expect("cluster geometry reads");
-        let originals: Vec<&hdlod::scene::Object> = leaves_below(&b.tree, c.id)
+        // Each leaf's object, placed where it is at a time the leaf shows
+        // it (a moving object's resting part is at its held pose).
+        let parts: Vec<Part> = leaves_below(&b.tree, c.id)
             .iter()
-            .flat_map(|&l| &b.tree.clusters[l as usize].objects)
-            .map(|id| objects[id.as_str()])
-            .collect();
-        let parts: Vec<Part> = originals
-            .iter()
-            .map(|o| Part {
-                mesh: &b.scene.meshes[o.mesh],
-                transform: o.transform,
-                color: o.color,
+            .map(|&l| {
+                let leaf = &b.tree.clusters[l as usize];
+                let o = objects[leaf.objects[0].as_str()];
+                let shown = leaf
+                    .visibility
+                    .steps()
+                    .iter()
+                    .find(|s| s.1 > 0.0)
+                    .unwrap()
+                    .0;
+                Part {
+                    mesh: &b.scene.meshes[o.mesh],
+                    transform: o.pose(shown),
+                    color: o.color,
+                }
             })
             .collect();
         let union = merge(&parts, 0.0);

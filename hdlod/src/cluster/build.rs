@@ -5,6 +5,7 @@
 //! deterministic dynamics", Programming and Computer Software 46(3), 2020,
 //! appendix 2; the thresholds and errors are those of DESIGN.md.
 
+use std::collections::HashMap;
 use std::path::Path;
 use std::time::Instant;
 
@@ -19,7 +20,7 @@ use super::hilbert::hilbert_key;
 use super::steps::Steps;
 use super::{BuildStats, GeometrySink, LevelStats, Progress};
 use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy};
-use crate::scene::{Class, Scene};
+use crate::scene::{Class, Scene, Visibility, VisibilityType};
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
 use crate::{Error, Result};
 
@@ -87,28 +88,29 @@ pub fn build(
         .map(|(o, _)| o.id.clone())
         .collect();
 
+    let pieces = split_at_rest(scene, &classes);
+
     // Leaves of the static and pseudo-dynamic trees: each object's mesh
     // moved into the world frame, coloured.
     let clock = Instant::now();
     let mut leaves: [Vec<Active>; 2] = [Vec::new(), Vec::new()];
-    let members: Vec<(usize, usize)> = classes
+    let members: Vec<(&Piece, usize)> = pieces
         .iter()
-        .enumerate()
-        .filter_map(|(i, c)| match c {
-            Class::Static => Some((i, 0)),
-            Class::PseudoDynamic => Some((i, 1)),
+        .filter_map(|p| match p.class {
+            Class::Static => Some((p, 0)),
+            Class::PseudoDynamic => Some((p, 1)),
             _ => None,
         })
         .collect();
     progress.phase("leaves", members.len() as u64);
     let leaf_meshes: Vec<Result<(Mesh, String)>> = members
         .par_iter()
-        .map(|&(i, _)| {
-            let o = &scene.objects[i];
+        .map(|&(p, _)| {
+            let o = &scene.objects[p.object];
             let mesh = geometry::merge(
                 &[Part {
                     mesh: &scene.meshes[o.mesh],
-                    transform: o.transform,
+                    transform: p.transform,
                     color: o.color,
                 }],
                 0.0,
@@ -118,20 +120,22 @@ pub fn build(
             Ok((mesh, hash))
         })
         .collect();
-    let mut vis_ids: Vec<(Steps, u32)> = Vec::new();
-    for (&(i, tree), made) in members.iter().zip(leaf_meshes) {
+    // Objects of one task share one visibility: the temporal error is a
+    // maximum over the distinct ones.
+    let mut vis_ids: HashMap<Vec<(u64, u64)>, u32> = HashMap::new();
+    for (&(p, tree), made) in members.iter().zip(leaf_meshes) {
         let (mesh, hash) = made?;
-        let o = &scene.objects[i];
-        let steps = Steps::of_visibility(&o.visibility, span);
-        let vis = match vis_ids.iter().find(|(s, _)| *s == steps) {
-            Some((_, id)) => *id,
-            None => {
-                let id = ctx.leaf_steps.len() as u32;
-                ctx.leaf_steps.push(steps.clone());
-                vis_ids.push((steps.clone(), id));
-                id
-            }
-        };
+        let o = &scene.objects[p.object];
+        let steps = Steps::of_visibility(&p.visibility, span);
+        let key: Vec<(u64, u64)> = steps
+            .points()
+            .iter()
+            .map(|&(t, v)| (t.to_bits(), v.to_bits()))
+            .collect();
+        let vis = *vis_ids.entry(key).or_insert_with(|| {
+            ctx.leaf_steps.push(steps.clone());
+            ctx.leaf_steps.len() as u32 - 1
+        });
         let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
         let w = f64::from((hi - lo).length());
         let id = clusters.len() as u32;
@@ -222,8 +226,10 @@ pub fn build(
     }
 
     let clock = Instant::now();
-    let dynamic: Vec<usize> = (0..scene.objects.len())
-        .filter(|&i| classes[i] == Class::Dynamic)
+    let dynamic: Vec<(usize, Visibility)> = pieces
+        .iter()
+        .filter(|p| p.class == Class::Dynamic)
+        .map(|p| (p.object, p.visibility.clone()))
         .collect();
     progress.phase("dynamic", dynamic.len() as u64);
     let (tops, dyn_stats) = dynamic_chains(scene, &dynamic, &ctx, &mut clusters, progress)?;
@@ -310,6 +316,67 @@ pub fn build_to(
     writer.finish(&tree)?;
     progress.advance(1);
     Ok((tree, stats))
+}
+
+/// A part of an object's life that becomes one leaf.
+struct Piece {
+    object: usize,
+    class: Class,
+    transform: Mat4,
+    visibility: Visibility,
+}
+
+/// Splits each moving object where it stands still. Before its first and
+/// after its last keyframe its pose is held, so those parts of its
+/// visibility are a pseudo-dynamic (or static) object at that pose, which
+/// clusters with its neighbours; only the part in between stays dynamic.
+/// A steel beam hoisted into place is then a moving object during its lift
+/// and part of the structure afterwards. The cut draws the same geometry at
+/// every time either way.
+fn split_at_rest(scene: &Scene, classes: &[Class]) -> Vec<Piece> {
+    let span = scene.time.seconds;
+    let mut pieces = Vec::with_capacity(scene.objects.len());
+    for (i, (o, &class)) in scene.objects.iter().zip(classes).enumerate() {
+        let motion = match (class, &o.motion) {
+            (Class::Absent, _) => continue,
+            (Class::Dynamic, Some(m)) => m,
+            _ => {
+                // A motion that never moves is a fixed pose.
+                pieces.push(Piece {
+                    object: i,
+                    class,
+                    transform: o.pose(0.0),
+                    visibility: o.visibility.clone(),
+                });
+                continue;
+            }
+        };
+        let keys = motion.keyframes();
+        let (first, last) = (keys[0], keys[keys.len() - 1]);
+        let parts = [
+            (f64::NEG_INFINITY, first.t, Some(first.matrix())),
+            (first.t, last.t, None),
+            (last.t, f64::INFINITY, Some(last.matrix())),
+        ];
+        for (from, to, rest) in parts {
+            let visibility = o.visibility.clipped_to(from, to);
+            if visibility.present_seconds(span) <= 0.0 {
+                continue;
+            }
+            let class = match rest {
+                None => Class::Dynamic,
+                Some(_) if visibility.kind(span) == VisibilityType::Static => Class::Static,
+                Some(_) => Class::PseudoDynamic,
+            };
+            pieces.push(Piece {
+                object: i,
+                class,
+                transform: rest.unwrap_or(o.transform),
+                visibility,
+            });
+        }
+    }
+    pieces
 }
 
 /// The box of a cluster in the world over the whole span: a dynamic

@@ -14,7 +14,7 @@ use super::steps::Steps;
 use super::{LevelStats, Progress};
 use crate::Result;
 use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions};
-use crate::scene::Scene;
+use crate::scene::{Scene, Visibility};
 use crate::tree::{Aabb, Cluster, ClusterClass};
 
 /// The largest error of a coarser version, as a share of the model's size.
@@ -93,7 +93,7 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
 /// chains and per-level statistics.
 pub(super) fn dynamic_chains(
     scene: &Scene,
-    objects: &[usize],
+    objects: &[(usize, Visibility)],
     ctx: &Context,
     clusters: &mut Vec<Cluster>,
     progress: &dyn Progress,
@@ -104,7 +104,7 @@ pub(super) fn dynamic_chains(
         let o = &scene.objects[i];
         (o.mesh, o.color.map(f32::to_bits))
     };
-    let mut models: Vec<(usize, [u32; 4])> = objects.iter().map(|&i| key(i)).collect();
+    let mut models: Vec<(usize, [u32; 4])> = objects.iter().map(|&(i, _)| key(i)).collect();
     models.sort_unstable();
     models.dedup();
     let chains: Vec<Result<Vec<Version>>> = models
@@ -128,10 +128,11 @@ pub(super) fn dynamic_chains(
 
     let mut stats: Vec<LevelStats> = Vec::new();
     let mut tops = Vec::with_capacity(objects.len());
-    for &i in objects {
+    for (i, visibility) in objects {
+        let i = *i;
         let o = &scene.objects[i];
         let versions = &by_model[&key(i)];
-        let visibility = Steps::of_visibility(&o.visibility, ctx.span).to_tree();
+        let visibility = Steps::of_visibility(visibility, ctx.span).to_tree();
         let mut below: Option<u32> = None;
         for (level, v) in versions.iter().enumerate() {
             let id = clusters.len() as u32;

@@ -81,6 +81,16 @@ impl Visibility {
             .collect()
     }
 
+    /// The visibility restricted to `[from, to)`.
+    pub fn clipped_to(&self, from: f64, to: f64) -> Visibility {
+        Visibility::from_intervals(
+            self.intervals
+                .iter()
+                .map(|&(a, b)| (a.max(from), b.min(to)))
+                .collect(),
+        )
+    }
+
     /// Seconds present within `[0, span]`.
     pub fn present_seconds(&self, span: f64) -> f64 {
         self.clipped(span).iter().map(|(a, b)| b - a).sum()
