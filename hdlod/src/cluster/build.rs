@@ -684,6 +684,25 @@ fn make_parent(
                 break;
             }
         }
+        // Where both fail (many small elements, each near its smallest
+        // shape), each element's box: measured like the rest.
+        if chosen.is_none() {
+            let proxies = geometry::box_proxies(&union);
+            if proxies.triangle_count() < union.triangle_count() {
+                let h = geometry::hausdorff(
+                    &proxies,
+                    &union,
+                    &HausdorffOptions {
+                        tolerance: (ctx.config.hausdorff_fraction * th.eps) as f32,
+                        seed: 0,
+                    },
+                );
+                let eps = f64::from(h.bound) + child_eps;
+                if eps <= th.eps {
+                    chosen = Some((proxies, eps));
+                }
+            }
+        }
     }
     let (mesh, eps) = chosen.unwrap_or((union, child_eps));
     let hash = ctx.sink.put(&mesh)?;

@@ -6,10 +6,12 @@ mod hausdorff;
 pub mod measure;
 mod merge;
 mod mesh;
+mod proxy;
 mod simplify;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
 pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;
+pub use proxy::box_proxies;
 pub use simplify::{Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify};

@@ -1,0 +1,227 @@
+//! Box proxies: each connected part of a mesh replaced by its axis-aligned
+//! box (12 triangles). The coarse representation BIM viewers fall back to,
+//! and the one that works where edge collapse and vertex clustering fail:
+//! a cluster of many small elements, each already near its minimum
+//! triangle count for its shape (round columns, tubes, frames). The caller
+//! measures the result like any other simplification.
+
+use std::collections::HashMap;
+
+use glam::Vec3;
+
+use super::Mesh;
+
+/// Parts with at most this many triangles are kept as they are: a box
+/// would not be smaller.
+const BOX_TRIANGLES: usize = 12;
+
+/// The mesh with every connected part of more than 12 triangles replaced
+/// by its box, in the colour of the part's first vertex. Parts are
+/// connected through shared vertices or coincident positions (flat-shaded
+/// meshes repeat corners per face).
+pub fn box_proxies(mesh: &Mesh) -> Mesh {
+    let n = mesh.positions.len();
+    let mut parent: Vec<u32> = (0..n as u32).collect();
+    fn find(parent: &mut [u32], mut i: u32) -> u32 {
+        while parent[i as usize] != i {
+            parent[i as usize] = parent[parent[i as usize] as usize];
+            i = parent[i as usize];
+        }
+        i
+    }
+    let union = |parent: &mut Vec<u32>, a: u32, b: u32| {
+        let (ra, rb) = (find(parent, a), find(parent, b));
+        if ra != rb {
+            parent[ra.max(rb) as usize] = ra.min(rb);
+        }
+    };
+    let mut same_place: HashMap<[u32; 3], u32> = HashMap::with_capacity(n);
+    for (i, p) in mesh.positions.iter().enumerate() {
+        let key = p.to_array().map(f32::to_bits);
+        let first = *same_place.entry(key).or_insert(i as u32);
+        union(&mut parent, first, i as u32);
+    }
+    for t in mesh.indices.chunks_exact(3) {
+        union(&mut parent, t[0], t[1]);
+        union(&mut parent, t[0], t[2]);
+    }
+    // Triangles per part, in order of first appearance.
+    let mut parts: HashMap<u32, Vec<usize>> = HashMap::new();
+    let mut order: Vec<u32> = Vec::new();
+    for (k, t) in mesh.indices.chunks_exact(3).enumerate() {
+        let root = find(&mut parent, t[0]);
+        parts
+            .entry(root)
+            .or_insert_with(|| {
+                order.push(root);
+                Vec::new()
+            })
+            .push(k);
+    }
+    let mut out = Mesh::default();
+    for root in order {
+        let triangles = &parts[&root];
+        if triangles.len() <= BOX_TRIANGLES {
+            for &k in triangles {
+                for &i in &mesh.indices[k * 3..k * 3 + 3] {
+                    push_vertex(&mut out, mesh, i as usize);
+                }
+            }
+            continue;
+        }
+        let mut lo = Vec3::splat(f32::INFINITY);
+        let mut hi = Vec3::splat(f32::NEG_INFINITY);
+        for &k in triangles {
+            for &i in &mesh.indices[k * 3..k * 3 + 3] {
+                lo = lo.min(mesh.positions[i as usize]);
+                hi = hi.max(mesh.positions[i as usize]);
+            }
+        }
+        let first = mesh.indices[triangles[0] * 3] as usize;
+        let color = mesh.colors.get(first).copied().unwrap_or([1.0; 4]);
+        push_box(&mut out, lo, hi, color);
+    }
+    if mesh.colors.is_empty() {
+        out.colors.clear();
+    }
+    out
+}
+
+fn push_vertex(out: &mut Mesh, mesh: &Mesh, i: usize) {
+    out.indices.push(out.positions.len() as u32);
+    out.positions.push(mesh.positions[i]);
+    out.normals
+        .push(mesh.normals.get(i).copied().unwrap_or(Vec3::ZERO));
+    out.colors
+        .push(mesh.colors.get(i).copied().unwrap_or([1.0; 4]));
+}
+
+/// A box corner: the high (true) or low side on x, y and z.
+type Corner = (bool, bool, bool);
+
+fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
+    let corner = |x: bool, y: bool, z: bool| {
+        Vec3::new(
+            if x { hi.x } else { lo.x },
+            if y { hi.y } else { lo.y },
+            if z { hi.z } else { lo.z },
+        )
+    };
+    // Each face: its normal and its corners counter-clockwise seen from
+    // outside.
+    let faces: [(Vec3, [Corner; 4]); 6] = [
+        (
+            Vec3::X,
+            [
+                (true, false, false),
+                (true, true, false),
+                (true, true, true),
+                (true, false, true),
+            ],
+        ),
+        (
+            Vec3::NEG_X,
+            [
+                (false, false, false),
+                (false, false, true),
+                (false, true, true),
+                (false, true, false),
+            ],
+        ),
+        (
+            Vec3::Y,
+            [
+                (false, true, false),
+                (false, true, true),
+                (true, true, true),
+                (true, true, false),
+            ],
+        ),
+        (
+            Vec3::NEG_Y,
+            [
+                (false, false, false),
+                (true, false, false),
+                (true, false, true),
+                (false, false, true),
+            ],
+        ),
+        (
+            Vec3::Z,
+            [
+                (false, false, true),
+                (true, false, true),
+                (true, true, true),
+                (false, true, true),
+            ],
+        ),
+        (
+            Vec3::NEG_Z,
+            [
+                (false, false, false),
+                (false, true, false),
+                (true, true, false),
+                (true, false, false),
+            ],
+        ),
+    ];
+    for (normal, corners) in faces {
+        let base = out.positions.len() as u32;
+        for (x, y, z) in corners {
+            out.positions.push(corner(x, y, z));
+            out.normals.push(normal);
+            out.colors.push(color);
+        }
+        out.indices
+            .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::{HausdorffOptions, hausdorff};
+
+    fn tube(segments: usize, radius: f32, length: f32, x: f32) -> Mesh {
+        let mut m = Mesh::default();
+        for s in 0..segments {
+            let a = s as f32 / segments as f32 * std::f32::consts::TAU;
+            let b = (s + 1) as f32 / segments as f32 * std::f32::consts::TAU;
+            let p = |ang: f32, y: f32| Vec3::new(x + radius * ang.cos(), y, radius * ang.sin());
+            let base = m.positions.len() as u32;
+            m.positions
+                .extend([p(a, 0.0), p(b, 0.0), p(b, length), p(a, length)]);
+            m.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        m
+    }
+
+    #[test]
+    fn replaces_each_part_by_its_box() {
+        let mut m = tube(16, 0.05, 4.0, 0.0);
+        let other = tube(16, 0.05, 4.0, 1.0);
+        let offset = m.positions.len() as u32;
+        m.positions.extend(&other.positions);
+        m.indices.extend(other.indices.iter().map(|i| i + offset));
+        let proxies = box_proxies(&m);
+        assert_eq!(proxies.triangle_count(), 24);
+        let h = hausdorff(
+            &proxies,
+            &m,
+            &HausdorffOptions {
+                tolerance: 1e-3,
+                seed: 0,
+            },
+        );
+        // The box of a thin tube is within its radius of it.
+        assert!(h.bound < 0.08, "{h:?}");
+        assert!(proxies.validate().is_ok());
+    }
+
+    #[test]
+    fn keeps_small_parts() {
+        let m = tube(3, 0.05, 4.0, 0.0);
+        assert_eq!(box_proxies(&m).triangle_count(), 6);
+    }
+}
