@@ -2,6 +2,9 @@
 //! JSON follows the schemas, bad configurations are clear errors, a failed
 //! build leaves the previous tree as it was.
 
+#[path = "../../hdlod/tests/common/mod.rs"]
+mod common;
+
 use std::path::{Path, PathBuf};
 use std::process::{Command, Output};
 
@@ -15,15 +18,6 @@ fn hdlod(args: &[&std::ffi::OsStr]) -> Output {
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-fn assert_schema(json: &serde_json::Value, schema: &str) {
-    let path = root().join("schemas").join(schema);
-    let schema: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    let validator = jsonschema::validator_for(&schema).unwrap();
-    let errors: Vec<String> = validator.iter_errors(json).map(|e| e.to_string()).collect();
-    assert!(errors.is_empty(), "{errors:?}");
 }
 
 #[test]
@@ -44,7 +38,7 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
         String::from_utf8_lossy(&out.stderr)
     );
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_schema(&summary, "build-summary.schema.json");
+    common::assert_matches_schema(&summary, "build-summary.schema.json");
     assert_eq!(summary["objects"], 628);
 
     let out = hdlod(&["inspect".as_ref(), tree.as_os_str(), "--json".as_ref()]);
@@ -54,7 +48,7 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
         String::from_utf8_lossy(&out.stderr)
     );
     let inspect: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_schema(&inspect, "inspect-tree.schema.json");
+    common::assert_matches_schema(&inspect, "inspect-tree.schema.json");
     assert_eq!(inspect["clusters"], summary["clusters"]);
     // Level 0 holds the leaves: every visible object (a moving object that
     // stands still before or after its motion has more than one).

@@ -32,15 +32,7 @@ fn json_follows_the_schema_and_counts() {
         String::from_utf8_lossy(&out.stderr)
     );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    let schema_path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/inspect.schema.json");
-    let schema: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(schema_path).unwrap()).unwrap();
-    let validator = jsonschema::validator_for(&schema).unwrap();
-    let errors: Vec<String> = validator
-        .iter_errors(&json)
-        .map(|e| e.to_string())
-        .collect();
-    assert!(errors.is_empty(), "{errors:?}\n{json}");
+    common::assert_matches_schema(&json, "inspect.schema.json");
     assert_eq!(json["classes"]["pseudo_dynamic"]["objects"], 3);
     assert_eq!(json["classes"]["pseudo_dynamic"]["triangles"], 36);
     assert_eq!(json["classes"]["dynamic"]["triangles"], 4);

@@ -9,7 +9,7 @@ use std::collections::HashMap;
 use std::path::Path;
 use std::time::Instant;
 
-use glam::{Mat4, Vec3};
+use glam::{DVec3, Mat4, Vec3};
 use obvhs::aabb::Aabb as BvhBox;
 use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use rayon::prelude::*;
@@ -21,6 +21,7 @@ use super::steps::Steps;
 use super::{BuildStats, GeometrySink, LevelStats, Progress};
 use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy};
 use crate::scene::{Class, Scene, Visibility, VisibilityType};
+use crate::tree::cut::moved_box;
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
 use crate::{Error, Result};
 
@@ -250,19 +251,11 @@ pub fn build(
         .collect();
     let parts: Vec<(f64, &Steps)> = root_steps.iter().map(|(w, s)| (*w, s)).collect();
     let visibility = Steps::weighted_mean(&parts).simplified(config.max_steps, span);
-    let (rlo, rhi) = roots.iter().fold(
-        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
-        |(lo, hi), &r| {
-            let c = &clusters[r as usize];
-            let (clo, chi) = world_box(c);
-            (lo.min(clo), hi.max(chi))
-        },
-    );
-    let bounds = if rlo.x.is_finite() {
-        (rlo, rhi)
-    } else {
-        (Vec3::ZERO, Vec3::ZERO)
-    };
+    let bounds = roots
+        .iter()
+        .map(|&r| world_box(&clusters[r as usize]))
+        .reduce(|a, b| a.union(&b))
+        .unwrap_or(Aabb::new(DVec3::ZERO, DVec3::ZERO));
     let eps = roots
         .iter()
         .map(|&r| clusters[r as usize].eps)
@@ -276,8 +269,8 @@ pub fn build(
         children: roots,
         level: clusters.iter().map(|c| c.level).max().unwrap_or(0) + 1,
         class: ClusterClass::Root,
-        bounds: Aabb::from_f32(bounds.0, bounds.1),
-        w: f64::from((bounds.1 - bounds.0).length()),
+        bounds,
+        w: bounds.diagonal(),
         eps,
         gamma: 0.0,
         visibility: visibility.to_tree(),
@@ -381,35 +374,16 @@ fn split_at_rest(scene: &Scene, classes: &[Class]) -> Vec<Piece> {
 
 /// The box of a cluster in the world over the whole span: a dynamic
 /// cluster's own box moved by every keyframe.
-fn world_box(c: &Cluster) -> (Vec3, Vec3) {
-    let own = (c.bounds.min.as_vec3(), c.bounds.max.as_vec3());
+fn world_box(c: &Cluster) -> Aabb {
     let Some(motion) = &c.motion else {
-        return own;
+        return c.bounds;
     };
-    let mut lo = Vec3::splat(f32::INFINITY);
-    let mut hi = Vec3::splat(f32::NEG_INFINITY);
-    for k in motion.keyframes() {
-        let (a, b) = transform_box(&k.matrix(), own);
-        lo = lo.min(a);
-        hi = hi.max(b);
-    }
-    (lo, hi)
-}
-
-fn transform_box(m: &Mat4, (lo, hi): (Vec3, Vec3)) -> (Vec3, Vec3) {
-    let mut out_lo = Vec3::splat(f32::INFINITY);
-    let mut out_hi = Vec3::splat(f32::NEG_INFINITY);
-    for i in 0..8 {
-        let p = Vec3::new(
-            if i & 1 == 0 { lo.x } else { hi.x },
-            if i & 2 == 0 { lo.y } else { hi.y },
-            if i & 4 == 0 { lo.z } else { hi.z },
-        );
-        let q = m.transform_point3(p);
-        out_lo = out_lo.min(q);
-        out_hi = out_hi.max(q);
-    }
-    (out_lo, out_hi)
+    motion
+        .keyframes()
+        .iter()
+        .map(|k| moved_box(&c.bounds, &k.matrix().as_dmat4()))
+        .reduce(|a, b| a.union(&b))
+        .unwrap_or(c.bounds)
 }
 
 /// Clusters one class level by level; answers the ids of the clusters left

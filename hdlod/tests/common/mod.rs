@@ -148,3 +148,19 @@ pub fn sample_scene() -> Scene {
     scene.apply_schedule();
     scene
 }
+
+/// Asserts that `value` follows `schemas/NAME` of the repository.
+pub fn assert_matches_schema(value: &serde_json::Value, name: &str) {
+    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../schemas")
+        .join(name);
+    let schema: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    let errors: Vec<String> = validator
+        .iter_errors(value)
+        .take(5)
+        .map(|e| e.to_string())
+        .collect();
+    assert!(errors.is_empty(), "{name}: {errors:?}");
+}
