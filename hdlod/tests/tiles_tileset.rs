@@ -481,6 +481,8 @@ fn bad_arguments_are_named() {
     assert!(err.to_string().starts_with("time"), "{err}");
     let err = time_slice(tree, 0.0, &Options::new("geometry", "a/b")).unwrap_err();
     assert!(err.to_string().starts_with("subtileset_dir"), "{err}");
+    let err = time_slice(tree, 0.0, &disk(100)).unwrap_err();
+    assert!(err.to_string().starts_with("max_bytes"), "{err}");
     let files: BTreeMap<u32, Tileset> = time_slice(tree, -1e6, &disk(DEFAULT_MAX_BYTES))
         .unwrap()
         .external;

@@ -49,6 +49,10 @@ pub const Y_UP_TO_Z_UP: DMat4 = DMat4::from_cols_array(&[
 /// The root tile's error in units of the scene's diagonal.
 pub const ROOT_ERROR_FACTOR: f64 = 1000.0;
 
+/// The least `Options::max_bytes`: below it a file cannot hold the tileset's
+/// own fields and a tile with a few children.
+pub const MIN_MAX_BYTES: usize = 4096;
+
 /// A few megabytes: the largest JSON file of a time slice by default.
 pub const DEFAULT_MAX_BYTES: usize = 4 << 20;
 
@@ -324,6 +328,12 @@ pub fn time_slice(tree: &Tree, t: f64, options: &Options) -> Result<TimeSlice> {
         return Err(Error::argument(
             "subtileset_dir",
             "must be one relative path segment",
+        ));
+    }
+    if options.max_bytes < MIN_MAX_BYTES {
+        return Err(Error::argument(
+            "max_bytes",
+            format!("must be at least {MIN_MAX_BYTES} (room for a tile and its children's stubs)"),
         ));
     }
     let mut root = tileset(tree, t, &options.content_dir)?;
