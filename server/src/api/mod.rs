@@ -19,7 +19,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
-use hdlod::tree::{Summary, Tree};
+use hdlod::tree::{Baseline, Summary, Tree};
 use tower_http::compression::CompressionLayer;
 
 use self::metrics::Metrics;
@@ -31,6 +31,7 @@ pub struct LoadedScene {
     pub tree: Tree,
     pub dir: PathBuf,
     pub summary: Summary,
+    pub baseline: Baseline,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -44,8 +45,10 @@ pub struct AppState {
 fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
     let summary = tree.summary();
+    let baseline = Baseline::of(&tree);
     Ok(LoadedScene {
         tree,
+        baseline,
         dir: dir.clone(),
         summary,
     })
