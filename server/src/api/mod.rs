@@ -8,6 +8,7 @@ pub mod error;
 mod handlers;
 pub mod metrics;
 mod stream;
+mod viewer;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -123,6 +124,8 @@ async fn record(State(state): State<Arc<AppState>>, request: Request, next: Next
 
 pub fn router(state: Arc<AppState>) -> Router {
     Router::new()
+        .route("/", get(viewer::index))
+        .route("/viewer/{file}", get(viewer::asset))
         .route("/healthz", get(handlers::healthz))
         .route("/metrics", get(handlers::metrics))
         .route("/api/v1/openapi.json", get(handlers::openapi))
