@@ -167,16 +167,26 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     );
     assert!(f(&end["baseline"]) > f(&start["baseline"]));
 
-    // Zooming out never adds triangles and, at four times the distance,
-    // takes some away.
-    let zoom: Vec<f64> = out["zoom"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|z| f(&z["triangles"]))
-        .collect();
-    assert!(zoom.windows(2).all(|w| w[1] <= w[0]), "{zoom:?}");
-    assert!(zoom[2] < zoom[0], "{zoom:?}");
+    // Zooming out (mouse wheel, twice the distance a step) never adds
+    // triangles and, at four times the distance, takes some away.
+    let zoom = out["zoom"].as_array().unwrap();
+    let distance: Vec<f64> = zoom.iter().map(|z| f(&z["distance"])).collect();
+    let triangles: Vec<f64> = zoom.iter().map(|z| f(&z["triangles"])).collect();
+    assert!(
+        (distance[2] / distance[0] - 4.0).abs() < 0.05,
+        "{distance:?}"
+    );
+    assert!(triangles.windows(2).all(|w| w[1] <= w[0]), "{triangles:?}");
+    assert!(triangles[2] < triangles[0], "{triangles:?}");
+
+    // Fly mode: holding W moves the eye.
+    let fly = &out["fly"];
+    assert_eq!(fly["mode"], "fly");
+    let step: f64 = (0..3)
+        .map(|i| (f(&fly["after"][i]) - f(&fly["before"][i])).powi(2))
+        .sum::<f64>()
+        .sqrt();
+    assert!(step > 1.0, "{fly}");
 
     // A dynamic object moves on screen while time plays.
     assert!(

@@ -354,6 +354,7 @@ function testHook() {
         colourMode: viewer.colourMode,
         mode: camera && camera.mode,
         distance: camera && camera.distance,
+        eye: camera && camera.eye(),
         clusters: viewer.clusters.size,
         triangles: drawnTriangles(),
         ids: [...viewer.clusters.keys()].sort((a, b) => a - b),

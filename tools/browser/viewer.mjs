@@ -20,9 +20,11 @@ const out = { errors: [], screenshots: [] };
 const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: WIDTH, height: HEIGHT } });
+  // The last checks provoke failed requests on purpose; errors count until then.
+  let faults = false;
   page.on("pageerror", (e) => out.errors.push(`page error: ${e.message}`));
   page.on("console", (m) => {
-    if (m.type() === "error") out.errors.push(`console: ${m.text()}`);
+    if (m.type() === "error" && !faults) out.errors.push(`console: ${m.text()}`);
   });
 
   const settle = async () => {
@@ -107,14 +109,29 @@ try {
   }
   await page.evaluate(() => window.hdlodViewer.setColourMode("vertex"));
 
-  // Zooming out: twice and four times the distance that frames the scene.
+  // Zooming out with the mouse wheel from the distance that frames the
+  // scene: each step doubles it (the viewer zooms by exp(deltaY * 0.0015)).
   out.zoom = [];
-  for (const f of [1, 2, 4]) {
-    await page.evaluate((k) => window.hdlodViewer.setDistanceFactor(k), f);
+  await page.evaluate(() => window.hdlodViewer.setDistanceFactor(1));
+  await page.mouse.move(WIDTH / 2, HEIGHT / 2);
+  for (let step = 0; step < 3; step++) {
+    if (step > 0) await page.mouse.wheel(0, Math.log(2) / 0.0015);
     s = await settle();
-    out.zoom.push({ factor: f, triangles: s.triangles, clusters: s.clusters });
+    out.zoom.push({ distance: s.distance, triangles: s.triangles, clusters: s.clusters });
   }
   await shoot("far");
+  await page.evaluate(() => window.hdlodViewer.setDistanceFactor(1));
+
+  // Fly mode: F, then W held moves the eye forward.
+  const eyeBefore = (await settle()).eye;
+  await page.click("#view");
+  await page.keyboard.press("f");
+  await page.keyboard.down("w");
+  await page.waitForTimeout(400);
+  await page.keyboard.up("w");
+  s = await settle();
+  out.fly = { mode: s.mode, before: eyeBefore, after: s.eye };
+  await page.keyboard.press("f");
   await page.evaluate(() => window.hdlodViewer.setDistanceFactor(1));
 
   // A moment when some dynamic cluster in view moves within the next hour,
@@ -151,9 +168,14 @@ try {
   out.finalGlbBytes = last.glbBytes;
 
   // Readable messages: an unknown scene, then a server that is not there.
+  faults = true;
   await page.goto(`${base}/?scene=no-such-scene`);
   await page.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.state().error, null, { timeout: 10000 });
   out.missingSceneMessage = await page.evaluate(() => document.getElementById("message").textContent);
+  await page.route("**/api/v1/scenes", (route) => route.abort("connectionrefused"));
+  await page.goto(`${base}/?scene=${encodeURIComponent(scene)}`);
+  await page.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.state().error, null, { timeout: 10000 });
+  out.unreachableMessage = await page.evaluate(() => document.getElementById("message").textContent);
 } catch (e) {
   out.errors.push(`driver: ${e.stack || e}`);
 } finally {
