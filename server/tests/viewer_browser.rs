@@ -204,6 +204,13 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     assert!(f(&out["finalGlbBytes"]) > 0.0);
     assert_eq!(geometry_requests(&base), f(&out["finalGlbFiles"]));
 
+    // The address follows the view, so a view can be shared.
+    let address = out["address"].as_str().unwrap();
+    assert!(
+        address.contains(&format!("scene={SCENE}")) && address.contains("time=2024-"),
+        "{address}"
+    );
+
     let message = out["missingSceneMessage"].as_str().unwrap();
     assert!(
         message.contains("no-such-scene") && message.contains(SCENE),

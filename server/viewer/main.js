@@ -106,6 +106,7 @@ function setPixelError(p) {
 
 function setColourMode(mode) {
   viewer.colourMode = mode;
+  urlDirty = true;
   ui.colour.value = mode;
   const swatch = (rgb, name) =>
     `<span style="background: rgb(${rgb.map((c) => Math.round(c * 255)).join(",")})"></span>${name}`;
@@ -235,13 +236,18 @@ function updateStats() {
   ui.stats.textContent = lines.join("\n");
 }
 
-let lastUrlUpdate = 0;
+// The address follows the view (at most twice a second) so it can be shared.
+let lastUrlUpdate = -Infinity;
+let urlDirty = false;
 function updateUrl(now) {
-  if (now - lastUrlUpdate < 500) return;
+  if (!urlDirty || now - lastUrlUpdate < 500) return;
   lastUrlUpdate = now;
+  urlDirty = false;
   const params = new URLSearchParams(location.search);
   params.set("scene", viewer.scene.name);
   params.set("time", formatDate(viewer.t).replace(" ", "T") + "Z");
+  params.set("pixel_error", String(viewer.pixelError));
+  params.set("colour", viewer.colourMode);
   history.replaceState(null, "", `?${params}`);
 }
 
@@ -268,8 +274,9 @@ function frame(now) {
     viewer.viewKey = key;
     connection.request(request);
     viewer.needsDraw = true;
-    updateUrl(now);
+    urlDirty = true;
   }
+  updateUrl(now);
   if (viewer.needsDraw) {
     viewer.needsDraw = false;
     draw(width, height);

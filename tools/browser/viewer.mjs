@@ -165,6 +165,8 @@ try {
 
   const last = await page.evaluate(() => window.hdlodViewer.state());
   out.finalGlbFiles = last.glbFiles;
+  await page.waitForTimeout(600);
+  out.address = await page.evaluate(() => location.search);
   out.finalGlbBytes = last.glbBytes;
 
   // Readable messages: an unknown scene, then a server that is not there.
