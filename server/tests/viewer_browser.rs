@@ -38,6 +38,27 @@ fn missing_browser() -> Option<String> {
 
 struct Server(Child);
 
+/// `hdlod serve` on a free loopback port: the server and its base URL.
+fn serve(tree: &Path) -> (Server, String) {
+    let mut child = Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(["serve", "--addr", "127.0.0.1:0"])
+        .arg(tree)
+        .stdout(Stdio::piped())
+        .stderr(Stdio::null())
+        .spawn()
+        .unwrap();
+    let mut line = String::new();
+    BufReader::new(child.stdout.take().unwrap())
+        .read_line(&mut line)
+        .unwrap();
+    let base = line
+        .trim()
+        .strip_prefix("listening on ")
+        .expect("the address line")
+        .to_owned();
+    (Server(child), base)
+}
+
 impl Drop for Server {
     fn drop(&mut self) {
         let _ = self.0.kill();
@@ -72,6 +93,70 @@ fn geometry_requests(base: &str) -> f64 {
         .sum()
 }
 
+/// The embedded files, with or without a browser.
+#[test]
+fn the_viewer_files_are_served() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    hdlod::tree::sample::write_sample_tree(&tree, 1, 6).unwrap();
+    let (_server, base) = serve(&tree);
+    let get = |path: &str| reqwest::blocking::get(format!("{base}{path}")).unwrap();
+    let page = get("/");
+    assert_eq!(page.status(), 200);
+    assert!(
+        page.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/html")
+    );
+    let html = page.text().unwrap();
+    // Every file the page and its modules name is served; nothing comes
+    // from elsewhere.
+    let mut names = vec!["main.js".to_owned()];
+    for file in [
+        "main.js",
+        "camera.js",
+        "stream.js",
+        "renderer.js",
+        "glb.js",
+        "mat4.js",
+    ] {
+        let response = get(&format!("/viewer/{file}"));
+        assert_eq!(response.status(), 200, "{file}");
+        assert!(
+            response.headers()["content-type"]
+                .to_str()
+                .unwrap()
+                .starts_with("text/javascript")
+        );
+        let text = response.text().unwrap();
+        assert!(
+            !text.contains("http://") && !text.contains("https://"),
+            "{file} loads from outside"
+        );
+        names.extend(text.match_indices("from \"./").map(|(i, _)| {
+            let rest = &text[i + 8..];
+            rest[..rest.find('"').unwrap()].to_owned()
+        }));
+    }
+    assert!(html.contains("/viewer/main.js") && html.contains("/viewer/viewer.css"));
+    assert!(!html.contains("http://") && !html.contains("https://"));
+    for name in names {
+        assert_eq!(get(&format!("/viewer/{name}")).status(), 200, "{name}");
+    }
+    let css = get("/viewer/viewer.css");
+    assert!(
+        css.headers()["content-type"]
+            .to_str()
+            .unwrap()
+            .starts_with("text/css")
+    );
+    let missing = get("/viewer/nope.js");
+    assert_eq!(missing.status(), 404);
+    let body: Value = missing.json().unwrap();
+    assert_eq!(body["error"]["field"], "file");
+}
+
 #[test]
 fn the_viewer_draws_the_schedule_in_chromium() {
     if let Some(why) = missing_browser() {
@@ -97,23 +182,7 @@ fn the_viewer_draws_the_schedule_in_chromium() {
         String::from_utf8_lossy(&build.stderr)
     );
 
-    let mut child = Command::new(hdlod)
-        .args(["serve", "--addr", "127.0.0.1:0"])
-        .arg(&tree)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let _server = Server(child);
-    let base = line
-        .trim()
-        .strip_prefix("listening on ")
-        .expect("the address line")
-        .to_owned();
+    let (_server, base) = serve(&tree);
 
     // target/debug/hdlod -> target/browser-screenshots/viewer
     let shots = Path::new(hdlod)
