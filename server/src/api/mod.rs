@@ -9,6 +9,7 @@ mod handlers;
 pub mod metrics;
 mod stream;
 mod tiles;
+mod viewer;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -20,7 +21,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
-use hdlod::tree::{Summary, Tree};
+use hdlod::tree::{Baseline, Summary, Tree};
 use tower_http::compression::CompressionLayer;
 
 use self::metrics::Metrics;
@@ -32,6 +33,7 @@ pub struct LoadedScene {
     pub tree: Tree,
     pub dir: PathBuf,
     pub summary: Summary,
+    pub baseline: Baseline,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -45,8 +47,10 @@ pub struct AppState {
 fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
     let summary = tree.summary();
+    let baseline = Baseline::of(&tree);
     Ok(LoadedScene {
         tree,
+        baseline,
         dir: dir.clone(),
         summary,
     })
@@ -121,6 +125,8 @@ async fn record(State(state): State<Arc<AppState>>, request: Request, next: Next
 
 pub fn router(state: Arc<AppState>) -> Router {
     Router::new()
+        .route("/", get(viewer::index))
+        .route("/viewer/{file}", get(viewer::asset))
         .route("/healthz", get(handlers::healthz))
         .route("/metrics", get(handlers::metrics))
         .route("/api/v1/openapi.json", get(handlers::openapi))
