@@ -8,6 +8,7 @@ pub mod error;
 mod handlers;
 pub mod metrics;
 mod stream;
+mod tiles;
 mod viewer;
 
 use std::collections::BTreeMap;
@@ -140,6 +141,14 @@ pub fn router(state: Arc<AppState>) -> Router {
             get(handlers::geometry),
         )
         .route("/api/v1/scenes/{scene}/stream", get(stream::stream))
+        .route(
+            "/api/v1/scenes/{scene}/tiles/tileset.json",
+            get(tiles::tileset),
+        )
+        .route(
+            "/api/v1/scenes/{scene}/tiles/{time}/{file}",
+            get(tiles::external),
+        )
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(state.clone(), record))
