@@ -4,23 +4,16 @@
 //! and the exported slices are the same, bad requests get a 4xx naming the
 //! field.
 
-mod tiles_support;
+mod common;
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
-use std::time::Duration;
 
+use common::{
+    SCENE, Server, assert_success, assert_valid, build_tree, client, hdlod, repo, tileset_validator,
+};
 use reqwest::StatusCode;
-use reqwest::blocking::Client;
 use serde_json::Value;
-use tiles_support::{SCENE, Server, assert_tileset, build_tree, hdlod, repo, tileset_validator};
-
-fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(20))
-        .build()
-        .unwrap()
-}
 
 fn tiles_path(query: &str) -> String {
     format!("/api/v1/scenes/{SCENE}/tiles/tileset.json{query}")
@@ -42,12 +35,7 @@ fn served_slices_follow_the_schemas() {
     let server = Server::start(&build_tree(dir.path()));
     let http = client();
     let validator = tileset_validator();
-    let doc: Value = http
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let doc = server.get_json("/api/v1/openapi.json");
     for path in [
         "/api/v1/scenes/{scene}/tiles/tileset.json",
         "/api/v1/scenes/{scene}/tiles/{time}/{id}.json",
@@ -67,7 +55,7 @@ fn served_slices_follow_the_schemas() {
                 .starts_with("application/json")
         );
         let tileset: Value = answer.json().unwrap();
-        assert_tileset(&validator, &tileset, time);
+        assert_valid(&validator, &tileset, time);
         assert_eq!(tileset["root"]["refine"], "REPLACE");
         // Content resolves to the geometry endpoint, which serves it.
         let mut content = Vec::new();
@@ -162,12 +150,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
 
     // A small budget forces external tilesets on the tiny tree.
     let split = dir.path().join("out/split");
-    let out = export(&tree, time, &split, Some("16000"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&export(&tree, time, &split, Some("16000")));
     let mut files = vec![split.join("tileset.json")];
     for entry in std::fs::read_dir(split.join("tilesets")).unwrap() {
         files.push(entry.unwrap().path());
@@ -178,7 +161,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
         let bytes = std::fs::metadata(file).unwrap().len();
         assert!(bytes <= 16000, "{}: {bytes} bytes", file.display());
         let tileset = read_json(file);
-        assert_tileset(&validator, &tileset, &file.display().to_string());
+        assert_valid(&validator, &tileset, &file.display().to_string());
         let mut content = Vec::new();
         uris(&tileset["root"], &mut content);
         for uri in content {
@@ -212,12 +195,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let whole = dir.path().join("out/whole");
     assert!(export(&tree, time, &whole, None).status.success());
     let server = Server::start(&tree);
-    let served: Value = client()
-        .get(server.url(&tiles_path(&format!("?time={time}"))))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let served = server.get_json(&tiles_path(&format!("?time={time}")));
     let on_disk = read_json(&whole.join("tileset.json"));
     let served = serde_json::to_string(&served)
         .unwrap()
