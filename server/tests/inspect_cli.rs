@@ -3,15 +3,7 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-
-use common::{assert_success, hdlod};
-
-fn saved_sample(dir: &Path) -> PathBuf {
-    let out = dir.join("sample");
-    hdlod::scene::format::save(&common::sample_scene(), &out).unwrap();
-    out
-}
+use common::{assert_success, hdlod, saved_sample};
 
 #[test]
 fn json_follows_the_schema_and_counts() {

@@ -6,11 +6,11 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+use std::path::Path;
 
 use common::{
-    SCENE, Server, assert_success, assert_valid, build_tree, client, hdlod, repo, tileset_validator,
+    SCENE, Server, assert_success, assert_valid, build_tree, client, gltf_reports, hdlod,
+    tileset_validator,
 };
 use reqwest::StatusCode;
 use serde_json::Value;
@@ -122,25 +122,6 @@ fn read_json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
-fn glb_reports(files: &[PathBuf]) -> Vec<Value> {
-    let tools = repo().join("tools");
-    assert!(
-        tools.join("node_modules/gltf-validator").is_dir(),
-        "the glTF validator is not installed: run scripts/test (npm ci --prefix tools)"
-    );
-    let out = Command::new("node")
-        .arg(tools.join("validate-gltf.js"))
-        .args(files)
-        .output()
-        .expect("node runs");
-    assert!(
-        out.status.code() != Some(2),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 #[test]
 fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let dir = tempfile::tempdir().unwrap();
@@ -178,7 +159,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let written = std::fs::read_dir(split.join("geometry")).unwrap().count();
     assert_eq!(glbs.len(), written, "exactly the content GLBs are copied");
     assert!(written > 100);
-    let reports = glb_reports(&glbs);
+    let reports = gltf_reports(&glbs);
     assert_eq!(reports.len(), glbs.len());
     for (file, report) in glbs.iter().zip(&reports) {
         assert_eq!(

@@ -151,6 +151,13 @@ pub fn sample_scene() -> Scene {
     scene
 }
 
+/// [`sample_scene`] saved in `dir/sample`; returns that directory.
+pub fn saved_sample(dir: &Path) -> PathBuf {
+    let out = dir.join("sample");
+    hdlod::scene::format::save(&sample_scene(), &out).unwrap();
+    out
+}
+
 /// The repository root.
 pub fn repo() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR"))
@@ -184,12 +191,17 @@ pub fn assert_valid(v: &jsonschema::Validator, value: &serde_json::Value, what: 
     assert!(errors.is_empty(), "{what}: {errors:?}");
 }
 
-/// Asserts that `value` follows `schemas/NAME` of the repository.
-pub fn assert_matches_schema(value: &serde_json::Value, name: &str) {
+/// The validator of `schemas/NAME` of the repository.
+pub fn schema(name: &str) -> jsonschema::Validator {
     let path = repo().join("schemas").join(name);
     let schema: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    assert_valid(&jsonschema::validator_for(&schema).unwrap(), value, name);
+    jsonschema::validator_for(&schema).unwrap()
+}
+
+/// Asserts that `value` follows `schemas/NAME` of the repository.
+pub fn assert_matches_schema(value: &serde_json::Value, name: &str) {
+    assert_valid(&schema(name), value, name);
 }
 
 /// The official 3D Tiles 1.1 `tileset.schema.json` from
@@ -203,4 +215,23 @@ pub fn tileset_validator() -> jsonschema::Validator {
         .with_base_uri(format!("file://{}", path.display()))
         .build(&schema)
         .expect("the official 3D Tiles schemas compile")
+}
+
+/// The Khronos glTF validator's reports on `files`, in order
+/// (`tools/validate-gltf.js`, installed by `npm ci --prefix tools`).
+pub fn gltf_reports(files: &[PathBuf]) -> Vec<serde_json::Value> {
+    let tools = repo().join("tools");
+    assert!(
+        tools.join("node_modules/gltf-validator").is_dir(),
+        "the glTF validator is not installed in {}: run scripts/test (it runs `npm ci --prefix tools`)",
+        tools.display()
+    );
+    let out = std::process::Command::new("node")
+        .arg(tools.join("validate-gltf.js"))
+        .args(files)
+        .output()
+        .expect("node runs (scripts/test needs Node.js for the glTF validator)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code() != Some(2), "validator failed: {stderr}");
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("report: {e}; {stderr}"))
 }
