@@ -9,8 +9,8 @@ mod common;
 use std::path::Path;
 
 use common::{
-    SCENE, Server, assert_success, assert_valid, build_tree, client, gltf_reports, hdlod,
-    tileset_validator,
+    SCENE, Server, assert_content_type, assert_success, assert_valid, build_tree, client,
+    gltf_reports, hdlod, tileset_validator,
 };
 use reqwest::StatusCode;
 use serde_json::Value;
@@ -48,12 +48,7 @@ fn served_slices_follow_the_schemas() {
             .send()
             .unwrap();
         assert_eq!(answer.status(), StatusCode::OK, "time {time}");
-        assert!(
-            answer.headers()["content-type"]
-                .to_str()
-                .unwrap()
-                .starts_with("application/json")
-        );
+        assert_content_type(&answer, "application/json");
         let tileset: Value = answer.json().unwrap();
         assert_valid(&validator, &tileset, time);
         assert_eq!(tileset["root"]["refine"], "REPLACE");

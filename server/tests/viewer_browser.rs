@@ -12,7 +12,7 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::{SCENE, Server, browser_ready, build_tree, repo};
+use common::{SCENE, Server, assert_content_type, browser_ready, build_tree, repo};
 use serde_json::Value;
 
 fn f(v: &Value) -> f64 {
@@ -49,12 +49,7 @@ fn the_viewer_files_are_served() {
     let get = |path: &str| reqwest::blocking::get(server.url(path)).unwrap();
     let page = get("/");
     assert_eq!(page.status(), 200);
-    assert!(
-        page.headers()["content-type"]
-            .to_str()
-            .unwrap()
-            .starts_with("text/html")
-    );
+    assert_content_type(&page, "text/html");
     let html = page.text().unwrap();
     // Every file the page and its modules name is served; nothing comes
     // from elsewhere.
@@ -69,12 +64,7 @@ fn the_viewer_files_are_served() {
     ] {
         let response = get(&format!("/viewer/{file}"));
         assert_eq!(response.status(), 200, "{file}");
-        assert!(
-            response.headers()["content-type"]
-                .to_str()
-                .unwrap()
-                .starts_with("text/javascript")
-        );
+        assert_content_type(&response, "text/javascript");
         let text = response.text().unwrap();
         assert!(
             !text.contains("http://") && !text.contains("https://"),
@@ -91,12 +81,7 @@ fn the_viewer_files_are_served() {
         assert_eq!(get(&format!("/viewer/{name}")).status(), 200, "{name}");
     }
     let css = get("/viewer/viewer.css");
-    assert!(
-        css.headers()["content-type"]
-            .to_str()
-            .unwrap()
-            .starts_with("text/css")
-    );
+    assert_content_type(&css, "text/css");
     let missing = get("/viewer/nope.js");
     assert_eq!(missing.status(), 404);
     let body: Value = missing.json().unwrap();

@@ -72,6 +72,13 @@ pub fn client() -> Client {
         .unwrap()
 }
 
+/// Asserts the media type of an answer (parameters such as the charset may
+/// follow).
+pub fn assert_content_type(response: &reqwest::blocking::Response, media_type: &str) {
+    let header = response.headers()["content-type"].to_str().unwrap();
+    assert!(header.starts_with(media_type), "{header}, not {media_type}");
+}
+
 /// A running `hdlod` that listens on a free loopback port; killed on drop.
 pub struct Server {
     child: Child,
