@@ -110,17 +110,7 @@ fn the_small_scale_is_the_demo_size_and_tiny_is_small() {
 fn every_visibility_type_and_class_occurs() {
     let scene = skyscraper(Scale::Tiny, 1);
     let census = Summary::of(&scene);
-    use VisibilityType::*;
-    for kind in [
-        Static,
-        Absent,
-        Appearing,
-        Disappearing,
-        Temporary,
-        Skipped,
-        Reappearing,
-        ReDisappearing,
-    ] {
+    for kind in VisibilityType::ALL {
         assert!(
             census.visibility_types.get(&kind).copied().unwrap_or(0) > 0,
             "no {kind:?}"

@@ -1,19 +1,13 @@
 //! OBJ and PLY readers on the shared meshes and on bad files.
 
+mod common;
+
 use std::path::{Path, PathBuf};
 
 use hdlod::geometry::measure;
 
 fn data(name: &str) -> PathBuf {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository")
-    .join(name)
+    common::shared_data("meshes").join(name)
 }
 
 #[test]

@@ -11,20 +11,21 @@ fn triangle() -> Mesh {
     }
 }
 
+fn part(mesh: &Mesh, transform: Mat4, color: [f32; 4]) -> Part<'_> {
+    Part {
+        mesh,
+        transform,
+        color,
+    }
+}
+
 const RED: [f32; 4] = [1.0, 0.0, 0.0, 1.0];
 const BLUE: [f32; 4] = [0.0, 0.0, 1.0, 1.0];
 
 #[test]
 fn transforms_colours_and_normals_are_applied() {
     let t = triangle();
-    let m = merge(
-        &[Part {
-            mesh: &t,
-            transform: Mat4::from_translation(Vec3::Z * 2.0),
-            color: RED,
-        }],
-        0.0,
-    );
+    let m = merge(&[part(&t, Mat4::from_translation(Vec3::Z * 2.0), RED)], 0.0);
     assert_eq!(
         m.positions,
         vec![
@@ -46,53 +47,17 @@ fn coincident_vertices_weld_only_with_equal_attributes() {
     let mirror = Mat4::from_translation(Vec3::new(1.0 + 4e-4, 0.0, 0.0))
         * Mat4::from_rotation_z(std::f32::consts::PI);
     let same = merge(
-        &[
-            Part {
-                mesh: &t,
-                transform: Mat4::IDENTITY,
-                color: RED,
-            },
-            Part {
-                mesh: &t,
-                transform: mirror,
-                color: RED,
-            },
-        ],
+        &[part(&t, Mat4::IDENTITY, RED), part(&t, mirror, RED)],
         1e-3,
     );
     assert_eq!(same.positions.len(), 4, "{:?}", same.positions);
     assert_eq!(same.triangle_count(), 2);
     let other_colour = merge(
-        &[
-            Part {
-                mesh: &t,
-                transform: Mat4::IDENTITY,
-                color: RED,
-            },
-            Part {
-                mesh: &t,
-                transform: mirror,
-                color: BLUE,
-            },
-        ],
+        &[part(&t, Mat4::IDENTITY, RED), part(&t, mirror, BLUE)],
         1e-3,
     );
     assert_eq!(other_colour.positions.len(), 6);
-    let no_tolerance = merge(
-        &[
-            Part {
-                mesh: &t,
-                transform: Mat4::IDENTITY,
-                color: RED,
-            },
-            Part {
-                mesh: &t,
-                transform: mirror,
-                color: RED,
-            },
-        ],
-        0.0,
-    );
+    let no_tolerance = merge(&[part(&t, Mat4::IDENTITY, RED), part(&t, mirror, RED)], 0.0);
     assert_eq!(no_tolerance.positions.len(), 6);
 }
 
@@ -111,18 +76,7 @@ fn welding_across_a_cell_boundary() {
     };
     let b = a.transformed(&Mat4::from_translation(Vec3::X * 0.0002));
     let m = merge(
-        &[
-            Part {
-                mesh: &a,
-                transform: Mat4::IDENTITY,
-                color: RED,
-            },
-            Part {
-                mesh: &b,
-                transform: Mat4::IDENTITY,
-                color: RED,
-            },
-        ],
+        &[part(&a, Mat4::IDENTITY, RED), part(&b, Mat4::IDENTITY, RED)],
         0.1,
     );
     assert_eq!(m.positions.len(), 3);
@@ -138,14 +92,7 @@ fn vertex_colours_win_over_the_part_colour_and_bad_triangles_are_skipped() {
     t.positions.push(Vec3::NAN);
     t.colors.push(BLUE);
     t.indices.extend([0, 1, 3, 0, 1, 77]);
-    let m = merge(
-        &[Part {
-            mesh: &t,
-            transform: Mat4::IDENTITY,
-            color: RED,
-        }],
-        0.0,
-    );
+    let m = merge(&[part(&t, Mat4::IDENTITY, RED)], 0.0);
     assert_eq!(m.triangle_count(), 1);
     assert_eq!(m.colors, vec![BLUE; 3]);
     m.validate().unwrap();
@@ -156,11 +103,7 @@ fn vertex_colours_win_over_the_part_colour_and_bad_triangles_are_skipped() {
 fn merged_area_is_the_sum_of_the_parts() {
     let t = triangle();
     let parts: Vec<Part> = (0..10)
-        .map(|i| Part {
-            mesh: &t,
-            transform: Mat4::from_scale(Vec3::splat(1.0 + i as f32)),
-            color: RED,
-        })
+        .map(|i| part(&t, Mat4::from_scale(Vec3::splat(1.0 + i as f32)), RED))
         .collect();
     let expected: f64 = (0..10).map(|i| 0.5 * (1.0 + i as f64).powi(2)).sum();
     assert!((measure::area(&merge(&parts, 1e-4)) - expected).abs() < 1e-3);

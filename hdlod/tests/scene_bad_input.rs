@@ -5,7 +5,7 @@ mod common;
 
 use std::path::{Path, PathBuf};
 
-use common::sample_scene;
+use common::{sample_scene, saved_sample};
 use hdlod::scene::format::{load, save};
 use serde_json::{Value, json};
 
@@ -18,8 +18,7 @@ struct Site {
 impl Site {
     fn new() -> Site {
         let tmp = tempfile::tempdir().unwrap();
-        let dir = tmp.path().join("site");
-        save(&sample_scene(), &dir).unwrap();
+        let dir = saved_sample(tmp.path());
         Site { _tmp: tmp, dir }
     }
 

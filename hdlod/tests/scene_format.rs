@@ -4,16 +4,15 @@ mod common;
 
 use std::path::Path;
 
-use common::{sample_scene, unit_box};
+use common::{sample_scene, saved_sample, unit_box};
 use hdlod::io::{glb, gltf};
 use hdlod::scene::format::{load, save};
 
 #[test]
 fn scene_round_trip_keeps_everything() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("site");
+    let out = saved_sample(dir.path());
     let scene = sample_scene();
-    save(&scene, &out).unwrap();
     assert!(out.join("scene.json").is_file());
     assert!(out.join("sample.glb").is_file());
     let back = load(&out).unwrap();
@@ -25,9 +24,8 @@ fn scene_round_trip_keeps_everything() {
 #[test]
 fn instancing_survives_the_round_trip() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("s");
+    let out = saved_sample(dir.path());
     let scene = sample_scene();
-    save(&scene, &out).unwrap();
     let back = load(&out).unwrap();
     // Two objects share mesh 0 with different colours: still one mesh.
     assert_eq!(back.meshes.len(), scene.meshes.len());
@@ -64,9 +62,8 @@ fn mesh_glb_round_trip() {
 #[test]
 fn read_mesh_flattens_nodes_with_their_transforms() {
     let dir = tempfile::tempdir().unwrap();
-    let out = dir.path().join("s");
+    let out = saved_sample(dir.path());
     let scene = sample_scene();
-    save(&scene, &out).unwrap();
     let flat = gltf::read_mesh(&out.join("sample.glb")).unwrap();
     let triangles: usize = scene
         .objects

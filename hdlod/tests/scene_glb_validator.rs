@@ -4,34 +4,8 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-
-use common::{coloured_tetra, sample_scene, unit_box};
+use common::{coloured_tetra, gltf_reports, saved_sample, unit_box};
 use hdlod::io::glb;
-use hdlod::scene::format::save;
-
-fn tools() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools")
-}
-
-/// Runs the validator on `files` and returns its reports.
-fn validate(files: &[PathBuf]) -> Vec<serde_json::Value> {
-    let tools = tools();
-    assert!(
-        tools.join("node_modules/gltf-validator").is_dir(),
-        "the glTF validator is not installed in {}: run scripts/test (it runs `npm ci --prefix tools`)",
-        tools.display()
-    );
-    let out = Command::new("node")
-        .arg(tools.join("validate-gltf.js"))
-        .args(files)
-        .output()
-        .expect("node runs (scripts/test needs Node.js for the glTF validator)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.code() != Some(2), "validator failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("report: {e}; {stderr}"))
-}
 
 #[test]
 fn written_glbs_have_zero_validator_errors() {
@@ -40,10 +14,9 @@ fn written_glbs_have_zero_validator_errors() {
     let coloured = dir.path().join("tetra.glb");
     glb::write_mesh(&unit_box(), &plain).unwrap();
     glb::write_mesh(&coloured_tetra(), &coloured).unwrap();
-    let scene_dir = dir.path().join("scene");
-    save(&sample_scene(), &scene_dir).unwrap();
+    let scene_dir = saved_sample(dir.path());
     let files = [plain, coloured, scene_dir.join("sample.glb")];
-    let reports = validate(&files);
+    let reports = gltf_reports(&files);
     assert_eq!(reports.len(), files.len());
     for (file, report) in files.iter().zip(&reports) {
         let issues = &report["issues"];

@@ -3,31 +3,16 @@
 
 mod common;
 
-use std::path::{Path, PathBuf};
-
-use common::sample_scene;
-use hdlod::scene::format::save;
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+use common::{repo, saved_sample, schema, schema_errors as errors};
 
 fn validator() -> jsonschema::Validator {
-    let text = std::fs::read_to_string(root().join("schemas/scene.schema.json")).unwrap();
-    jsonschema::validator_for(&serde_json::from_str(&text).unwrap()).unwrap()
-}
-
-fn errors(v: &jsonschema::Validator, json: &serde_json::Value) -> Vec<String> {
-    v.iter_errors(json)
-        .map(|e| format!("{}: {e}", e.instance_path()))
-        .collect()
+    schema("scene.schema.json")
 }
 
 #[test]
 fn written_scene_json_follows_the_schema() {
     let dir = tempfile::tempdir().unwrap();
-    save(&sample_scene(), dir.path().join("s").as_path()).unwrap();
-    let text = std::fs::read_to_string(dir.path().join("s/scene.json")).unwrap();
+    let text = std::fs::read_to_string(saved_sample(dir.path()).join("scene.json")).unwrap();
     let json: serde_json::Value = serde_json::from_str(&text).unwrap();
     // The sample has every section, so the schema sees all of them.
     for key in ["objects", "tasks", "motion", "schedule_options"] {
@@ -40,7 +25,7 @@ fn written_scene_json_follows_the_schema() {
 fn committed_scenes_follow_the_schema() {
     let v = validator();
     let mut found = Vec::new();
-    for dir in [root().join("fixtures"), root().join("docs")] {
+    for dir in [repo().join("fixtures"), repo().join("docs")] {
         let Ok(entries) = std::fs::read_dir(&dir) else {
             continue;
         };

@@ -3,10 +3,12 @@
 //! 3D Tiles traversal of them (transforms composed down the tiles, external
 //! tilesets followed, content URIs resolved) reproduces the cut.
 
+mod common;
+
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use common::{schema_errors, tileset_validator};
 use glam::{DMat4, DVec3};
 use hdlod::cluster::{BuildConfig, Silent, build_to};
 use hdlod::scene::{Up, format};
@@ -27,7 +29,7 @@ fn tree() -> &'static Tree {
     static BUILT: OnceLock<Built> = OnceLock::new();
     &BUILT
         .get_or_init(|| {
-            let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
+            let fixture = common::repo().join("fixtures/skyscraper-tiny");
             let scene = format::load(&fixture).expect("the tiny fixture loads");
             let tmp = tempfile::tempdir().unwrap();
             let dir = tmp.path().join("tree");
@@ -38,43 +40,6 @@ fn tree() -> &'static Tree {
             }
         })
         .tree
-}
-
-/// `shared/data/3d-tiles-schema` beside the repository: in the directory
-/// that holds it, or in the nearest ancestor that has one.
-fn schema_dir() -> PathBuf {
-    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
-    let repo = repo.canonicalize().unwrap();
-    repo.ancestors()
-        .skip(1)
-        .map(|a| a.join("shared/data/3d-tiles-schema"))
-        .find(|d| d.join("tileset.schema.json").is_file())
-        .unwrap_or_else(|| {
-            panic!(
-                "no shared/data/3d-tiles-schema beside {} (the official 3D Tiles 1.1 schemas)",
-                repo.display()
-            )
-        })
-}
-
-/// The official `tileset.schema.json`; its relative `$ref`s resolve as files
-/// next to it.
-fn tileset_validator() -> jsonschema::Validator {
-    let path = schema_dir().join("tileset.schema.json");
-    let text = std::fs::read_to_string(&path).unwrap();
-    let schema: serde_json::Value = serde_json::from_str(&text).unwrap();
-    let base = format!("file://{}", path.canonicalize().unwrap().display());
-    jsonschema::options()
-        .with_base_uri(base)
-        .build(&schema)
-        .expect("the 3D Tiles schemas compile")
-}
-
-fn schema_errors(v: &jsonschema::Validator, value: &serde_json::Value) -> Vec<String> {
-    v.iter_errors(value)
-        .take(5)
-        .map(|e| format!("{}: {e}", e.instance_path()))
-        .collect()
 }
 
 fn times(tree: &Tree) -> [f64; 5] {

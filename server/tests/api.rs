@@ -1,69 +1,15 @@
 //! The real server on loopback: `hdlod serve --addr 127.0.0.1:0` over a
 //! sample tree, answers checked against the OpenAPI document it serves.
 
-use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+mod common;
+
+use std::process::Command;
 use std::time::{Duration, Instant};
 
+use common::{Server, client};
 use reqwest::StatusCode;
 use reqwest::blocking::Client;
 use serde_json::{Value, json};
-
-struct Server {
-    child: Child,
-    base: String,
-    _dir: tempfile::TempDir,
-    tree: PathBuf,
-}
-
-impl Server {
-    fn start() -> Server {
-        let dir = tempfile::tempdir().unwrap();
-        let tree = dir.path().join("tree");
-        hdlod::tree::sample::write_sample_tree(&tree, 1, 6).unwrap();
-        let mut child = Command::new(env!("CARGO_BIN_EXE_hdlod"))
-            .args(["serve", "--addr", "127.0.0.1:0"])
-            .arg(&tree)
-            .stdout(Stdio::piped())
-            .stderr(Stdio::null())
-            .spawn()
-            .unwrap();
-        let mut line = String::new();
-        BufReader::new(child.stdout.take().unwrap())
-            .read_line(&mut line)
-            .unwrap();
-        let base = line
-            .trim()
-            .strip_prefix("listening on ")
-            .expect("the address line")
-            .to_owned();
-        Server {
-            child,
-            base,
-            _dir: dir,
-            tree,
-        }
-    }
-
-    fn url(&self, path: &str) -> String {
-        format!("{}{path}", self.base)
-    }
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(10))
-        .build()
-        .unwrap()
-}
 
 /// A validator for one schema of the served document's components; the
 /// other components ride along so that references between them resolve.
@@ -73,12 +19,7 @@ fn validator(doc: &Value, name: &str) -> jsonschema::Validator {
 }
 
 fn check(doc: &Value, name: &str, value: &Value) {
-    let errors: Vec<String> = validator(doc, name)
-        .iter_errors(value)
-        .map(|e| format!("{}: {e}", e.instance_path()))
-        .take(5)
-        .collect();
-    assert!(errors.is_empty(), "{name}: {errors:?} in {value}");
+    common::assert_valid(&validator(doc, name), value, &format!("{name} in {value}"));
 }
 
 fn cut_body(time: Value) -> Value {
@@ -88,17 +29,12 @@ fn cut_body(time: Value) -> Value {
 
 #[test]
 fn responses_match_the_openapi_document() {
-    let server = Server::start();
+    let server = Server::sample(6);
     let http = client();
-    let doc: Value = http
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let doc = server.get_json("/api/v1/openapi.json");
     assert_eq!(doc["openapi"], "3.1.0");
     // The served components are the files in schemas/api/.
-    let dir = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/api");
+    let dir = common::repo().join("schemas/api");
     for (name, file) in [
         ("CutRequest", "cut-request"),
         ("CutResponse", "cut-response"),
@@ -120,7 +56,7 @@ fn responses_match_the_openapi_document() {
         assert!(doc["paths"].get(path).is_some(), "{path} documented");
     }
 
-    let get = |path: &str| -> Value { http.get(server.url(path)).send().unwrap().json().unwrap() };
+    let get = |path: &str| server.get_json(path);
     check(&doc, "Health", &get("/healthz"));
     let scenes = get("/api/v1/scenes");
     check(&doc, "SceneList", &scenes);
@@ -159,25 +95,14 @@ fn responses_match_the_openapi_document() {
     assert!(seen_dynamic, "the cranes are in some cut");
 
     // GET with query parameters answers the same cut as POST.
-    let post: Value = http
-        .post(server.url("/api/v1/scenes/sample-1/cut"))
-        .json(&cut_body(json!(5e6)))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let post = server.post_json("/api/v1/scenes/sample-1/cut", &cut_body(json!(5e6)));
     let get_cut = get(
         "/api/v1/scenes/sample-1/cut?time=5000000&position=150,120,150&target=0,20,0&far=2000&viewport=1280x720&pixel_error=2",
     );
     check(&doc, "CutResponse", &get_cut);
     assert_eq!(get_cut["clusters"], post["clusters"]);
 
-    let error: Value = http
-        .get(server.url("/api/v1/scenes/nope"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let error = get("/api/v1/scenes/nope");
     check(&doc, "Error", &error);
 
     let metrics = http
@@ -197,7 +122,7 @@ fn responses_match_the_openapi_document() {
 
 #[test]
 fn bad_requests_name_the_field() {
-    let server = Server::start();
+    let server = Server::sample(6);
     let http = client();
     let cut = server.url("/api/v1/scenes/sample-1/cut");
     let with = |edit: &dyn Fn(&mut Value)| {
@@ -307,15 +232,9 @@ fn bad_requests_name_the_field() {
 
 #[test]
 fn geometry_is_immutable_cacheable_and_compressed() {
-    let server = Server::start();
+    let server = Server::sample(6);
     let http = client();
-    let cut: Value = http
-        .post(server.url("/api/v1/scenes/sample-1/cut"))
-        .json(&cut_body(json!(9e6)))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let cut = server.post_json("/api/v1/scenes/sample-1/cut", &cut_body(json!(9e6)));
     let url = cut["clusters"][0]["geometry"].as_str().unwrap().to_owned();
     let hash = url
         .rsplit('/')
@@ -375,14 +294,8 @@ fn stream_sends_the_changes_of_the_cut() {
     use futures_util::{SinkExt, StreamExt};
     use tokio_tungstenite::tungstenite::Message;
 
-    let server = Server::start();
-    let http = client();
-    let doc: Value = http
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let server = Server::sample(6);
+    let doc = server.get_json("/api/v1/openapi.json");
     let ws_url = server
         .url("/api/v1/scenes/sample-1/stream")
         .replace("http://", "ws://");
@@ -395,14 +308,7 @@ fn stream_sends_the_changes_of_the_cut() {
         .collect();
     let expected: Vec<Value> = views
         .iter()
-        .map(|v| {
-            http.post(server.url("/api/v1/scenes/sample-1/cut"))
-                .json(v)
-                .send()
-                .unwrap()
-                .json()
-                .unwrap()
-        })
+        .map(|v| server.post_json("/api/v1/scenes/sample-1/cut", v))
         .collect();
 
     let runtime = tokio::runtime::Runtime::new().unwrap();
@@ -470,7 +376,7 @@ fn stream_sends_the_changes_of_the_cut() {
 
 #[test]
 fn sighup_reloads_the_tree_without_dropping_requests() {
-    let server = Server::start();
+    let server = Server::sample(6);
     let url = server.url("/api/v1/scenes/sample-1/cut");
     let clusters = |http: &Client| -> u64 {
         let scene: Value = http
@@ -501,7 +407,7 @@ fn sighup_reloads_the_tree_without_dropping_requests() {
     };
     hdlod::tree::sample::write_sample_tree(&server.tree, 1, 9).unwrap();
     let status = Command::new("kill")
-        .args(["-HUP", &server.child.id().to_string()])
+        .args(["-HUP", &server.pid().to_string()])
         .status()
         .unwrap();
     assert!(status.success());

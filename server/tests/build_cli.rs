@@ -2,29 +2,15 @@
 //! JSON follows the schemas, bad configurations are clear errors, a failed
 //! build leaves the previous tree as it was.
 
-#[path = "../../hdlod/tests/common/mod.rs"]
 mod common;
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn hdlod(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hdlod"))
-        .args(args)
-        .env("RUST_LOG", "warn")
-        .output()
-        .unwrap()
-}
-
-fn root() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
+use common::{assert_success, hdlod, repo};
 
 #[test]
 fn builds_the_tiny_fixture_and_inspects_the_tree() {
     let tmp = tempfile::tempdir().unwrap();
     let tree = tmp.path().join("tree");
-    let fixture = root().join("fixtures/skyscraper-tiny");
+    let fixture = repo().join("fixtures/skyscraper-tiny");
     let out = hdlod(&[
         "build".as_ref(),
         fixture.as_os_str(),
@@ -32,21 +18,13 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
         tree.as_os_str(),
         "--json".as_ref(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     common::assert_matches_schema(&summary, "build-summary.schema.json");
     assert_eq!(summary["objects"], 628);
 
     let out = hdlod(&["inspect".as_ref(), tree.as_os_str(), "--json".as_ref()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let inspect: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     common::assert_matches_schema(&inspect, "inspect-tree.schema.json");
     assert_eq!(inspect["clusters"], summary["clusters"]);
@@ -74,7 +52,7 @@ fn a_bad_configuration_names_the_field_and_keeps_the_old_tree() {
     let tree = tmp.path().join("tree");
     std::fs::create_dir_all(&tree).unwrap();
     std::fs::write(tree.join("marker"), "the previous tree").unwrap();
-    let fixture = root().join("fixtures/skyscraper-tiny");
+    let fixture = repo().join("fixtures/skyscraper-tiny");
     for (config, field) in [
         (r#"{"max_children": 1}"#, "max_children"),
         (r#"{"k_eps": -1}"#, "k_eps"),
@@ -111,29 +89,18 @@ fn a_bad_configuration_names_the_field_and_keeps_the_old_tree() {
 /// The README's main command: `hdlod demo` generates, builds and serves.
 #[test]
 fn demo_generates_builds_and_serves() {
-    use std::io::{BufRead, BufReader};
     let tmp = tempfile::tempdir().unwrap();
-    let mut child = Command::new(env!("CARGO_BIN_EXE_hdlod"))
-        .args(["demo", "--scale", "tiny", "--addr", "127.0.0.1:0", "--dir"])
-        .arg(tmp.path())
-        .env("RUST_LOG", "warn")
-        .stdout(std::process::Stdio::piped())
-        .stderr(std::process::Stdio::null())
-        .spawn()
-        .unwrap();
-    let stdout = child.stdout.take().unwrap();
-    let line = BufReader::new(stdout)
-        .lines()
-        .map_while(Result::ok)
-        .find(|l| l.starts_with("listening on "));
-    let answer = line.map(|l| {
-        let base = l.trim_start_matches("listening on ").to_string();
-        reqwest::blocking::get(format!("{base}/api/v1/scenes"))
-            .and_then(|r| r.json::<serde_json::Value>())
-    });
-    child.kill().unwrap();
-    child.wait().unwrap();
-    let scenes = answer.expect("the demo prints its address").unwrap();
+    let demo = common::Server::spawn(&[
+        "demo".as_ref(),
+        "--scale".as_ref(),
+        "tiny".as_ref(),
+        "--addr".as_ref(),
+        "127.0.0.1:0".as_ref(),
+        "--dir".as_ref(),
+        tmp.path().as_os_str(),
+    ]);
+    let scenes = demo.get_json("/api/v1/scenes");
+    drop(demo);
     assert_eq!(scenes["scenes"][0]["name"], "skyscraper-tiny");
     assert!(
         tmp.path()

@@ -1,15 +1,11 @@
 //! `hdlod cut` and `hdlod bench paper` on a sample tree.
 
-use std::path::Path;
-use std::process::Command;
+mod common;
 
 use serde_json::Value;
 
 fn hdlod(args: &[&str]) -> (bool, String, String) {
-    let out = Command::new(env!("CARGO_BIN_EXE_hdlod"))
-        .args(args)
-        .output()
-        .unwrap();
+    let out = common::hdlod(args);
     (
         out.status.success(),
         String::from_utf8(out.stdout).unwrap(),
@@ -20,8 +16,7 @@ fn hdlod(args: &[&str]) -> (bool, String, String) {
 #[test]
 fn cut_prints_the_http_answer() {
     let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("tree");
-    hdlod::tree::sample::write_sample_tree(&tree, 1, 4).unwrap();
+    let tree = common::sample_tree(dir.path(), 4);
     let tree = tree.to_str().unwrap();
     let camera = dir.path().join("camera.json");
     std::fs::write(
@@ -68,40 +63,27 @@ fn cut_prints_the_http_answer() {
     assert_eq!(a["clusters"], b["clusters"]);
     assert!(!a["clusters"].as_array().unwrap().is_empty());
 
-    let schema_path =
-        Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/api/cut-response.schema.json");
-    let schema: Value = serde_json::from_slice(&std::fs::read(schema_path).unwrap()).unwrap();
-    assert!(jsonschema::is_valid(&schema, &a));
+    common::assert_matches_schema(&a, "api/cut-response.schema.json");
 
-    let (ok, _, err) = hdlod(&[
-        "cut",
-        tree,
-        "--time",
-        "0",
-        "--position",
-        "1,2",
-        "--target",
-        "0,0,0",
-    ]);
-    assert!(!ok && err.contains("position"), "{err}");
-    let (ok, _, err) = hdlod(&[
-        "cut",
-        tree,
-        "--time",
-        "0",
-        "--position",
-        "0,0,0",
-        "--target",
-        "0,0,0",
-    ]);
-    assert!(!ok && err.contains("camera.target"), "{err}");
+    for (position, field) in [("1,2", "position"), ("0,0,0", "camera.target")] {
+        let (ok, _, err) = hdlod(&[
+            "cut",
+            tree,
+            "--time",
+            "0",
+            "--position",
+            position,
+            "--target",
+            "0,0,0",
+        ]);
+        assert!(!ok && err.contains(field), "{err}");
+    }
 }
 
 #[test]
 fn bench_paper_writes_the_table() {
     let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("tree");
-    hdlod::tree::sample::write_sample_tree(&tree, 1, 4).unwrap();
+    let tree = common::sample_tree(dir.path(), 4);
     let doc = dir.path().join("benchmarks.md");
     std::fs::write(&doc, "# Benchmarks\n\nOther text.\n").unwrap();
     let args = [

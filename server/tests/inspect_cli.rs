@@ -1,36 +1,16 @@
 //! `hdlod inspect` on a saved scene: the JSON follows its schema and has the
 //! right counts, the table is readable, bad input exits non-zero.
 
-#[path = "../../hdlod/tests/common/mod.rs"]
 mod common;
 
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
-
-fn hdlod(args: &[&std::ffi::OsStr]) -> Output {
-    Command::new(env!("CARGO_BIN_EXE_hdlod"))
-        .args(args)
-        .env("RUST_LOG", "warn")
-        .output()
-        .unwrap()
-}
-
-fn saved_sample(dir: &Path) -> PathBuf {
-    let out = dir.join("sample");
-    hdlod::scene::format::save(&common::sample_scene(), &out).unwrap();
-    out
-}
+use common::{assert_success, hdlod, saved_sample};
 
 #[test]
 fn json_follows_the_schema_and_counts() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = saved_sample(tmp.path());
     let out = hdlod(&["inspect".as_ref(), scene.as_os_str(), "--json".as_ref()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     common::assert_matches_schema(&json, "inspect.schema.json");
     assert_eq!(json["classes"]["pseudo_dynamic"]["objects"], 3);
@@ -46,11 +26,7 @@ fn table_is_readable() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = saved_sample(tmp.path());
     let out = hdlod(&["inspect".as_ref(), scene.join("scene.json").as_os_str()]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     let text = String::from_utf8(out.stdout).unwrap();
     assert!(
         text.contains("scene sample: 4 objects, 2 distinct meshes, 40 triangles"),

@@ -4,23 +4,16 @@
 //! and the exported slices are the same, bad requests get a 4xx naming the
 //! field.
 
-mod tiles_support;
+mod common;
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
-use std::time::Duration;
+use std::path::Path;
 
+use common::{
+    SCENE, Server, assert_content_type, assert_success, assert_valid, build_tree, client,
+    gltf_reports, hdlod, tileset_validator,
+};
 use reqwest::StatusCode;
-use reqwest::blocking::Client;
 use serde_json::Value;
-use tiles_support::{SCENE, Server, assert_tileset, build_tree, hdlod, repo, tileset_validator};
-
-fn client() -> Client {
-    Client::builder()
-        .timeout(Duration::from_secs(20))
-        .build()
-        .unwrap()
-}
 
 fn tiles_path(query: &str) -> String {
     format!("/api/v1/scenes/{SCENE}/tiles/tileset.json{query}")
@@ -42,12 +35,7 @@ fn served_slices_follow_the_schemas() {
     let server = Server::start(&build_tree(dir.path()));
     let http = client();
     let validator = tileset_validator();
-    let doc: Value = http
-        .get(server.url("/api/v1/openapi.json"))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let doc = server.get_json("/api/v1/openapi.json");
     for path in [
         "/api/v1/scenes/{scene}/tiles/tileset.json",
         "/api/v1/scenes/{scene}/tiles/{time}/{id}.json",
@@ -60,14 +48,9 @@ fn served_slices_follow_the_schemas() {
             .send()
             .unwrap();
         assert_eq!(answer.status(), StatusCode::OK, "time {time}");
-        assert!(
-            answer.headers()["content-type"]
-                .to_str()
-                .unwrap()
-                .starts_with("application/json")
-        );
+        assert_content_type(&answer, "application/json");
         let tileset: Value = answer.json().unwrap();
-        assert_tileset(&validator, &tileset, time);
+        assert_valid(&validator, &tileset, time);
         assert_eq!(tileset["root"]["refine"], "REPLACE");
         // Content resolves to the geometry endpoint, which serves it.
         let mut content = Vec::new();
@@ -134,25 +117,6 @@ fn read_json(path: &Path) -> Value {
     serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
 }
 
-fn glb_reports(files: &[PathBuf]) -> Vec<Value> {
-    let tools = repo().join("tools");
-    assert!(
-        tools.join("node_modules/gltf-validator").is_dir(),
-        "the glTF validator is not installed: run scripts/test (npm ci --prefix tools)"
-    );
-    let out = Command::new("node")
-        .arg(tools.join("validate-gltf.js"))
-        .args(files)
-        .output()
-        .expect("node runs");
-    assert!(
-        out.status.code() != Some(2),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    serde_json::from_slice(&out.stdout).unwrap()
-}
-
 #[test]
 fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let dir = tempfile::tempdir().unwrap();
@@ -162,12 +126,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
 
     // A small budget forces external tilesets on the tiny tree.
     let split = dir.path().join("out/split");
-    let out = export(&tree, time, &split, Some("16000"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&export(&tree, time, &split, Some("16000")));
     let mut files = vec![split.join("tileset.json")];
     for entry in std::fs::read_dir(split.join("tilesets")).unwrap() {
         files.push(entry.unwrap().path());
@@ -178,7 +137,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
         let bytes = std::fs::metadata(file).unwrap().len();
         assert!(bytes <= 16000, "{}: {bytes} bytes", file.display());
         let tileset = read_json(file);
-        assert_tileset(&validator, &tileset, &file.display().to_string());
+        assert_valid(&validator, &tileset, &file.display().to_string());
         let mut content = Vec::new();
         uris(&tileset["root"], &mut content);
         for uri in content {
@@ -195,7 +154,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let written = std::fs::read_dir(split.join("geometry")).unwrap().count();
     assert_eq!(glbs.len(), written, "exactly the content GLBs are copied");
     assert!(written > 100);
-    let reports = glb_reports(&glbs);
+    let reports = gltf_reports(&glbs);
     assert_eq!(reports.len(), glbs.len());
     for (file, report) in glbs.iter().zip(&reports) {
         assert_eq!(
@@ -212,12 +171,7 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let whole = dir.path().join("out/whole");
     assert!(export(&tree, time, &whole, None).status.success());
     let server = Server::start(&tree);
-    let served: Value = client()
-        .get(server.url(&tiles_path(&format!("?time={time}"))))
-        .send()
-        .unwrap()
-        .json()
-        .unwrap();
+    let served = server.get_json(&tiles_path(&format!("?time={time}")));
     let on_disk = read_json(&whole.join("tileset.json"));
     let served = serde_json::to_string(&served)
         .unwrap()

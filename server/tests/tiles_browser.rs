@@ -4,14 +4,13 @@
 //! own cut for that view (`POST .../cut` with the same camera, viewport and
 //! pixel error as the renderer's `errorTarget`), within 5%.
 
-mod tiles_support;
+mod common;
 
 use std::path::Path;
 use std::process::Command;
-use std::time::Duration;
 
+use common::{SCENE, Server, assert_success, browser_ready, build_tree, hdlod, repo};
 use serde_json::{Value, json};
-use tiles_support::{SCENE, Server, build_tree, hdlod, repo};
 
 const VIEWPORT: (u32, u32) = (800, 600);
 
@@ -19,19 +18,6 @@ const VIEWPORT: (u32, u32) = (800, 600);
 /// (docs/tiles.md): how a 3D Tiles client sees a y-up scene.
 fn z_up(p: [f64; 3]) -> [f64; 3] {
     [p[0], -p[2], p[1]]
-}
-
-fn chromium_present() -> bool {
-    let path = std::env::var("HDLOD_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    if Path::new(&path).exists() {
-        return true;
-    }
-    assert!(
-        std::env::var("HDLOD_REQUIRE_BROWSER").as_deref() != Ok("1"),
-        "chromium not found at {path} and HDLOD_REQUIRE_BROWSER=1 (apt-get install chromium)"
-    );
-    eprintln!("BROWSER TESTS SKIPPED: chromium not found (apt-get install chromium)");
-    false
 }
 
 /// Runs tools/browser/tiles.mjs and returns its JSON.
@@ -73,16 +59,7 @@ fn render(
 fn cut(server: &Server, time: f64, position: [f64; 3], target: [f64; 3]) -> Value {
     let body = json!({"time": time, "camera": {"position": position, "target": target},
                       "viewport": {"width": VIEWPORT.0, "height": VIEWPORT.1}, "pixel_error": 1.0});
-    reqwest::blocking::Client::builder()
-        .timeout(Duration::from_secs(20))
-        .build()
-        .unwrap()
-        .post(server.url(&format!("/api/v1/scenes/{SCENE}/cut")))
-        .json(&body)
-        .send()
-        .unwrap()
-        .json()
-        .unwrap()
+    server.post_json(&format!("/api/v1/scenes/{SCENE}/cut"), &body)
 }
 
 fn compare(what: &str, drawn: &Value, cut: &Value) {
@@ -129,7 +106,7 @@ fn compare(what: &str, drawn: &Value, cut: &Value) {
 
 #[test]
 fn three_js_tiles_renderer_draws_the_cut() {
-    if !chromium_present() {
+    if !browser_ready() {
         return;
     }
     let dir = tempfile::tempdir().unwrap();
@@ -161,11 +138,7 @@ fn three_js_tiles_renderer_draws_the_cut() {
         "--max-bytes".as_ref(),
         "16000".as_ref(),
     ]);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
+    assert_success(&out);
     assert!(split.join("tilesets").read_dir().unwrap().count() > 1);
     let (name, position, target) = views[0];
     let tileset = server.url("/__tiles-files/tileset.json");

@@ -7,64 +7,13 @@
 //! Without chromium (or the npm tools) the test says so loudly and passes,
 //! unless `HDLOD_REQUIRE_BROWSER=1` (CI), where that is a failure.
 
-use std::io::{BufRead, BufReader};
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
+mod common;
 
+use std::path::Path;
+use std::process::Command;
+
+use common::{SCENE, Server, assert_content_type, browser_ready, build_tree, repo};
 use serde_json::Value;
-
-const SCENE: &str = "skyscraper-tiny";
-
-fn repo() -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
-}
-
-/// `None` when the browser can run; otherwise why not.
-fn missing_browser() -> Option<String> {
-    let chromium = std::env::var("HDLOD_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
-    if !Path::new(&chromium).exists() {
-        return Some(format!(
-            "chromium not found at {chromium} (apt-get install chromium)"
-        ));
-    }
-    if !repo().join("tools/node_modules/playwright-core").is_dir() {
-        return Some("tools/node_modules has no playwright-core (npm ci --prefix tools)".into());
-    }
-    if Command::new("node").arg("--version").output().is_err() {
-        return Some("node not found (apt-get install nodejs)".into());
-    }
-    None
-}
-
-struct Server(Child);
-
-/// `hdlod serve` on a free loopback port: the server and its base URL.
-fn serve(tree: &Path) -> (Server, String) {
-    let mut child = Command::new(env!("CARGO_BIN_EXE_hdlod"))
-        .args(["serve", "--addr", "127.0.0.1:0"])
-        .arg(tree)
-        .stdout(Stdio::piped())
-        .stderr(Stdio::null())
-        .spawn()
-        .unwrap();
-    let mut line = String::new();
-    BufReader::new(child.stdout.take().unwrap())
-        .read_line(&mut line)
-        .unwrap();
-    let base = line
-        .trim()
-        .strip_prefix("listening on ")
-        .expect("the address line")
-        .to_owned();
-    (Server(child), base)
-}
-
-impl Drop for Server {
-    fn drop(&mut self) {
-        let _ = self.0.kill();
-        let _ = self.0.wait();
-    }
-}
 
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))
@@ -96,19 +45,11 @@ fn geometry_requests(base: &str) -> f64 {
 /// The embedded files, with or without a browser.
 #[test]
 fn the_viewer_files_are_served() {
-    let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("tree");
-    hdlod::tree::sample::write_sample_tree(&tree, 1, 6).unwrap();
-    let (_server, base) = serve(&tree);
-    let get = |path: &str| reqwest::blocking::get(format!("{base}{path}")).unwrap();
+    let server = Server::sample(6);
+    let get = |path: &str| reqwest::blocking::get(server.url(path)).unwrap();
     let page = get("/");
     assert_eq!(page.status(), 200);
-    assert!(
-        page.headers()["content-type"]
-            .to_str()
-            .unwrap()
-            .starts_with("text/html")
-    );
+    assert_content_type(&page, "text/html");
     let html = page.text().unwrap();
     // Every file the page and its modules name is served; nothing comes
     // from elsewhere.
@@ -123,12 +64,7 @@ fn the_viewer_files_are_served() {
     ] {
         let response = get(&format!("/viewer/{file}"));
         assert_eq!(response.status(), 200, "{file}");
-        assert!(
-            response.headers()["content-type"]
-                .to_str()
-                .unwrap()
-                .starts_with("text/javascript")
-        );
+        assert_content_type(&response, "text/javascript");
         let text = response.text().unwrap();
         assert!(
             !text.contains("http://") && !text.contains("https://"),
@@ -145,12 +81,7 @@ fn the_viewer_files_are_served() {
         assert_eq!(get(&format!("/viewer/{name}")).status(), 200, "{name}");
     }
     let css = get("/viewer/viewer.css");
-    assert!(
-        css.headers()["content-type"]
-            .to_str()
-            .unwrap()
-            .starts_with("text/css")
-    );
+    assert_content_type(&css, "text/css");
     let missing = get("/viewer/nope.js");
     assert_eq!(missing.status(), 404);
     let body: Value = missing.json().unwrap();
@@ -159,40 +90,22 @@ fn the_viewer_files_are_served() {
 
 #[test]
 fn the_viewer_draws_the_schedule_in_chromium() {
-    if let Some(why) = missing_browser() {
-        if std::env::var("HDLOD_REQUIRE_BROWSER").as_deref() == Ok("1") {
-            panic!("HDLOD_REQUIRE_BROWSER=1 but {why}");
-        }
-        eprintln!("\n*** BROWSER TESTS SKIPPED: {why} ***\n");
+    if !browser_ready() {
         return;
     }
-    let hdlod = env!("CARGO_BIN_EXE_hdlod");
     let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("tree");
-    let build = Command::new(hdlod)
-        .arg("build")
-        .arg(repo().join("fixtures/skyscraper-tiny"))
-        .arg("--out")
-        .arg(&tree)
-        .output()
-        .unwrap();
-    assert!(
-        build.status.success(),
-        "{}",
-        String::from_utf8_lossy(&build.stderr)
-    );
-
-    let (_server, base) = serve(&tree);
+    let server = Server::start(&build_tree(dir.path()));
+    let base = server.base.as_str();
 
     // target/debug/hdlod -> target/browser-screenshots/viewer
-    let shots = Path::new(hdlod)
+    let shots = Path::new(env!("CARGO_BIN_EXE_hdlod"))
         .parent()
         .and_then(Path::parent)
         .unwrap()
         .join("browser-screenshots/viewer");
     let run = Command::new("node")
         .arg(repo().join("tools/browser/viewer.mjs"))
-        .args([&base, SCENE])
+        .args([base, SCENE])
         .arg(&shots)
         .output()
         .unwrap();
@@ -271,7 +184,7 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     // Each GLB was fetched once: as many geometry requests reached the
     // server as the page loaded distinct files.
     assert!(f(&out["finalGlbBytes"]) > 0.0);
-    assert_eq!(geometry_requests(&base), f(&out["finalGlbFiles"]));
+    assert_eq!(geometry_requests(base), f(&out["finalGlbFiles"]));
 
     // The address follows the view, so a view can be shared.
     let address = out["address"].as_str().unwrap();

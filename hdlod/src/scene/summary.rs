@@ -57,7 +57,7 @@ impl Summary {
         let mut classes: BTreeMap<Class, Counts> =
             Class::ALL.iter().map(|&c| (c, Counts::default())).collect();
         let mut visibility_types: BTreeMap<VisibilityType, usize> =
-            ALL_TYPES.iter().map(|&v| (v, 0)).collect();
+            VisibilityType::ALL.iter().map(|&v| (v, 0)).collect();
         let mut lo = Vec3::splat(f32::INFINITY);
         let mut hi = Vec3::splat(f32::NEG_INFINITY);
         for object in &scene.objects {
@@ -104,14 +104,3 @@ fn poses(object: &Object) -> Vec<Mat4> {
         None => vec![object.transform],
     }
 }
-
-const ALL_TYPES: [VisibilityType; 8] = [
-    VisibilityType::Static,
-    VisibilityType::Absent,
-    VisibilityType::Appearing,
-    VisibilityType::Disappearing,
-    VisibilityType::Temporary,
-    VisibilityType::Skipped,
-    VisibilityType::Reappearing,
-    VisibilityType::ReDisappearing,
-];

@@ -34,6 +34,19 @@ pub enum VisibilityType {
     ReDisappearing,
 }
 
+impl VisibilityType {
+    pub const ALL: [VisibilityType; 8] = [
+        VisibilityType::Static,
+        VisibilityType::Absent,
+        VisibilityType::Appearing,
+        VisibilityType::Disappearing,
+        VisibilityType::Temporary,
+        VisibilityType::Skipped,
+        VisibilityType::Reappearing,
+        VisibilityType::ReDisappearing,
+    ];
+}
+
 impl Visibility {
     /// Present on `[0, span]` (the end is included by extending the last
     /// interval to infinity, so `at(span)` is true).

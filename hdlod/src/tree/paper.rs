@@ -17,7 +17,7 @@ use std::time::Instant;
 use glam::DVec3;
 
 use super::cut::cut_into;
-use super::{CameraSpec, Cut, Tree, View, Viewport};
+use super::{Baseline, CameraSpec, Cut, Tree, View, Viewport};
 use crate::scene::Up;
 
 pub const VIEWPORT: Viewport = Viewport {
@@ -82,14 +82,6 @@ pub fn camera(tree: &Tree, factor: f64) -> CameraSpec {
     }
 }
 
-/// Triangles and draws of drawing every original object present at `t`.
-pub fn baseline(tree: &Tree, t: f64) -> (u64, u64) {
-    tree.clusters
-        .iter()
-        .filter(|c| c.is_leaf() && c.geometry.is_some() && c.visibility.at(t) >= 0.5)
-        .fold((0, 0), |(tri, n), c| (tri + c.triangles, n + 1))
-}
-
 fn percentile(sorted: &[f64], p: f64) -> f64 {
     if sorted.is_empty() {
         return 0.0;
@@ -101,6 +93,7 @@ fn percentile(sorted: &[f64], p: f64) -> f64 {
 /// over `frames` animation frames spread evenly across the period.
 pub fn table(tree: &Tree, frames: usize, repeats: usize) -> Report {
     let span = tree.time.seconds;
+    let baseline = Baseline::of(tree);
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
     let mut all = Vec::new();
     let mut rows = Vec::new();
@@ -120,14 +113,14 @@ pub fn table(tree: &Tree, frames: usize, repeats: usize) -> Report {
                 .map(|_| timed(&view, t, &mut cut))
                 .collect();
             times.sort_by(f64::total_cmp);
-            let (bt, bd) = baseline(tree, t);
+            let base = baseline.present(t);
             rows.push(Row {
                 time: name.into(),
                 screen: screen.into(),
                 triangles: cut.stats.triangles as f64,
                 clusters: cut.stats.clusters as f64,
-                baseline_triangles: bt as f64,
-                baseline_draws: bd as f64,
+                baseline_triangles: base.triangles as f64,
+                baseline_draws: base.draws as f64,
                 micros: percentile(&times, 0.5),
             });
         }
@@ -139,12 +132,12 @@ pub fn table(tree: &Tree, frames: usize, repeats: usize) -> Report {
                 0.0
             };
             let micros = timed(&view, t, &mut cut);
-            let (bt, bd) = baseline(tree, t);
+            let base = baseline.present(t);
             let values = [
                 cut.stats.triangles as f64,
                 cut.stats.clusters as f64,
-                bt as f64,
-                bd as f64,
+                base.triangles as f64,
+                base.draws as f64,
                 micros,
             ];
             for (s, v) in sum.iter_mut().zip(values) {

@@ -1,7 +1,9 @@
-//! Small hand-built scenes shared by the scene tests.
+//! Shared by the tests of the library and of the server: small hand-built
+//! scenes, the repository and `shared/data` beside it, JSON Schema checks.
 #![allow(dead_code)]
 
 use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
@@ -149,18 +151,87 @@ pub fn sample_scene() -> Scene {
     scene
 }
 
-/// Asserts that `value` follows `schemas/NAME` of the repository.
-pub fn assert_matches_schema(value: &serde_json::Value, name: &str) {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../schemas")
-        .join(name);
+/// [`sample_scene`] saved in `dir/sample`; returns that directory.
+pub fn saved_sample(dir: &Path) -> PathBuf {
+    let out = dir.join("sample");
+    hdlod::scene::format::save(&sample_scene(), &out).unwrap();
+    out
+}
+
+/// The repository root.
+pub fn repo() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("..")
+        .canonicalize()
+        .unwrap()
+}
+
+/// `shared/data/SUB` beside the repository: in the directory that holds it,
+/// or in the nearest ancestor that has one.
+pub fn shared_data(sub: &str) -> PathBuf {
+    let repo = repo();
+    repo.ancestors()
+        .skip(1)
+        .map(|a| a.join("shared/data").join(sub))
+        .find(|d| d.exists())
+        .unwrap_or_else(|| panic!("no shared/data/{sub} beside {}", repo.display()))
+}
+
+/// The first errors of `value` against `v`, each with where it is.
+pub fn schema_errors(v: &jsonschema::Validator, value: &serde_json::Value) -> Vec<String> {
+    v.iter_errors(value)
+        .take(5)
+        .map(|e| format!("{}: {e}", e.instance_path()))
+        .collect()
+}
+
+/// Asserts that `value` follows `v`; `what` names it in the failure.
+pub fn assert_valid(v: &jsonschema::Validator, value: &serde_json::Value, what: &str) {
+    let errors = schema_errors(v, value);
+    assert!(errors.is_empty(), "{what}: {errors:?}");
+}
+
+/// The validator of `schemas/NAME` of the repository.
+pub fn schema(name: &str) -> jsonschema::Validator {
+    let path = repo().join("schemas").join(name);
     let schema: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    let validator = jsonschema::validator_for(&schema).unwrap();
-    let errors: Vec<String> = validator
-        .iter_errors(value)
-        .take(5)
-        .map(|e| e.to_string())
-        .collect();
-    assert!(errors.is_empty(), "{name}: {errors:?}");
+    jsonschema::validator_for(&schema).unwrap()
+}
+
+/// Asserts that `value` follows `schemas/NAME` of the repository.
+pub fn assert_matches_schema(value: &serde_json::Value, name: &str) {
+    assert_valid(&schema(name), value, name);
+}
+
+/// The official 3D Tiles 1.1 `tileset.schema.json` from
+/// `shared/data/3d-tiles-schema`; its relative `$ref`s resolve as files next
+/// to it.
+pub fn tileset_validator() -> jsonschema::Validator {
+    let path = shared_data("3d-tiles-schema").join("tileset.schema.json");
+    let schema: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
+    jsonschema::options()
+        .with_base_uri(format!("file://{}", path.display()))
+        .build(&schema)
+        .expect("the official 3D Tiles schemas compile")
+}
+
+/// The Khronos glTF validator's reports on `files`, in order
+/// (`tools/validate-gltf.js`, installed by `npm ci --prefix tools`).
+pub fn gltf_reports(files: &[PathBuf]) -> Vec<serde_json::Value> {
+    let tools = repo().join("tools");
+    assert!(
+        tools.join("node_modules/gltf-validator").is_dir(),
+        "the glTF validator is not installed in {}: run scripts/test (it runs `npm ci --prefix tools`)",
+        tools.display()
+    );
+    let out = std::process::Command::new("node")
+        .arg(tools.join("validate-gltf.js"))
+        .args(files)
+        .output()
+        .expect("node runs (scripts/test needs Node.js for the glTF validator)");
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(out.status.code() != Some(2), "validator failed: {stderr}");
+    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("report: {e}; {stderr}"))
 }

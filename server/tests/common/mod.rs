@@ -1,0 +1,208 @@
+//! Shared by the server's tests: the binary run as a command, trees to serve
+//! (the tiny fixture's, built by the binary; the library's sample tree), the
+//! real server on loopback, the browser's presence, and (from the library's
+//! test helpers) scenes and JSON Schema checks.
+#![allow(dead_code, unused_imports)]
+
+#[path = "../../../hdlod/tests/common/mod.rs"]
+mod library;
+
+use std::ffi::OsStr;
+use std::io::{BufRead, BufReader};
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::Duration;
+
+pub use library::{
+    assert_matches_schema, assert_valid, gltf_reports, repo, sample_scene, saved_sample, schema,
+    schema_errors, shared_data, tileset_validator,
+};
+use reqwest::blocking::Client;
+use serde_json::Value;
+
+/// The scene name of `fixtures/skyscraper-tiny` and of its tree.
+pub const SCENE: &str = "skyscraper-tiny";
+
+fn command() -> Command {
+    let mut command = Command::new(env!("CARGO_BIN_EXE_hdlod"));
+    command.env("RUST_LOG", "warn");
+    command
+}
+
+/// Runs `hdlod ARGS` to its end.
+pub fn hdlod<S: AsRef<OsStr>>(args: &[S]) -> Output {
+    command().args(args).output().expect("the binary runs")
+}
+
+/// Asserts that a run succeeded, with its stderr as the failure message.
+pub fn assert_success(out: &Output) {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+}
+
+/// Builds the tree of `fixtures/skyscraper-tiny` into `dir/tree` with
+/// `hdlod build`.
+pub fn build_tree(dir: &Path) -> PathBuf {
+    let tree = dir.join("tree");
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        repo().join("fixtures/skyscraper-tiny").as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+    ]));
+    tree
+}
+
+/// The library's sample tree (scene `sample-1`) of `floors` floors in
+/// `dir/tree`.
+pub fn sample_tree(dir: &Path, floors: usize) -> PathBuf {
+    let tree = dir.join("tree");
+    hdlod::tree::sample::write_sample_tree(&tree, 1, floors).unwrap();
+    tree
+}
+
+/// A client that gives up rather than hang a test.
+pub fn client() -> Client {
+    Client::builder()
+        .timeout(Duration::from_secs(20))
+        .build()
+        .unwrap()
+}
+
+/// Asserts the media type of an answer (parameters such as the charset may
+/// follow).
+pub fn assert_content_type(response: &reqwest::blocking::Response, media_type: &str) {
+    let header = response.headers()["content-type"].to_str().unwrap();
+    assert!(header.starts_with(media_type), "{header}, not {media_type}");
+}
+
+/// A running `hdlod` that listens on a free loopback port; killed on drop.
+pub struct Server {
+    child: Child,
+    /// `http://127.0.0.1:PORT`.
+    pub base: String,
+    /// The tree it serves.
+    pub tree: PathBuf,
+    http: Client,
+    _dir: Option<tempfile::TempDir>,
+}
+
+impl Server {
+    /// `hdlod serve --addr 127.0.0.1:0 TREE`.
+    pub fn start(tree: &Path) -> Server {
+        let mut server = Server::spawn(&[
+            "serve".as_ref(),
+            "--addr".as_ref(),
+            "127.0.0.1:0".as_ref(),
+            tree.as_os_str(),
+        ]);
+        server.tree = tree.to_owned();
+        server
+    }
+
+    /// The server over a fresh sample tree of `floors` floors that it owns.
+    pub fn sample(floors: usize) -> Server {
+        let dir = tempfile::tempdir().unwrap();
+        let mut server = Server::start(&sample_tree(dir.path(), floors));
+        server._dir = Some(dir);
+        server
+    }
+
+    /// Any command that serves (`serve`, `demo`): its address is the line
+    /// `listening on BASE` on stdout.
+    pub fn spawn<S: AsRef<OsStr>>(args: &[S]) -> Server {
+        let mut child = command()
+            .args(args)
+            .stdout(Stdio::piped())
+            .stderr(Stdio::null())
+            .spawn()
+            .unwrap();
+        let line = BufReader::new(child.stdout.take().unwrap())
+            .lines()
+            .map_while(Result::ok)
+            .find(|l| l.starts_with("listening on "));
+        let Some(line) = line else {
+            let _ = child.kill();
+            let _ = child.wait();
+            panic!("the server printed no address line");
+        };
+        Server {
+            child,
+            base: line["listening on ".len()..].trim().to_owned(),
+            tree: PathBuf::new(),
+            http: client(),
+            _dir: None,
+        }
+    }
+
+    pub fn url(&self, path: &str) -> String {
+        format!("{}{path}", self.base)
+    }
+
+    pub fn pid(&self) -> u32 {
+        self.child.id()
+    }
+
+    /// The JSON body of `GET PATH`, whatever its status.
+    pub fn get_json(&self, path: &str) -> Value {
+        self.http
+            .get(self.url(path))
+            .send()
+            .unwrap()
+            .json()
+            .unwrap()
+    }
+
+    /// The JSON answer of `POST PATH` with a JSON body, whatever its status.
+    pub fn post_json(&self, path: &str, body: &Value) -> Value {
+        self.http
+            .post(self.url(path))
+            .json(body)
+            .send()
+            .unwrap()
+            .json()
+            .unwrap()
+    }
+}
+
+impl Drop for Server {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+/// Whether the browser tests can run: chromium (`HDLOD_CHROMIUM`, else
+/// `/usr/bin/chromium`), node and `tools/node_modules/playwright-core`. When
+/// one is missing the test says so loudly and passes, unless
+/// `HDLOD_REQUIRE_BROWSER=1` (CI), where that is a failure.
+pub fn browser_ready() -> bool {
+    let Some(why) = missing_browser() else {
+        return true;
+    };
+    assert!(
+        std::env::var("HDLOD_REQUIRE_BROWSER").as_deref() != Ok("1"),
+        "HDLOD_REQUIRE_BROWSER=1 but {why}"
+    );
+    eprintln!("\n*** BROWSER TESTS SKIPPED: {why} ***\n");
+    false
+}
+
+fn missing_browser() -> Option<String> {
+    let chromium = std::env::var("HDLOD_CHROMIUM").unwrap_or_else(|_| "/usr/bin/chromium".into());
+    if !Path::new(&chromium).exists() {
+        return Some(format!(
+            "chromium not found at {chromium} (apt-get install chromium)"
+        ));
+    }
+    if !repo().join("tools/node_modules/playwright-core").is_dir() {
+        return Some("tools/node_modules has no playwright-core (npm ci --prefix tools)".into());
+    }
+    if Command::new("node").arg("--version").output().is_err() {
+        return Some("node not found (apt-get install nodejs)".into());
+    }
+    None
+}
