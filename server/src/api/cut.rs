@@ -29,13 +29,15 @@ fn one() -> f64 {
     1.0
 }
 
+/// Borrows from the tree: an answer of thousands of clusters allocates
+/// nothing per cluster.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ClusterOut {
+pub struct ClusterOut<'a> {
     pub id: u32,
     pub class: &'static str,
     pub level: u32,
     /// The geometry's URL path (content-addressed, immutable).
-    pub geometry: String,
+    pub geometry: GeometryUrl<'a>,
     /// Column-major 4x4 pose at the requested time (dynamic clusters).
     pub transform: Option<[f32; 16]>,
     pub triangles: u64,
@@ -53,13 +55,34 @@ pub struct StatsOut {
     pub micros: f64,
 }
 
+/// `/api/v1/scenes/{scene}/geometry/{hash}.glb`, written out only when
+/// serialised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GeometryUrl<'a> {
+    pub scene: &'a str,
+    pub hash: &'a str,
+}
+
+impl std::fmt::Display for GeometryUrl<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = percent_encoding::utf8_percent_encode(self.scene, SEGMENT);
+        write!(f, "/api/v1/scenes/{name}/geometry/{}.glb", self.hash)
+    }
+}
+
+impl Serialize for GeometryUrl<'_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CutResponse {
+pub struct CutResponse<'a> {
     /// Seconds since the scene's start.
     pub time: f64,
     /// The same instant as an ISO 8601 date.
     pub date: String,
-    pub clusters: Vec<ClusterOut>,
+    pub clusters: Vec<ClusterOut<'a>>,
     pub stats: StatsOut,
 }
 
@@ -186,28 +209,30 @@ pub fn run(tree: &Tree, view: &View, t: f64, cut: &mut Cut, stack: &mut Vec<u32>
     start.elapsed().as_secs_f64() * 1e6
 }
 
+/// What a scene name keeps unencoded in a URL path: RFC 3986's
+/// unreserved characters.
+const SEGMENT: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
+    .remove(b'-')
+    .remove(b'_')
+    .remove(b'.')
+    .remove(b'~');
+
 /// URL path prefix of a scene, its name percent-encoded.
 pub fn scene_path(scene: &str) -> String {
-    // RFC 3986 unreserved characters stay as they are.
-    const SEGMENT: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
-        .remove(b'-')
-        .remove(b'_')
-        .remove(b'.')
-        .remove(b'~');
     let name = percent_encoding::utf8_percent_encode(scene, SEGMENT);
     format!("/api/v1/scenes/{name}")
 }
 
-pub fn cluster_out(tree: &Tree, prefix: &str, item: &hdlod::tree::CutItem) -> ClusterOut {
+pub fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a> {
     let c = &tree.clusters[item.id as usize];
     ClusterOut {
         id: c.id,
         class: c.class.name(),
         level: c.level,
-        geometry: format!(
-            "{prefix}/geometry/{}.glb",
-            c.geometry.as_deref().unwrap_or_default()
-        ),
+        geometry: GeometryUrl {
+            scene: &tree.scene,
+            hash: c.geometry.as_deref().unwrap_or_default(),
+        },
         transform: item.transform.map(|m| m.to_cols_array()),
         triangles: c.triangles,
         error: item.error,
@@ -215,16 +240,11 @@ pub fn cluster_out(tree: &Tree, prefix: &str, item: &hdlod::tree::CutItem) -> Cl
     }
 }
 
-pub fn response(tree: &Tree, t: f64, cut: &Cut, micros: f64) -> CutResponse {
-    let prefix = scene_path(&tree.scene);
+pub fn response<'a>(tree: &'a Tree, t: f64, cut: &Cut, micros: f64) -> CutResponse<'a> {
     CutResponse {
         time: t,
         date: format_date(tree.time.date_at(t)),
-        clusters: cut
-            .items
-            .iter()
-            .map(|i| cluster_out(tree, &prefix, i))
-            .collect(),
+        clusters: cut.items.iter().map(|i| cluster_out(tree, i)).collect(),
         stats: StatsOut {
             clusters: cut.stats.clusters,
             triangles: cut.stats.triangles,
@@ -235,7 +255,7 @@ pub fn response(tree: &Tree, t: f64, cut: &Cut, micros: f64) -> CutResponse {
 }
 
 /// The whole request: check, cut, answer.
-pub fn answer(tree: &Tree, request: &CutRequest) -> Result<CutResponse, ApiError> {
+pub fn answer<'a>(tree: &'a Tree, request: &CutRequest) -> Result<CutResponse<'a>, ApiError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
     let micros = run(tree, &view, t, &mut cut, &mut stack);
