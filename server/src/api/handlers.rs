@@ -10,6 +10,7 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::time::format_date;
+use hdlod::tree::Cut;
 use serde_json::{Value, json};
 
 use super::cut::{self, CutRequest, scene_path};
@@ -147,12 +148,14 @@ const CLUSTER_JSON_BYTES: usize = 256;
 
 fn cut_answer(state: &AppState, name: &str, request: &CutRequest) -> Answer<Response> {
     let s = find(state, name)?;
-    let answer = cut::answer(&s.tree, request)?;
+    let (view, t) = cut::prepare(&s.tree, request)?;
+    let (mut answer, mut stack) = (Cut::default(), Vec::new());
+    let micros = cut::run(&s.tree, &view, t, &mut answer, &mut stack);
     state
         .metrics
         .cut(answer.stats.clusters, answer.stats.triangles);
-    let mut body = Vec::with_capacity((answer.clusters.len() + 1) * CLUSTER_JSON_BYTES);
-    serde_json::to_writer(&mut body, &answer).expect("plain data serialises");
+    let mut body = Vec::with_capacity((answer.items.len() + 1) * CLUSTER_JSON_BYTES);
+    cut::write_response(&s.tree, &s.fragments, t, &answer, micros, &mut body);
     Ok((
         [(
             header::CONTENT_TYPE,

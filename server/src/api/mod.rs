@@ -31,6 +31,7 @@ pub struct LoadedScene {
     pub tree: Tree,
     pub dir: PathBuf,
     pub summary: Summary,
+    pub fragments: cut::Fragments,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -44,7 +45,9 @@ pub struct AppState {
 fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
     let summary = tree.summary();
+    let fragments = cut::Fragments::of(&tree);
     Ok(LoadedScene {
+        fragments,
         tree,
         dir: dir.clone(),
         summary,
