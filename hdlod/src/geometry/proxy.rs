@@ -1,37 +1,15 @@
-//! Box proxies: each connected part of a mesh replaced by its axis-aligned
-//! box (12 triangles). The coarse representation BIM viewers fall back to,
-//! and the one that works where edge collapse and vertex clustering fail:
-//! a cluster of many small elements, each already near its minimum
-//! triangle count for its shape (round columns, tubes, frames). The caller
-//! measures the result like any other simplification.
+//! Connected parts of a mesh and box proxies for them: a part replaced by
+//! its axis-aligned box (12 triangles), the coarse representation BIM
+//! viewers fall back to, and one that works where edge collapse and vertex
+//! clustering fail: many small elements, each already near its minimum
+//! triangle count for its shape (round columns, tubes, frames).
+//! `reduce::reduce_parts` decides part by part and measures the result.
 
 use std::collections::HashMap;
 
 use glam::Vec3;
 
 use super::Mesh;
-
-/// Parts with at most this many triangles are kept as they are: a box
-/// would not be smaller.
-const BOX_TRIANGLES: usize = 12;
-
-/// The mesh with every connected part (see `parts`) of more than 12
-/// triangles replaced by its box, in the colour of the part's first vertex.
-pub fn box_proxies(mesh: &Mesh) -> Mesh {
-    let mut out = Mesh::default();
-    for triangles in parts(mesh) {
-        if triangles.len() <= BOX_TRIANGLES {
-            push_triangles(&mut out, mesh, &triangles);
-        } else {
-            let (lo, hi) = part_bounds(mesh, &triangles);
-            push_box(&mut out, lo, hi, part_color(mesh, &triangles));
-        }
-    }
-    if mesh.colors.is_empty() {
-        out.colors.clear();
-    }
-    out
-}
 
 /// The connected parts of `mesh` as lists of triangle indices, in order of
 /// first appearance. Parts are connected through shared vertices or
@@ -214,13 +192,20 @@ mod tests {
     }
 
     #[test]
-    fn replaces_each_part_by_its_box() {
+    fn finds_parts_and_boxes_them() {
         let mut m = tube(16, 0.05, 4.0, 0.0);
         let other = tube(16, 0.05, 4.0, 1.0);
         let offset = m.positions.len() as u32;
         m.positions.extend(&other.positions);
         m.indices.extend(other.indices.iter().map(|i| i + offset));
-        let proxies = box_proxies(&m);
+        let found = parts(&m);
+        assert_eq!(found.len(), 2);
+        assert_eq!(found[0], (0..32).collect::<Vec<_>>());
+        let mut proxies = Mesh::default();
+        for p in &found {
+            let (lo, hi) = part_bounds(&m, p);
+            push_box(&mut proxies, lo, hi, part_color(&m, p));
+        }
         assert_eq!(proxies.triangle_count(), 24);
         let h = hausdorff(
             &proxies,
@@ -233,11 +218,5 @@ mod tests {
         // The box of a thin tube is within its radius of it.
         assert!(h.bound < 0.08, "{h:?}");
         assert!(proxies.validate().is_ok());
-    }
-
-    #[test]
-    fn keeps_small_parts() {
-        let m = tube(3, 0.05, 4.0, 0.0);
-        assert_eq!(box_proxies(&m).triangle_count(), 6);
     }
 }
