@@ -376,7 +376,19 @@ fn stream_sends_the_changes_of_the_cut() {
 
 #[test]
 fn sighup_reloads_the_tree_without_dropping_requests() {
-    let server = Server::sample(6);
+    reloads_without_dropping_requests(true);
+}
+
+#[test]
+fn a_tree_replaced_on_disk_is_reloaded_without_dropping_requests() {
+    reloads_without_dropping_requests(false);
+}
+
+/// Replaces the served tree (atomically, as `hdlod build` does) under a
+/// stream of cut requests; with `hangup` the server does not watch files
+/// and is sent SIGHUP, without it the file watch must pick the change up.
+fn reloads_without_dropping_requests(hangup: bool) {
+    let server = Server::sample_with(6, if hangup { &["--no-watch"] } else { &[] });
     let url = server.url("/api/v1/scenes/sample-1/cut");
     let clusters = |http: &Client| -> u64 {
         let scene: Value = http
@@ -406,11 +418,13 @@ fn sighup_reloads_the_tree_without_dropping_requests() {
         })
     };
     hdlod::tree::sample::write_sample_tree(&server.tree, 1, 9).unwrap();
-    let status = Command::new("kill")
-        .args(["-HUP", &server.pid().to_string()])
-        .status()
-        .unwrap();
-    assert!(status.success());
+    if hangup {
+        let status = Command::new("kill")
+            .args(["-HUP", &server.pid().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+    }
     let deadline = Instant::now() + Duration::from_secs(10);
     let http = client();
     while clusters(&http) == before {

@@ -516,10 +516,14 @@ fn temporal(ctx: &Context, children: &[&Active]) -> (Steps, Vec<u32>, f64) {
     (steps, vis, gamma)
 }
 
+/// Candidates are ranked by their temporal distance to the representative
+/// in this many classes of `gamma(l)`, then by spatial distance.
+const TIME_CLASSES: f64 = 4.0;
+
 /// Picks the groups of one level: representatives in Hilbert order of
-/// their centres, neighbours from a BVH over the active boxes, nearest
-/// first, while the merged box fits `w(l)` and the temporal error fits
-/// `gamma(l)`.
+/// their centres, neighbours from a BVH over the active boxes, nearest in
+/// time then in space first, while the merged box fits `w(l)` and the
+/// temporal error fits `gamma(l)`.
 fn group(
     ctx: &Context,
     active: &[Active],
@@ -549,7 +553,8 @@ fn group(
     let diag = |lo: Vec3, hi: Vec3| (hi - lo).length();
     let mut taken = vec![false; active.len()];
     let mut groups = Vec::new();
-    let mut candidates: Vec<(f32, usize)> = Vec::new();
+    let mut candidates: Vec<(u32, f32, usize)> = Vec::new();
+    let time_step = th.gamma.max(1e-9) / TIME_CLASSES;
     for &(_, i) in &order {
         if taken[i] {
             continue;
@@ -568,15 +573,25 @@ fn group(
                 let j = j as usize;
                 let c = &active[j];
                 if j != i && !taken[j] && diag(rep.lo.min(c.lo), rep.hi.max(c.hi)) <= w_max {
-                    candidates.push((centre.distance_squared((c.lo + c.hi) * 0.5), j));
+                    // Alike in time first: a parent whose children appear
+                    // together is wholly present or absent at most times,
+                    // and then the cut can draw it (`delta_c = eps_c`).
+                    let apart = if kind == ClusterClass::PseudoDynamic && ctx.span > 0.0 {
+                        (rep.steps.l1_distance(&c.steps, ctx.span) / ctx.span / time_step).floor()
+                            as u32
+                    } else {
+                        0
+                    };
+                    candidates.push((apart, centre.distance_squared((c.lo + c.hi) * 0.5), j));
                 }
             }
             true
         });
-        candidates.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+        candidates
+            .sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.total_cmp(&b.1)).then(a.2.cmp(&b.2)));
         let mut members = vec![i];
         let (mut lo, mut hi) = (rep.lo, rep.hi);
-        for &(_, j) in candidates.iter() {
+        for &(_, _, j) in candidates.iter() {
             if members.len() >= ctx.config.max_children {
                 break;
             }
@@ -608,10 +623,15 @@ fn group(
 
 /// Merges the children's geometry, simplifies it within the level's budget
 /// and measures the spatial error: `eps_c = D_H(g_c, union g_c') + max
-/// eps_c'`, with `D_H` a computed upper bound. A simplification whose
-/// measured error overshoots the level's budget is retried with a quarter
-/// of the budget, then given up (the parent is the union, `D_H = 0`), so
-/// that `eps_c <= eps(l)` whenever the children allow it.
+/// eps_c'`, with `D_H` a computed upper bound. The candidates: part by part
+/// (`geometry::reduce_parts`: per-part boxes or simplifications and a
+/// greedy cover) at half and all of the budget, the latter also followed
+/// by meshoptimizer on what is left of the budget, and, where those keep
+/// more than half, meshoptimizer on the whole union. The cut draws a cluster once its error
+/// is small enough on screen, so a smaller error is worth some triangles:
+/// of the candidates within `EPS_PREFERENCE` times the fewest triangles,
+/// the one with the least error wins. When none removes triangles, the
+/// parent is the union (`D_H = 0`).
 fn make_parent(
     ctx: &Context,
     active: &[Active],
@@ -629,56 +649,70 @@ fn make_parent(
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);
-    let budget = th.eps - child_eps;
-    let mut chosen = None;
+    let budget = (th.eps - child_eps) as f32;
+    let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
+    let mut candidates: Vec<(Mesh, f32)> = Vec::new();
     if budget > 0.0 {
-        for try_budget in [budget, budget * 0.25] {
-            let s = geometry::simplify(
-                &union,
-                &SimplifyOptions {
-                    max_error: try_budget as f32,
-                    target_triangles: None,
-                    prune: true,
-                },
-            );
-            if s.strategy == Strategy::Unchanged || s.triangles >= union.triangle_count() {
-                break;
+        for share in [0.5, 1.0] {
+            let r = geometry::reduce_parts(&union, budget * share, tolerance * share);
+            if share == 1.0
+                && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance)
+            {
+                candidates.push((m, h + r.bound));
             }
-            let h = geometry::hausdorff(
-                &s.mesh,
-                &union,
-                &HausdorffOptions {
-                    tolerance: (ctx.config.hausdorff_fraction * th.eps) as f32,
-                    seed: 0,
-                },
-            );
-            let eps = f64::from(h.bound) + child_eps;
-            if eps <= th.eps {
-                chosen = Some((s.mesh, eps));
-                break;
-            }
+            candidates.push((r.mesh, r.bound));
         }
-        // Where both fail (many small elements, each near its smallest
-        // shape), each element's box: measured like the rest.
-        if chosen.is_none() {
-            let proxies = geometry::box_proxies(&union);
-            if proxies.triangle_count() < union.triangle_count() {
-                let h = geometry::hausdorff(
-                    &proxies,
-                    &union,
-                    &HausdorffOptions {
-                        tolerance: (ctx.config.hausdorff_fraction * th.eps) as f32,
-                        seed: 0,
-                    },
-                );
-                let eps = f64::from(h.bound) + child_eps;
-                if eps <= th.eps {
-                    chosen = Some((proxies, eps));
-                }
-            }
+        // Worth its cost only where the parts gave little.
+        if candidates
+            .iter()
+            .all(|(m, _)| m.triangle_count() * 2 > union.triangle_count())
+        {
+            candidates.extend(simplified_within(&union, budget, tolerance));
         }
     }
-    let (mesh, eps) = chosen.unwrap_or((union, child_eps));
+    let fewest = candidates
+        .iter()
+        .map(|(m, _)| m.triangle_count())
+        .min()
+        .unwrap_or(usize::MAX);
+    let chosen = candidates
+        .into_iter()
+        .filter(|(m, h)| {
+            *h <= budget
+                && m.triangle_count() < union.triangle_count()
+                && m.triangle_count() as f64 <= EPS_PREFERENCE * fewest as f64
+        })
+        .min_by(|a, b| {
+            a.1.total_cmp(&b.1)
+                .then(a.0.triangle_count().cmp(&b.0.triangle_count()))
+        });
+    let (mesh, h) = chosen.unwrap_or((union, 0.0));
+    let eps = f64::from(h) + child_eps;
     let hash = ctx.sink.put(&mesh)?;
     Ok((mesh, eps, hash))
+}
+
+/// How many times the fewest triangles a candidate parent may keep and
+/// still win by a smaller error.
+const EPS_PREFERENCE: f64 = 1.5;
+
+/// meshoptimizer's simplification of `mesh` within `budget` and its
+/// measured Hausdorff bound, if it removed triangles and the bound fits.
+fn simplified_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+    if budget <= 0.0 {
+        return None;
+    }
+    let s = geometry::simplify(
+        mesh,
+        &SimplifyOptions {
+            max_error: budget,
+            target_triangles: None,
+            prune: true,
+        },
+    );
+    if s.strategy == Strategy::Unchanged || s.triangles >= mesh.triangle_count() {
+        return None;
+    }
+    let h = geometry::hausdorff(&s.mesh, mesh, &HausdorffOptions { tolerance, seed: 0 }).bound;
+    (h <= budget).then_some((s.mesh, h))
 }

@@ -125,12 +125,12 @@ pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
 
     let set_a = TriangleSet::new(tris_a.iter().copied());
     let set_b = TriangleSet::new(tris_b.iter().copied());
-    let ab = one_way(&tris_a, &set_b, tolerance, options.seed);
+    let ab = one_way(&tris_a, &set_b, tolerance, Some(options.seed));
     let ba = one_way(
         &tris_b,
         &set_a,
         tolerance,
-        options.seed ^ 0x9e37_79b9_7f4a_7c15,
+        Some(options.seed ^ 0x9e37_79b9_7f4a_7c15),
     );
     let n = (ab.samples + ba.samples).max(1) as f64;
     Hausdorff {
@@ -141,6 +141,30 @@ pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
         ab: ab.upper + slack,
         ba: ba.upper + slack,
     }
+}
+
+/// A conservative upper bound of `sup_{a in A} d(a, B)` alone, against a
+/// set `B` prepared once and searched for many `A` (no mean or RMS). An
+/// empty `B` gives infinity, an empty `A` zero.
+pub fn one_sided_bound(a: &Mesh, b: &TriangleSet, tolerance: f32) -> f32 {
+    let tris = finite_triangles(a);
+    if tris.is_empty() {
+        return 0.0;
+    }
+    if b.is_empty() {
+        return f32::INFINITY;
+    }
+    let (lo, hi) = tris
+        .iter()
+        .flatten()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    // B is near A wherever the bound matters, so A's extent sets the
+    // rounding scale.
+    let max_coordinate = lo.abs().max(hi.abs()).max_element();
+    let tolerance = tolerance.max(MIN_RELATIVE_TOLERANCE * (hi - lo).length());
+    one_way(&tris, b, tolerance, None).upper + ROUNDING_SLACK * max_coordinate
 }
 
 fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
@@ -265,8 +289,9 @@ fn single_triangle_bound(
 }
 
 /// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the
-/// non-empty set `b`, and samples A's surface for the mean and RMS.
-fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWay {
+/// non-empty set `b`, and, given a seed, samples A's surface for the mean
+/// and RMS.
+fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: Option<u64>) -> OneWay {
     let mut hint = None;
     let mut distance = |p: Vec3, h: Option<u32>| -> (f32, u32) {
         // `b` is not empty, so a nearest triangle always exists.
@@ -301,7 +326,7 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: u64) -> OneWa
         .collect();
     let total_area: f64 = areas.iter().sum();
     let (mut sum, mut sum_squares, mut samples) = (0.0f64, 0.0f64, 0usize);
-    if total_area > 0.0 && total_area.is_finite() {
+    if let Some(seed) = seed.filter(|_| total_area > 0.0 && total_area.is_finite()) {
         let mut cdf = Vec::with_capacity(areas.len());
         let mut acc = 0.0;
         for x in &areas {

@@ -1,9 +1,9 @@
-//! Box proxies: each connected part of a mesh replaced by its axis-aligned
-//! box (12 triangles). The coarse representation BIM viewers fall back to,
-//! and the one that works where edge collapse and vertex clustering fail:
-//! a cluster of many small elements, each already near its minimum
-//! triangle count for its shape (round columns, tubes, frames). The caller
-//! measures the result like any other simplification.
+//! Connected parts of a mesh and box proxies for them: a part replaced by
+//! its axis-aligned box (12 triangles), the coarse representation BIM
+//! viewers fall back to, and one that works where edge collapse and vertex
+//! clustering fail: many small elements, each already near its minimum
+//! triangle count for its shape (round columns, tubes, frames).
+//! `reduce::reduce_parts` decides part by part and measures the result.
 
 use std::collections::HashMap;
 
@@ -11,15 +11,10 @@ use glam::Vec3;
 
 use super::Mesh;
 
-/// Parts with at most this many triangles are kept as they are: a box
-/// would not be smaller.
-const BOX_TRIANGLES: usize = 12;
-
-/// The mesh with every connected part of more than 12 triangles replaced
-/// by its box, in the colour of the part's first vertex. Parts are
-/// connected through shared vertices or coincident positions (flat-shaded
-/// meshes repeat corners per face).
-pub fn box_proxies(mesh: &Mesh) -> Mesh {
+/// The connected parts of `mesh` as lists of triangle indices, in order of
+/// first appearance. Parts are connected through shared vertices or
+/// coincident positions (flat-shaded meshes repeat corners per face).
+pub(super) fn parts(mesh: &Mesh) -> Vec<Vec<usize>> {
     let n = mesh.positions.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
     fn find(parent: &mut [u32], mut i: u32) -> u32 {
@@ -45,46 +40,45 @@ pub fn box_proxies(mesh: &Mesh) -> Mesh {
         union(&mut parent, t[0], t[1]);
         union(&mut parent, t[0], t[2]);
     }
-    // Triangles per part, in order of first appearance.
-    let mut parts: HashMap<u32, Vec<usize>> = HashMap::new();
-    let mut order: Vec<u32> = Vec::new();
+    let mut index: HashMap<u32, usize> = HashMap::new();
+    let mut out: Vec<Vec<usize>> = Vec::new();
     for (k, t) in mesh.indices.chunks_exact(3).enumerate() {
         let root = find(&mut parent, t[0]);
-        parts
-            .entry(root)
-            .or_insert_with(|| {
-                order.push(root);
-                Vec::new()
-            })
-            .push(k);
-    }
-    let mut out = Mesh::default();
-    for root in order {
-        let triangles = &parts[&root];
-        if triangles.len() <= BOX_TRIANGLES {
-            for &k in triangles {
-                for &i in &mesh.indices[k * 3..k * 3 + 3] {
-                    push_vertex(&mut out, mesh, i as usize);
-                }
-            }
-            continue;
-        }
-        let mut lo = Vec3::splat(f32::INFINITY);
-        let mut hi = Vec3::splat(f32::NEG_INFINITY);
-        for &k in triangles {
-            for &i in &mesh.indices[k * 3..k * 3 + 3] {
-                lo = lo.min(mesh.positions[i as usize]);
-                hi = hi.max(mesh.positions[i as usize]);
-            }
-        }
-        let first = mesh.indices[triangles[0] * 3] as usize;
-        let color = mesh.colors.get(first).copied().unwrap_or([1.0; 4]);
-        push_box(&mut out, lo, hi, color);
-    }
-    if mesh.colors.is_empty() {
-        out.colors.clear();
+        let at = *index.entry(root).or_insert_with(|| {
+            out.push(Vec::new());
+            out.len() - 1
+        });
+        out[at].push(k);
     }
     out
+}
+
+/// The bounds of some triangles of `mesh`.
+pub(super) fn part_bounds(mesh: &Mesh, triangles: &[usize]) -> (Vec3, Vec3) {
+    let mut lo = Vec3::splat(f32::INFINITY);
+    let mut hi = Vec3::splat(f32::NEG_INFINITY);
+    for &k in triangles {
+        for &i in &mesh.indices[k * 3..k * 3 + 3] {
+            lo = lo.min(mesh.positions[i as usize]);
+            hi = hi.max(mesh.positions[i as usize]);
+        }
+    }
+    (lo, hi)
+}
+
+/// The colour of a part's first vertex.
+pub(super) fn part_color(mesh: &Mesh, triangles: &[usize]) -> [f32; 4] {
+    let first = mesh.indices[triangles[0] * 3] as usize;
+    mesh.colors.get(first).copied().unwrap_or([1.0; 4])
+}
+
+/// Copies some triangles of `mesh` to `out` (unshared vertices).
+pub(super) fn push_triangles(out: &mut Mesh, mesh: &Mesh, triangles: &[usize]) {
+    for &k in triangles {
+        for &i in &mesh.indices[k * 3..k * 3 + 3] {
+            push_vertex(out, mesh, i as usize);
+        }
+    }
 }
 
 fn push_vertex(out: &mut Mesh, mesh: &Mesh, i: usize) {
@@ -99,7 +93,7 @@ fn push_vertex(out: &mut Mesh, mesh: &Mesh, i: usize) {
 /// A box corner: the high (true) or low side on x, y and z.
 type Corner = (bool, bool, bool);
 
-fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
+pub(super) fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
     let corner = |x: bool, y: bool, z: bool| {
         Vec3::new(
             if x { hi.x } else { lo.x },
@@ -198,13 +192,20 @@ mod tests {
     }
 
     #[test]
-    fn replaces_each_part_by_its_box() {
+    fn finds_parts_and_boxes_them() {
         let mut m = tube(16, 0.05, 4.0, 0.0);
         let other = tube(16, 0.05, 4.0, 1.0);
         let offset = m.positions.len() as u32;
         m.positions.extend(&other.positions);
         m.indices.extend(other.indices.iter().map(|i| i + offset));
-        let proxies = box_proxies(&m);
+        let found = parts(&m);
+        assert_eq!(found.len(), 2);
+        assert_eq!(found[0], (0..32).collect::<Vec<_>>());
+        let mut proxies = Mesh::default();
+        for p in &found {
+            let (lo, hi) = part_bounds(&m, p);
+            push_box(&mut proxies, lo, hi, part_color(&m, p));
+        }
         assert_eq!(proxies.triangle_count(), 24);
         let h = hausdorff(
             &proxies,
@@ -217,11 +218,5 @@ mod tests {
         // The box of a thin tube is within its radius of it.
         assert!(h.bound < 0.08, "{h:?}");
         assert!(proxies.validate().is_ok());
-    }
-
-    #[test]
-    fn keeps_small_parts() {
-        let m = tube(3, 0.05, 4.0, 0.0);
-        assert_eq!(box_proxies(&m).triangle_count(), 6);
     }
 }

@@ -29,13 +29,15 @@ fn one() -> f64 {
     1.0
 }
 
+/// Borrows from the tree: an answer of thousands of clusters allocates
+/// nothing per cluster.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct ClusterOut {
+pub struct ClusterOut<'a> {
     pub id: u32,
     pub class: &'static str,
     pub level: u32,
     /// The geometry's URL path (content-addressed, immutable).
-    pub geometry: String,
+    pub geometry: GeometryUrl<'a>,
     /// Column-major 4x4 pose at the requested time (dynamic clusters).
     pub transform: Option<[f32; 16]>,
     pub triangles: u64,
@@ -56,13 +58,34 @@ pub struct StatsOut {
     pub baseline_objects: u64,
 }
 
+/// `/api/v1/scenes/{scene}/geometry/{hash}.glb`, written out only when
+/// serialised.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct GeometryUrl<'a> {
+    pub scene: &'a str,
+    pub hash: &'a str,
+}
+
+impl std::fmt::Display for GeometryUrl<'_> {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let name = percent_encoding::utf8_percent_encode(self.scene, SEGMENT);
+        write!(f, "/api/v1/scenes/{name}/geometry/{}.glb", self.hash)
+    }
+}
+
+impl Serialize for GeometryUrl<'_> {
+    fn serialize<S: serde::Serializer>(&self, serializer: S) -> Result<S::Ok, S::Error> {
+        serializer.collect_str(self)
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct CutResponse {
+pub struct CutResponse<'a> {
     /// Seconds since the scene's start.
     pub time: f64,
     /// The same instant as an ISO 8601 date.
     pub date: String,
-    pub clusters: Vec<ClusterOut>,
+    pub clusters: Vec<ClusterOut<'a>>,
     pub stats: StatsOut,
 }
 
@@ -189,28 +212,30 @@ pub fn run(tree: &Tree, view: &View, t: f64, cut: &mut Cut, stack: &mut Vec<u32>
     start.elapsed().as_secs_f64() * 1e6
 }
 
+/// What a scene name keeps unencoded in a URL path: RFC 3986's
+/// unreserved characters.
+const SEGMENT: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
+    .remove(b'-')
+    .remove(b'_')
+    .remove(b'.')
+    .remove(b'~');
+
 /// URL path prefix of a scene, its name percent-encoded.
 pub fn scene_path(scene: &str) -> String {
-    // RFC 3986 unreserved characters stay as they are.
-    const SEGMENT: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
-        .remove(b'-')
-        .remove(b'_')
-        .remove(b'.')
-        .remove(b'~');
     let name = percent_encoding::utf8_percent_encode(scene, SEGMENT);
     format!("/api/v1/scenes/{name}")
 }
 
-pub fn cluster_out(tree: &Tree, prefix: &str, item: &hdlod::tree::CutItem) -> ClusterOut {
+pub fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a> {
     let c = &tree.clusters[item.id as usize];
     ClusterOut {
         id: c.id,
         class: c.class.name(),
         level: c.level,
-        geometry: format!(
-            "{prefix}/geometry/{}.glb",
-            c.geometry.as_deref().unwrap_or_default()
-        ),
+        geometry: GeometryUrl {
+            scene: &tree.scene,
+            hash: c.geometry.as_deref().unwrap_or_default(),
+        },
         transform: item.transform.map(|m| m.to_cols_array()),
         triangles: c.triangles,
         error: item.error,
@@ -218,36 +243,171 @@ pub fn cluster_out(tree: &Tree, prefix: &str, item: &hdlod::tree::CutItem) -> Cl
     }
 }
 
-pub fn response(tree: &Tree, baseline: &Baseline, t: f64, cut: &Cut, micros: f64) -> CutResponse {
-    let (baseline_triangles, baseline_objects) = baseline.at(t);
-    let prefix = scene_path(&tree.scene);
+pub fn response<'a>(
+    tree: &'a Tree,
+    baseline: &Baseline,
+    t: f64,
+    cut: &Cut,
+    micros: f64,
+) -> CutResponse<'a> {
     CutResponse {
         time: t,
         date: format_date(tree.time.date_at(t)),
-        clusters: cut
-            .items
-            .iter()
-            .map(|i| cluster_out(tree, &prefix, i))
-            .collect(),
-        stats: StatsOut {
-            clusters: cut.stats.clusters,
-            triangles: cut.stats.triangles,
-            visited: cut.stats.visited,
-            micros,
-            baseline_triangles,
-            baseline_objects,
-        },
+        clusters: cut.items.iter().map(|i| cluster_out(tree, i)).collect(),
+        stats: stats_out(cut, micros, baseline, t),
+    }
+}
+
+/// Each cluster's JSON in a cut answer up to its transform, and from its
+/// triangle count to its error, made once per loaded tree: an answer is
+/// then mostly copies, with only the transform, error and visibility
+/// written per request (thousands of clusters per answer).
+pub struct Fragments {
+    text: String,
+    /// Per cluster: where its head starts, its tail starts and ends.
+    spans: Vec<(u32, u32, u32)>,
+}
+
+impl Fragments {
+    pub fn of(tree: &Tree) -> Fragments {
+        let mut text = String::new();
+        let mut spans = Vec::with_capacity(tree.clusters.len());
+        let mut head = Vec::new();
+        for c in &tree.clusters {
+            let item = hdlod::tree::CutItem {
+                id: c.id,
+                transform: None,
+                visibility: 0.0,
+                error: 0.0,
+            };
+            let out = cluster_out(tree, &item);
+            head.clear();
+            serde_json::to_writer(&mut head, &out).expect("plain data serialises");
+            let json = std::str::from_utf8(&head).expect("JSON is UTF-8");
+            // The serialised cluster is `HEAD null,"triangles":N,"error":
+            // 0.0,"visibility":0.0}`: keep the parts around the numbers.
+            let (before, after) = json
+                .split_once("null,")
+                .expect("a cluster without transform serialises it as null");
+            let tail = &after[..after.find("0.0,").expect("the error is 0.0")];
+            let start = text.len() as u32;
+            text.push_str(before);
+            let middle = text.len() as u32;
+            text.push(',');
+            text.push_str(tail);
+            spans.push((start, middle, text.len() as u32));
+        }
+        Fragments { text, spans }
+    }
+}
+
+/// Writes the JSON of `response(tree, baseline, t, cut, micros)` into `out`, from the
+/// tree's `fragments`; the same text as serialising that response.
+pub fn write_response(
+    tree: &Tree,
+    baseline: &Baseline,
+    fragments: &Fragments,
+    t: f64,
+    cut: &Cut,
+    micros: f64,
+    out: &mut Vec<u8>,
+) {
+    out.extend_from_slice(b"{\"time\":");
+    write_number(out, &t);
+    out.extend_from_slice(b",\"date\":");
+    serde_json::to_writer(&mut *out, &format_date(tree.time.date_at(t))).expect("a string");
+    out.extend_from_slice(b",\"clusters\":[");
+    for (k, item) in cut.items.iter().enumerate() {
+        if k > 0 {
+            out.push(b',');
+        }
+        let (start, middle, end) = fragments.spans[item.id as usize];
+        let text = fragments.text.as_bytes();
+        out.extend_from_slice(&text[start as usize..middle as usize]);
+        match item.transform {
+            Some(m) => serde_json::to_writer(&mut *out, &m.to_cols_array()).expect("numbers"),
+            None => out.extend_from_slice(b"null"),
+        }
+        out.extend_from_slice(&text[middle as usize..end as usize]);
+        write_number(out, &item.error);
+        out.extend_from_slice(b",\"visibility\":");
+        write_number(out, &item.visibility);
+        out.push(b'}');
+    }
+    out.extend_from_slice(b"],\"stats\":");
+    serde_json::to_writer(&mut *out, &stats_out(cut, micros, baseline, t))
+        .expect("plain data serialises");
+    out.push(b'}');
+}
+
+/// A number as serde_json writes it (non-finite as null).
+fn write_number(out: &mut Vec<u8>, x: &impl Serialize) {
+    serde_json::to_writer(out, x).expect("a number serialises");
+}
+
+fn stats_out(cut: &Cut, micros: f64, baseline: &Baseline, t: f64) -> StatsOut {
+    let (baseline_triangles, baseline_objects) = baseline.at(t);
+    StatsOut {
+        clusters: cut.stats.clusters,
+        triangles: cut.stats.triangles,
+        visited: cut.stats.visited,
+        micros,
+        baseline_triangles,
+        baseline_objects,
     }
 }
 
 /// The whole request: check, cut, answer.
-pub fn answer(
-    tree: &Tree,
+pub fn answer<'a>(
+    tree: &'a Tree,
     baseline: &Baseline,
     request: &CutRequest,
-) -> Result<CutResponse, ApiError> {
+) -> Result<CutResponse<'a>, ApiError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
     let micros = run(tree, &view, t, &mut cut, &mut stack);
     Ok(response(tree, baseline, t, &cut, micros))
+}
+
+#[cfg(test)]
+mod tests {
+    use hdlod::tree::paper;
+
+    use super::*;
+
+    /// The answer written from fragments is the serialised response, byte
+    /// for byte, over views near and far and times across the period
+    /// (dynamic clusters with transforms included).
+    #[test]
+    fn fragments_write_the_serialised_response() {
+        let dir = tempfile::tempdir().unwrap();
+        let tree = hdlod::tree::sample::write_sample_tree(&dir.path().join("t"), 3, 6).unwrap();
+        let fragments = Fragments::of(&tree);
+        let baseline = Baseline::of(&tree);
+        let mut compared = 0;
+        for factor in [0.6, 1.0, 4.0] {
+            for k in 0..=6 {
+                let t = tree.time.seconds * f64::from(k) / 6.0;
+                let view = View::new(
+                    &paper::camera(&tree, factor),
+                    paper::VIEWPORT,
+                    1.0,
+                    up_vector(tree.up),
+                )
+                .unwrap();
+                let (mut cut, mut stack) = (Cut::default(), Vec::new());
+                let micros = run(&tree, &view, t, &mut cut, &mut stack);
+                let mut fast = Vec::new();
+                write_response(&tree, &baseline, &fragments, t, &cut, micros, &mut fast);
+                let serde =
+                    serde_json::to_vec(&response(&tree, &baseline, t, &cut, micros)).unwrap();
+                assert_eq!(
+                    String::from_utf8(fast).unwrap(),
+                    String::from_utf8(serde).unwrap()
+                );
+                compared += cut.items.len();
+            }
+        }
+        assert!(compared > 100, "{compared} clusters compared");
+    }
 }

@@ -10,6 +10,7 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::time::format_date;
+use hdlod::tree::Cut;
 use serde_json::{Value, json};
 
 use super::cut::{self, CutRequest, scene_path};
@@ -142,24 +143,42 @@ pub async fn scene(
     })))
 }
 
-fn cut_answer(
-    state: &AppState,
-    name: &str,
-    request: &CutRequest,
-) -> Answer<Json<cut::CutResponse>> {
+/// Bytes a cluster takes in a cut answer, about: the buffer is sized once.
+const CLUSTER_JSON_BYTES: usize = 256;
+
+fn cut_answer(state: &AppState, name: &str, request: &CutRequest) -> Answer<Response> {
     let s = find(state, name)?;
-    let answer = cut::answer(&s.tree, &s.baseline, request)?;
+    let (view, t) = cut::prepare(&s.tree, request)?;
+    let (mut answer, mut stack) = (Cut::default(), Vec::new());
+    let micros = cut::run(&s.tree, &view, t, &mut answer, &mut stack);
     state
         .metrics
         .cut(answer.stats.clusters, answer.stats.triangles);
-    Ok(Json(answer))
+    let mut body = Vec::with_capacity((answer.items.len() + 1) * CLUSTER_JSON_BYTES);
+    cut::write_response(
+        &s.tree,
+        &s.baseline,
+        &s.fragments,
+        t,
+        &answer,
+        micros,
+        &mut body,
+    );
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("application/json"),
+        )],
+        body,
+    )
+        .into_response())
 }
 
 pub async fn cut_post(
     State(state): State<Arc<AppState>>,
     Path(name): Path<String>,
     body: Result<Bytes, BytesRejection>,
-) -> Answer<Json<cut::CutResponse>> {
+) -> Answer<Response> {
     let body = body.map_err(|r| ApiError::new(r.status(), Some("body".into()), r.body_text()))?;
     // The scene is checked first: an unknown scene is a 404 whatever the body.
     find(&state, &name)?;
@@ -171,7 +190,7 @@ pub async fn cut_get(
     State(state): State<Arc<AppState>>,
     Path(name): Path<String>,
     query: Result<Query<Vec<(String, String)>>, QueryRejection>,
-) -> Answer<Json<cut::CutResponse>> {
+) -> Answer<Response> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     find(&state, &name)?;
     let request = cut::parse_query(&pairs)?;

@@ -34,6 +34,7 @@ pub struct LoadedScene {
     pub dir: PathBuf,
     pub summary: Summary,
     pub baseline: Baseline,
+    pub fragments: cut::Fragments,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -48,7 +49,9 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
     let summary = tree.summary();
     let baseline = Baseline::of(&tree);
+    let fragments = cut::Fragments::of(&tree);
     Ok(LoadedScene {
+        fragments,
         tree,
         baseline,
         dir: dir.clone(),

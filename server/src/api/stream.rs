@@ -15,7 +15,7 @@ use axum::response::Response;
 use hdlod::tree::Cut;
 use serde::Serialize;
 
-use super::cut::{self, ClusterOut, StatsOut, cluster_out, scene_path};
+use super::cut::{self, ClusterOut, StatsOut, cluster_out};
 use super::error::ApiError;
 use super::handlers::find;
 use super::{AppState, LoadedScene};
@@ -34,11 +34,11 @@ pub async fn stream(
 /// Typed rather than `serde_json::Value` so that transforms keep their
 /// shortest `f32` text, exactly as `POST .../cut` writes them.
 #[derive(Serialize)]
-struct Update {
+struct Update<'a> {
     seq: u64,
     reset: bool,
     time: f64,
-    add: Vec<ClusterOut>,
+    add: Vec<ClusterOut<'a>>,
     remove: Vec<u32>,
     update: Vec<Moved>,
     stats: StatsOut,
@@ -76,13 +76,12 @@ impl Session {
             remove.extend(self.held.keys());
             self.held.clear();
         }
-        let prefix = scene_path(&tree.scene);
         let (mut add, mut update) = (Vec::new(), Vec::new());
         let mut next = HashMap::with_capacity(self.cut.items.len());
         for item in &self.cut.items {
             let transform = item.transform.map(|m| m.to_cols_array());
             match self.held.remove(&item.id) {
-                None => add.push(cluster_out(tree, &prefix, item)),
+                None => add.push(cluster_out(tree, item)),
                 Some(old) if old != transform => update.push(Moved {
                     id: item.id,
                     transform,

@@ -1,10 +1,16 @@
 //! `hdlod serve [--addr 127.0.0.1:8080] TREE...`: the HTTP API over the
-//! given trees. SIGHUP re-reads every tree from disk; requests in flight
-//! finish on the trees they started with.
+//! given trees. SIGHUP, or a change on disk (a tree replaced by a rename as
+//! `hdlod build` does, or its manifest or cluster table rewritten), re-reads
+//! every tree; requests in flight finish on the trees they started with.
 
 use std::path::PathBuf;
+use std::sync::Arc;
+use std::sync::mpsc::{Receiver, RecvTimeoutError};
+use std::time::Duration;
 
 use anyhow::Context;
+use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE};
+use notify::{Event, EventKind, RecommendedWatcher, RecursiveMode, Watcher};
 
 use crate::api::{self, AppState};
 
@@ -17,15 +23,27 @@ pub struct Args {
     /// Tree directories (hdlod-tree/1), one scene each.
     #[arg(required = true)]
     trees: Vec<PathBuf>,
+    /// Reload on SIGHUP only, not when a tree changes on disk (for file
+    /// systems without change notification).
+    #[arg(long)]
+    no_watch: bool,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    serve(&args.addr, args.trees)
+    serve_trees(&args.addr, args.trees, !args.no_watch)
 }
 
-/// Serves `trees` on `addr` until Ctrl-C (also what `hdlod demo` runs).
+/// Serves `trees` on `addr` until Ctrl-C, reloading them when they change
+/// on disk (what `hdlod demo` runs).
 pub fn serve(addr: &str, trees: Vec<PathBuf>) -> anyhow::Result<()> {
-    let state = AppState::load(trees)?;
+    serve_trees(addr, trees, true)
+}
+
+fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool) -> anyhow::Result<()> {
+    let state = AppState::load(trees.clone())?;
+    if watching {
+        watch(state.clone(), &trees)?;
+    }
     let runtime = tokio::runtime::Runtime::new()?;
     runtime.block_on(async move {
         let listener = tokio::net::TcpListener::bind(addr)
@@ -49,11 +67,8 @@ pub fn serve(addr: &str, trees: Vec<PathBuf>) -> anyhow::Result<()> {
             };
             while hup.recv().await.is_some() {
                 let state = reloader.clone();
-                match tokio::task::spawn_blocking(move || state.reload()).await {
-                    Ok(errors) if errors.is_empty() => tracing::info!("trees reloaded"),
-                    Ok(errors) => errors
-                        .iter()
-                        .for_each(|e| tracing::error!("reload kept the previous tree: {e}")),
+                match tokio::task::spawn_blocking(move || reload(&state, "SIGHUP")).await {
+                    Ok(()) => {}
                     Err(e) => tracing::error!("reload failed: {e}"),
                 }
             }
@@ -64,5 +79,94 @@ pub fn serve(addr: &str, trees: Vec<PathBuf>) -> anyhow::Result<()> {
             })
             .await?;
         Ok(())
+    })
+}
+
+fn reload(state: &AppState, why: &str) {
+    let errors = state.reload();
+    if errors.is_empty() {
+        tracing::info!("trees reloaded ({why})");
+    }
+    for e in errors {
+        tracing::error!("reload ({why}) kept the previous tree: {e}");
+    }
+}
+
+/// Changes are gathered until the trees have been quiet this long, so that
+/// a replacement (rename away, rename in) or a rewrite of both files is
+/// one reload.
+const QUIET: Duration = Duration::from_millis(300);
+
+/// Watches each tree directory and its parent (the directory itself is
+/// replaced by a rename, which only the parent sees) from a thread of its
+/// own that reloads every tree after a change.
+fn watch(state: Arc<AppState>, trees: &[PathBuf]) -> anyhow::Result<()> {
+    let dirs: Vec<PathBuf> = trees
+        .iter()
+        .map(|t| std::path::absolute(t).with_context(|| format!("{}", t.display())))
+        .collect::<anyhow::Result<_>>()?;
+    let (tx, rx) = std::sync::mpsc::channel();
+    let mut watcher = notify::recommended_watcher(tx).context("cannot watch the trees")?;
+    for dir in &dirs {
+        if let Some(parent) = dir.parent() {
+            watcher
+                .watch(parent, RecursiveMode::NonRecursive)
+                .with_context(|| format!("cannot watch {}", parent.display()))?;
+        }
+        watcher
+            .watch(dir, RecursiveMode::NonRecursive)
+            .with_context(|| format!("cannot watch {}", dir.display()))?;
+    }
+    std::thread::spawn(move || watch_loop(&state, watcher, &rx, &dirs));
+    Ok(())
+}
+
+fn watch_loop(
+    state: &AppState,
+    mut watcher: RecommendedWatcher,
+    rx: &Receiver<notify::Result<Event>>,
+    dirs: &[PathBuf],
+) {
+    while let Ok(event) = rx.recv() {
+        match event {
+            Ok(e) if concerns(&e, dirs) => {}
+            Ok(_) => continue,
+            Err(e) => {
+                tracing::warn!("file watch: {e}");
+                continue;
+            }
+        }
+        loop {
+            match rx.recv_timeout(QUIET) {
+                Ok(_) => {}
+                Err(RecvTimeoutError::Timeout) => break,
+                Err(RecvTimeoutError::Disconnected) => return,
+            }
+        }
+        reload(state, "changed on disk");
+        // A replaced directory is a new one: watch it (the old watch went
+        // with the old directory).
+        for dir in dirs {
+            let _ = watcher.unwatch(dir);
+            if let Err(e) = watcher.watch(dir, RecursiveMode::NonRecursive) {
+                tracing::warn!("cannot watch {}: {e}", dir.display());
+            }
+        }
+    }
+}
+
+/// Whether an event may have changed a tree: the directory itself renamed
+/// or created, or its manifest or cluster table written. Removals are not
+/// (the old directory being deleted after a replacement), nor reads.
+fn concerns(event: &Event, dirs: &[PathBuf]) -> bool {
+    if matches!(event.kind, EventKind::Remove(_) | EventKind::Access(_)) {
+        return false;
+    }
+    event.paths.iter().any(|p| {
+        dirs.iter().any(|d| p == d)
+            || p.parent()
+                .is_some_and(|parent| dirs.iter().any(|d| parent == d))
+                && p.file_name()
+                    .is_some_and(|n| n == MANIFEST_FILE || n == CLUSTERS_FILE)
     })
 }

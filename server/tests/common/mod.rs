@@ -93,20 +93,29 @@ pub struct Server {
 impl Server {
     /// `hdlod serve --addr 127.0.0.1:0 TREE`.
     pub fn start(tree: &Path) -> Server {
-        let mut server = Server::spawn(&[
-            "serve".as_ref(),
-            "--addr".as_ref(),
-            "127.0.0.1:0".as_ref(),
-            tree.as_os_str(),
-        ]);
+        Server::start_with(tree, &[])
+    }
+
+    /// `hdlod serve --addr 127.0.0.1:0 OPTIONS... TREE`.
+    pub fn start_with(tree: &Path, options: &[&str]) -> Server {
+        let mut args: Vec<&OsStr> =
+            vec!["serve".as_ref(), "--addr".as_ref(), "127.0.0.1:0".as_ref()];
+        args.extend(options.iter().map(OsStr::new));
+        args.push(tree.as_os_str());
+        let mut server = Server::spawn(&args);
         server.tree = tree.to_owned();
         server
     }
 
     /// The server over a fresh sample tree of `floors` floors that it owns.
     pub fn sample(floors: usize) -> Server {
+        Server::sample_with(floors, &[])
+    }
+
+    /// `sample` with extra `serve` options.
+    pub fn sample_with(floors: usize, options: &[&str]) -> Server {
         let dir = tempfile::tempdir().unwrap();
-        let mut server = Server::start(&sample_tree(dir.path(), floors));
+        let mut server = Server::start_with(&sample_tree(dir.path(), floors), options);
         server._dir = Some(dir);
         server
     }
