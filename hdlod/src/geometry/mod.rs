@@ -8,10 +8,14 @@ mod merge;
 mod mesh;
 mod proxy;
 mod simplify;
+mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
 pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;
 pub use proxy::box_proxies;
-pub use simplify::{Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify};
+pub use simplify::{
+    Method, Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify,
+};
+pub use vertex_removal::{FEATURE_ANGLE_DEGREES, vertex_removal, vertex_removal_with_angle};
