@@ -24,8 +24,9 @@
 //! neighbour's removal changes its loop.
 //!
 //! Choices the paper (and the theses that reimplement it) leave open:
-//! - One global priority queue with lazy updates (entries carry a version;
-//!   a removal bumps its neighbours' versions and queues them anew) instead
+//! - One global priority queue with lazy updates (a removal queues its
+//!   neighbours anew with their new distance; an entry whose distance is
+//!   no longer its vertex's current one is stale and skipped) instead
 //!   of the paper's repeated passes with a growing threshold. It removes
 //!   vertices in the same order of distance, in one pass.
 //! - The criterion is the local distance, not accumulated over removals
@@ -51,7 +52,7 @@
 //! Each removal takes 2 triangles (1 at a boundary) so the result may be
 //! one triangle under the target.
 
-use std::cmp::Ordering;
+use std::cmp::Reverse;
 use std::collections::{BinaryHeap, HashMap};
 
 use glam::Vec3;
@@ -66,6 +67,8 @@ const MAX_LOOP: usize = 32;
 /// Loop vertices closer to a split plane than this share of the split
 /// line's length count as on it: the split is then invalid.
 const MIN_SPLIT_RATIO: f32 = 1e-4;
+/// Not a distance's bits (a NaN's).
+const NOT_QUEUED: u32 = u32::MAX;
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 enum Class {
@@ -76,14 +79,50 @@ enum Class {
 }
 
 /// The fan around a vertex: its neighbours in loop order and its
-/// triangles, `tris[i]` spanning `(v, ring[i], ring[i + 1])`.
+/// triangles, triangle `i` spanning `(v, ring[i], ring[i + 1])`. Fixed
+/// arrays rather than vectors: fans are built for every neighbour of every
+/// removed vertex, and allocating them was a third of the time.
 struct Fan {
     class: Class,
-    ring: Vec<u32>,
-    tris: Vec<u32>,
+    ring: Small,
+    tris: Small,
     /// Loop positions of the two feature (interior edge) or end (boundary)
     /// neighbours.
     ends: (usize, usize),
+}
+
+/// Up to `MAX_LOOP + 1` ids on the stack.
+#[derive(Clone, Copy)]
+struct Small {
+    len: usize,
+    ids: [u32; MAX_LOOP + 1],
+}
+
+impl Small {
+    fn new() -> Self {
+        Small {
+            len: 0,
+            ids: [0; MAX_LOOP + 1],
+        }
+    }
+    fn push(&mut self, id: u32) {
+        self.ids[self.len] = id;
+        self.len += 1;
+    }
+    fn as_slice(&self) -> &[u32] {
+        &self.ids[..self.len]
+    }
+    /// The ids at positions `i..=j` of a loop, or `j..` then `..=i` when
+    /// `j < i` (wrapping round).
+    fn span(ids: &[u32], i: usize, j: usize) -> Small {
+        let mut out = Small::new();
+        if i <= j {
+            ids[i..=j].iter().for_each(|&x| out.push(x));
+        } else {
+            ids[i..].iter().chain(&ids[..=j]).for_each(|&x| out.push(x));
+        }
+        out
+    }
 }
 
 struct Decimator {
@@ -91,30 +130,17 @@ struct Decimator {
     tris: Vec<[u32; 3]>,
     alive: Vec<bool>,
     vertex_tris: Vec<Vec<u32>>,
-    version: Vec<u32>,
+    /// The distance of each vertex's live queue entry (its bits),
+    /// `NOT_QUEUED` if none.
+    queued: Vec<u32>,
     cos_feature: f32,
 }
 
-#[derive(PartialEq)]
-struct Entry {
-    error: f32,
-    vertex: u32,
-    version: u32,
-}
-impl Eq for Entry {}
-impl PartialOrd for Entry {
-    fn partial_cmp(&self, other: &Self) -> Option<Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Entry {
-    /// Reversed: `BinaryHeap` pops the least distance first.
-    fn cmp(&self, other: &Self) -> Ordering {
-        other
-            .error
-            .total_cmp(&self.error)
-            .then(other.vertex.cmp(&self.vertex))
-    }
+/// A queue entry: the distance's bits above the vertex, so that entries
+/// order as plain integers (distances are never negative, and the bits of
+/// non-negative floats order as the floats do). Smaller is popped first.
+fn entry(error: f32, vertex: u32) -> Reverse<u64> {
+    Reverse((u64::from(error.to_bits()) << 32) | u64::from(vertex))
 }
 
 /// Vertex removal to `options.target_triangles` (0 if none) or until the
@@ -216,7 +242,7 @@ impl Decimator {
             }
         }
         Decimator {
-            version: vec![0; positions.len()],
+            queued: vec![NOT_QUEUED; positions.len()],
             alive: vec![true; tris.len()],
             positions,
             tris,
@@ -236,38 +262,40 @@ impl Decimator {
             self.queue(v, &mut heap);
         }
         while count > target {
-            let Some(e) = heap.pop() else { break };
-            if e.version != self.version[e.vertex as usize] {
+            let Some(Reverse(e)) = heap.pop() else { break };
+            let (bits, v) = ((e >> 32) as u32, e as u32);
+            if bits != self.queued[v as usize] {
                 continue;
             }
-            if e.error > max_error {
+            self.queued[v as usize] = NOT_QUEUED;
+            if f32::from_bits(bits) > max_error {
                 break;
             }
-            let Some(fan) = self.fan(e.vertex) else {
+            let Some(fan) = self.fan(v) else {
                 continue;
             };
-            let Some(new) = self.retriangulate(e.vertex, &fan) else {
+            let Some(new) = self.retriangulate(v, &fan) else {
                 // Skipped until a neighbour's removal changes its loop.
                 continue;
             };
-            count = count - fan.tris.len() + new.len();
-            self.apply(e.vertex, &fan, new);
-            for &n in &fan.ring {
-                self.version[n as usize] += 1;
+            count = count - fan.tris.len + new.len();
+            self.apply(v, &fan, new);
+            for &n in fan.ring.as_slice() {
                 self.queue(n, &mut heap);
             }
         }
     }
 
-    fn queue(&self, v: u32, heap: &mut BinaryHeap<Entry>) {
+    /// Queues `v` with its current distance (if it is a candidate); any
+    /// older entry of it becomes stale.
+    fn queue(&mut self, v: u32, heap: &mut BinaryHeap<Reverse<u64>>) {
+        self.queued[v as usize] = NOT_QUEUED;
         if let Some(fan) = self.fan(v)
             && let Some(error) = self.priority(v, &fan)
+            && !error.is_nan()
         {
-            heap.push(Entry {
-                error,
-                vertex: v,
-                version: self.version[v as usize],
-            });
+            self.queued[v as usize] = error.to_bits();
+            heap.push(entry(error, v));
         }
     }
 
@@ -279,78 +307,86 @@ impl Decimator {
             return None;
         }
         // Each triangle as the directed edge opposite v.
-        let edges: Vec<(u32, u32, u32)> = around
-            .iter()
-            .map(|&t| {
-                let [a, b, c] = self.tris[t as usize];
-                let (x, y) = if a == v {
-                    (b, c)
-                } else if b == v {
-                    (c, a)
-                } else {
-                    (a, b)
-                };
-                (x, y, t)
-            })
-            .collect();
-        let next = |x: u32| edges.iter().filter(move |e| e.0 == x);
-        if edges
-            .iter()
-            .any(|e| next(e.0).count() > 1 || edges.iter().filter(|f| f.1 == e.1).count() > 1)
-        {
-            return None;
+        let mut edges = [(0u32, 0u32, 0u32); MAX_LOOP];
+        let k = around.len();
+        for (slot, &t) in edges.iter_mut().zip(around) {
+            let [a, b, c] = self.tris[t as usize];
+            let (x, y) = if a == v {
+                (b, c)
+            } else if b == v {
+                (c, a)
+            } else {
+                (a, b)
+            };
+            *slot = (x, y, t);
         }
-        // An open loop starts at the one edge nobody leads into.
-        let starts: Vec<usize> = (0..edges.len())
-            .filter(|&i| !edges.iter().any(|f| f.1 == edges[i].0))
-            .collect();
-        let open = match starts.len() {
-            0 => false,
-            1 => true,
-            _ => return None,
-        };
-        let mut ring = Vec::with_capacity(edges.len() + 1);
-        let mut tris = Vec::with_capacity(edges.len());
-        let mut e = edges[if open { starts[0] } else { 0 }];
+        let edges = &edges[..k];
+        // Manifold: no neighbour starts or ends two edges. The open loop
+        // starts at the one edge nobody leads into.
+        let mut start = None;
+        for (i, e) in edges.iter().enumerate() {
+            let (mut from, mut to, mut into) = (0, 0, false);
+            for f in edges {
+                from += usize::from(f.0 == e.0);
+                to += usize::from(f.1 == e.1);
+                into |= f.1 == e.0;
+            }
+            if from > 1 || to > 1 {
+                return None;
+            }
+            if !into {
+                if start.is_some() {
+                    return None;
+                }
+                start = Some(i);
+            }
+        }
+        let open = start.is_some();
+        let mut ring = Small::new();
+        let mut tris = Small::new();
+        let mut e = edges[start.unwrap_or(0)];
         loop {
             ring.push(e.0);
             tris.push(e.2);
-            match next(e.1).next() {
-                Some(f) if tris.len() < edges.len() => e = *f,
+            match edges.iter().find(|f| f.0 == e.1) {
+                Some(f) if tris.len < k => e = *f,
                 _ => break,
             }
         }
-        if tris.len() != edges.len() {
+        if tris.len != k {
             // More than one loop around the vertex: a non-manifold fan.
             return None;
         }
         if open {
             ring.push(e.1);
-        } else if e.1 != ring[0] {
+        } else if e.1 != ring.ids[0] {
             return None;
         }
-        if ring.contains(&v) {
+        if ring.as_slice().contains(&v) {
             return None;
         }
 
         // Feature edges: between consecutive triangles of the fan.
-        let normals: Vec<Vec3> = tris
-            .iter()
-            .map(|&t| normal_area(self.corners(t)).normalize_or_zero())
-            .collect();
-        let k = tris.len();
-        let inner = if open { 1..k } else { 0..k };
-        let features: Vec<usize> = inner
-            .filter(|&i| {
-                let (a, b) = (normals[(i + k - 1) % k], normals[i]);
-                a == Vec3::ZERO || b == Vec3::ZERO || a.dot(b) < self.cos_feature
-            })
-            .collect();
-        let (class, ends) = match (open, features.len()) {
-            (true, 0) => (Class::Boundary, (0, ring.len() - 1)),
+        let mut normals = [Vec3::ZERO; MAX_LOOP];
+        for (n, &t) in normals.iter_mut().zip(tris.as_slice()) {
+            *n = normal_area(self.corners(t)).normalize_or_zero();
+        }
+        let mut features = (0, [0usize; 2]);
+        for i in if open { 1..k } else { 0..k } {
+            let (a, b) = (normals[(i + k - 1) % k], normals[i]);
+            if a == Vec3::ZERO || b == Vec3::ZERO || a.dot(b) < self.cos_feature {
+                if features.0 < 2 {
+                    features.1[features.0] = i;
+                }
+                features.0 += 1;
+            }
+        }
+        let features = (features.0, features.1);
+        let (class, ends) = match (open, features.0) {
+            (true, 0) => (Class::Boundary, (0, ring.len - 1)),
             (true, _) => (Class::Corner, (0, 0)),
             (false, 0) => (Class::Simple, (0, 0)),
-            (false, 2) => (Class::InteriorEdge, (features[0], features[1])),
+            (false, 2) => (Class::InteriorEdge, (features.1[0], features.1[1])),
             (false, _) => (Class::Corner, (0, 0)),
         };
         Some(Fan {
@@ -382,12 +418,12 @@ impl Decimator {
         let p = self.positions[v as usize];
         match fan.class {
             Class::Simple => {
-                let (n, x) = self.average_plane(&fan.tris)?;
+                let (n, x) = self.average_plane(fan.tris.as_slice())?;
                 Some(n.dot(p - x).abs())
             }
             Class::Boundary | Class::InteriorEdge => {
-                let a = self.positions[fan.ring[fan.ends.0] as usize];
-                let b = self.positions[fan.ring[fan.ends.1] as usize];
+                let a = self.positions[fan.ring.ids[fan.ends.0] as usize];
+                let b = self.positions[fan.ring.ids[fan.ends.1] as usize];
                 Some(distance_to_line(p, a, b))
             }
             Class::Corner => None,
@@ -397,15 +433,17 @@ impl Decimator {
     /// The triangles that fill the hole left by `v`, `None` if its loop
     /// cannot be split validly.
     fn retriangulate(&self, v: u32, fan: &Fan) -> Option<Vec<[u32; 3]>> {
-        let mut out = Vec::with_capacity(fan.ring.len());
+        let mut out = Vec::with_capacity(fan.ring.len);
+        let ring = fan.ring.as_slice();
+        let tris = fan.tris.as_slice();
         match fan.class {
             Class::Simple | Class::Boundary => {
-                let (n, _) = self.average_plane(&fan.tris)?;
-                let last = fan.ring.len() - 1;
+                let (n, _) = self.average_plane(tris)?;
+                let last = ring.len() - 1;
                 // A boundary loop's closing chord becomes a new edge.
                 if fan.class == Class::Boundary
                     && last >= 2
-                    && self.edge_exists(v, fan.ring[0], fan.ring[last])
+                    && self.edge_exists(v, ring[0], ring[last])
                 {
                     return None;
                 }
@@ -413,25 +451,20 @@ impl Decimator {
             }
             Class::InteriorEdge => {
                 let (i, j) = fan.ends;
-                let ring = &fan.ring;
-                let k = ring.len();
                 if self.edge_exists(v, ring[i], ring[j]) {
                     return None;
                 }
                 // Triangle `t` of the fan spans ring[t]..ring[t + 1]: the
                 // first half holds triangles i..j, the second the others.
-                let first: Vec<u32> = ring[i..=j].to_vec();
-                let second: Vec<u32> = ring[j..].iter().chain(&ring[..=i]).copied().collect();
-                let (n1, _) = self.average_plane(&fan.tris[i..j])?;
-                let rest: Vec<u32> = fan.tris[j..]
+                let (n1, _) = self.average_plane(&tris[i..j])?;
+                let mut rest = Small::new();
+                tris[j..]
                     .iter()
-                    .chain(&fan.tris[..i])
-                    .copied()
-                    .collect();
-                let (n2, _) = self.average_plane(&rest)?;
-                debug_assert_eq!(first.len() + second.len(), k + 2);
-                self.split(v, &first, n1, &mut out)?;
-                self.split(v, &second, n2, &mut out)?;
+                    .chain(&tris[..i])
+                    .for_each(|&t| rest.push(t));
+                let (n2, _) = self.average_plane(rest.as_slice())?;
+                self.split(v, &Small::span(ring, i, j), n1, &mut out)?;
+                self.split(v, &Small::span(ring, j, i), n2, &mut out)?;
             }
             Class::Corner => return None,
         }
@@ -455,15 +488,19 @@ impl Decimator {
 
     /// Recursive loop splitting of `ring` (in loop order) against the
     /// plane normal `n`, appending triangles to `out`.
-    fn split(&self, v: u32, ring: &[u32], n: Vec3, out: &mut Vec<[u32; 3]>) -> Option<()> {
-        let k = ring.len();
-        let p = |i: usize| self.positions[ring[i] as usize];
+    fn split(&self, v: u32, ring: &Small, n: Vec3, out: &mut Vec<[u32; 3]>) -> Option<()> {
+        let k = ring.len;
+        let ids = ring.as_slice();
         if k < 3 {
             return Some(());
         }
+        let mut p = [Vec3::ZERO; MAX_LOOP + 1];
+        for (q, &i) in p.iter_mut().zip(ids) {
+            *q = self.positions[i as usize];
+        }
         if k == 3 {
-            let t = [ring[0], ring[1], ring[2]];
-            let facing = normal_area([p(0), p(1), p(2)]).dot(n) > 0.0;
+            let t = [ids[0], ids[1], ids[2]];
+            let facing = normal_area([p[0], p[1], p[2]]).dot(n) > 0.0;
             if !facing || self.triangle_exists(v, t) {
                 return None;
             }
@@ -476,7 +513,7 @@ impl Decimator {
                 if i == 0 && j == k - 1 {
                     continue;
                 }
-                let (a, b) = (p(i), p(j));
+                let (a, b) = (p[i], p[j]);
                 let length = a.distance(b);
                 let Some(m) = (b - a).cross(n).try_normalize() else {
                     continue;
@@ -485,33 +522,30 @@ impl Decimator {
                 // negative one; the aspect ratio is the least distance.
                 let mut least = f32::INFINITY;
                 let ok = (0..k).filter(|&x| x != i && x != j).all(|x| {
-                    let s = m.dot(p(x) - a);
-                    let inside = x > i && x < j;
+                    let s = m.dot(p[x] - a);
                     least = least.min(s.abs());
-                    if inside { s > 0.0 } else { s < 0.0 }
+                    if x > i && x < j { s > 0.0 } else { s < 0.0 }
                 });
                 let ratio = least / length;
                 if ok
                     && ratio > MIN_SPLIT_RATIO
                     && best.is_none_or(|(r, _, _)| ratio > r)
-                    && !self.edge_exists(v, ring[i], ring[j])
+                    && !self.edge_exists(v, ids[i], ids[j])
                 {
                     best = Some((ratio, i, j));
                 }
             }
         }
         let (_, i, j) = best?;
-        let first: Vec<u32> = ring[i..=j].to_vec();
-        let second: Vec<u32> = ring[j..].iter().chain(&ring[..=i]).copied().collect();
-        self.split(v, &first, n, out)?;
-        self.split(v, &second, n, out)
+        self.split(v, &Small::span(ids, i, j), n, out)?;
+        self.split(v, &Small::span(ids, j, i), n, out)
     }
 
     fn apply(&mut self, v: u32, fan: &Fan, new: Vec<[u32; 3]>) {
-        for &t in &fan.tris {
+        for &t in fan.tris.as_slice() {
             self.alive[t as usize] = false;
         }
-        for &n in &fan.ring {
+        for &n in fan.ring.as_slice() {
             let alive = &self.alive;
             self.vertex_tris[n as usize].retain(|&t| alive[t as usize]);
         }
