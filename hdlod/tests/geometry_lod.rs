@@ -6,7 +6,7 @@
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-use hdlod::geometry::{Method, Mesh, SimplifyOptions};
+use hdlod::geometry::{Mesh, Method, SimplifyOptions};
 use hdlod::io::glb;
 
 fn fandisk() -> Mesh {
@@ -81,11 +81,16 @@ fn lod_chains_pass_the_validator() {
             .map(|i| i.as_u64().unwrap() as usize)
             .collect();
         assert_eq!(ids.len(), 3);
-        assert_eq!(node["extras"]["MSFT_screencoverage"], serde_json::json!(coverage));
+        assert_eq!(
+            node["extras"]["MSFT_screencoverage"],
+            serde_json::json!(coverage)
+        );
         // Each id is a node with its own mesh, in decreasing detail.
         let indices = |node: usize| {
             let m = json["nodes"][node]["mesh"].as_u64().unwrap() as usize;
-            let a = json["meshes"][m]["primitives"][0]["indices"].as_u64().unwrap() as usize;
+            let a = json["meshes"][m]["primitives"][0]["indices"]
+                .as_u64()
+                .unwrap() as usize;
             json["accessors"][a]["count"].as_u64().unwrap() / 3
         };
         let counts: Vec<u64> = std::iter::once(root).chain(ids).map(indices).collect();
