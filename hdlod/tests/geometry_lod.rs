@@ -115,7 +115,7 @@ fn bad_chains_are_errors() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.glb");
     let mesh = fandisk();
-    let e = glb::write_lod(&[mesh.clone()], &[0.5, 0.1], &path).unwrap_err();
+    let e = glb::write_lod(std::slice::from_ref(&mesh), &[0.5, 0.1], &path).unwrap_err();
     assert!(e.to_string().contains("bad.glb"), "{e}");
     let e = glb::write_lod(&[mesh, Mesh::default()], &[0.5, 0.0], &path).unwrap_err();
     assert!(e.to_string().contains("level 1"), "{e}");
