@@ -294,6 +294,9 @@ fn plot(rows: &[Row], path: &Path) -> anyhow::Result<()> {
         .configure_mesh()
         .x_desc("milliseconds of CPU (log)")
         .y_desc("Hausdorff bound, % of diagonal (log)")
+        .x_label_formatter(&|x| format!("{x}"))
+        .y_label_formatter(&|y| format!("{y:.2}"))
+        .y_labels(8)
         .draw()?;
     for (method, colour) in [
         (Method::Qem, BLUE),
@@ -313,6 +316,7 @@ fn plot(rows: &[Row], path: &Path) -> anyhow::Result<()> {
     }
     chart
         .configure_series_labels()
+        .position(SeriesLabelPosition::LowerLeft)
         .background_style(WHITE.mix(0.8))
         .border_style(BLACK)
         .draw()?;
