@@ -173,7 +173,7 @@ fn bench_simplify_rows_match_the_schema() {
         "--models",
         "fandisk",
         "--ratios",
-        "0.1,0.02",
+        "0.05",
         "--runs",
         "1",
         "--json",
@@ -188,7 +188,7 @@ fn bench_simplify_rows_match_the_schema() {
         panic!("{e}: {json}");
     }
     let rows = json.as_array().unwrap();
-    assert_eq!(rows.len(), 6, "3 methods x 2 ratios");
+    assert_eq!(rows.len(), 3, "one row per method");
     for r in rows {
         let (n, m) = (
             r["triangles_in"].as_u64().unwrap(),
@@ -219,7 +219,7 @@ fn lod_writes_one_glb_and_measures_each_level() {
         f.to_str().unwrap(),
         out.to_str().unwrap(),
         "--levels",
-        "1,0.5,0.25,0.1",
+        "1,0.3,0.1",
         "--method",
         "vertex-removal",
         "--json",
@@ -231,14 +231,14 @@ fn lod_writes_one_glb_and_measures_each_level() {
     );
     let levels: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
     let levels = levels.as_array().unwrap();
-    assert_eq!(levels.len(), 4);
+    assert_eq!(levels.len(), 3);
     assert_eq!(levels[0]["triangles"], 12_946);
     assert!(levels[0]["hausdorff"].as_f64().unwrap() < 1e-4);
     for pair in levels.windows(2) {
         assert!(pair[1]["triangles"].as_u64() < pair[0]["triangles"].as_u64());
         assert!(pair[1]["screen_coverage"].as_f64() < pair[0]["screen_coverage"].as_f64());
     }
-    assert!(levels[3]["hausdorff"].as_f64().unwrap() > 0.0);
+    assert!(levels[2]["hausdorff"].as_f64().unwrap() > 0.0);
     let bytes = std::fs::read(&out).unwrap();
     assert_eq!(&bytes[..4], b"glTF");
 

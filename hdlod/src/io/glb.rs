@@ -54,13 +54,10 @@ pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
 /// with `extensions.MSFT_lod.ids` listing the others from finer to coarser
 /// and `extras.MSFT_screencoverage` the least screen coverage (0 to 1) at
 /// which each level is drawn, one per level. Viewers that do not know the
-/// extension draw the root, the full detail. `levels` and `coverage` must
-/// have the same, non-zero length, and every level a triangle.
-pub fn lod_to_glb(levels: &[Mesh], coverage: &[f32]) -> Vec<u8> {
-    assert!(
-        !levels.is_empty() && levels.len() == coverage.len(),
-        "one screen coverage per level, at least one level"
-    );
+/// extension draw the root, the full detail. [`write_lod`] checks what
+/// this needs: `levels` and `coverage` of the same, non-zero length, and
+/// every level a valid mesh with a triangle.
+fn lod_to_glb(levels: &[Mesh], coverage: &[f32]) -> Vec<u8> {
     let mut glb = GlbBuilder::new();
     let nodes: Vec<_> = levels
         .iter()
