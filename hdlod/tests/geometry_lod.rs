@@ -61,7 +61,18 @@ fn lod_chains_pass_the_validator() {
     let dir = tempfile::tempdir().unwrap();
     let mut files = Vec::new();
     for method in Method::ALL {
-        let levels = chain(&mesh, method, &ratios);
+        let mut levels = chain(&mesh, method, &ratios);
+        // Normals of any length (as in horse.ply) must come out unit; a
+        // level with a zero normal loses its normals.
+        for k in [1, 2] {
+            let l = &mut levels[k];
+            l.normals = l
+                .positions
+                .iter()
+                .map(|p| *p * 3.0 + glam::Vec3::X)
+                .collect();
+        }
+        levels[2].normals[0] = glam::Vec3::ZERO;
         for pair in levels.windows(2) {
             assert!(pair[1].triangle_count() < pair[0].triangle_count());
         }
@@ -93,6 +104,13 @@ fn lod_chains_pass_the_validator() {
                 .unwrap() as usize;
             json["accessors"][a]["count"].as_u64().unwrap() / 3
         };
+        let has_normals = |node: usize| {
+            let m = json["nodes"][node]["mesh"].as_u64().unwrap() as usize;
+            json["meshes"][m]["primitives"][0]["attributes"]
+                .get("NORMAL")
+                .is_some()
+        };
+        assert!(has_normals(ids[0]) && !has_normals(ids[1]));
         let counts: Vec<u64> = std::iter::once(root).chain(ids).map(indices).collect();
         let expected: Vec<u64> = levels.iter().map(|l| l.triangle_count() as u64).collect();
         assert_eq!(counts, expected);

@@ -102,7 +102,25 @@ pub fn write_lod(levels: &[Mesh], coverage: &[f32], path: &Path) -> Result<()> {
             })
             .map_err(|m| Error::invalid(path, format!("level {i}"), m))?;
     }
-    std::fs::write(path, lod_to_glb(levels, coverage)).map_err(|e| Error::io(path, e))
+    let levels: Vec<std::borrow::Cow<Mesh>> = levels.iter().map(unit_normals).collect();
+    let levels: Vec<Mesh> = levels.into_iter().map(|m| m.into_owned()).collect();
+    std::fs::write(path, lod_to_glb(&levels, coverage)).map_err(|e| Error::io(path, e))
+}
+
+/// glTF requires unit normals, and mesh files do not always have them
+/// (horse.ply's are not): they are normalised, and a level with a normal
+/// of zero length loses its normals (viewers then shade it flat) rather
+/// than carry an invalid one.
+fn unit_normals(mesh: &Mesh) -> std::borrow::Cow<'_, Mesh> {
+    let unit = |n: &Vec3| (n.length() - 1.0).abs() <= 1e-4;
+    if mesh.normals.iter().all(unit) {
+        return std::borrow::Cow::Borrowed(mesh);
+    }
+    let normals: Option<Vec<Vec3>> = mesh.normals.iter().map(|n| n.try_normalize()).collect();
+    std::borrow::Cow::Owned(Mesh {
+        normals: normals.unwrap_or_default(),
+        ..mesh.clone()
+    })
 }
 
 /// The accessors of one mesh written into the buffer.
