@@ -42,6 +42,8 @@ enum Command {
     Bench(cmd::bench::Bench),
     /// Simplify one mesh file and measure the result against it.
     Simplify(cmd::simplify::Args),
+    /// A discrete LOD chain of one mesh in one GLB (MSFT_lod).
+    Lod(cmd::lod::Args),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +64,7 @@ fn main() -> ExitCode {
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),
         Command::Simplify(a) => cmd::simplify::run(a),
+        Command::Lod(a) => cmd::lod::run(a),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

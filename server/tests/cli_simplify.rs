@@ -1,5 +1,6 @@
-//! `hdlod simplify`: its JSON matches schemas/simplify.schema.json, and bad
-//! input gets a clear error.
+//! `hdlod simplify`, `hdlod lod` and `hdlod bench simplify`: their JSON
+//! matches the schemas (schemas/simplify.schema.json,
+//! schemas/bench-simplify.schema.json), and bad input gets a clear error.
 
 use std::path::{Path, PathBuf};
 use std::process::Command;
@@ -24,7 +25,11 @@ fn fandisk() -> PathBuf {
 }
 
 fn schema() -> jsonschema::Validator {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../schemas/simplify.schema.json");
+    schema_named("simplify")
+}
+
+fn schema_named(name: &str) -> jsonschema::Validator {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../schemas/{name}.schema.json"));
     let schema: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
     jsonschema::validator_for(&schema).unwrap()
@@ -45,10 +50,10 @@ fn report(args: &[&str]) -> serde_json::Value {
 }
 
 #[test]
-fn both_methods_report_valid_json() {
+fn every_method_reports_valid_json() {
     let dir = tempfile::tempdir().unwrap();
     let input = fandisk();
-    for method in ["qem", "clustering"] {
+    for method in ["qem", "clustering", "vertex-removal"] {
         let out = dir.path().join(format!("{method}.obj"));
         let json = report(&[
             "simplify",
@@ -154,4 +159,98 @@ fn bad_input_is_a_clear_error() {
         &["simplify", f.to_str().unwrap(), "x.stl", "--ratio", "0.5"],
         "x.stl",
     );
+}
+
+#[test]
+fn bench_simplify_rows_match_the_schema() {
+    let dir = fandisk();
+    let dir = dir.parent().unwrap();
+    let out = hdlod(&[
+        "bench",
+        "simplify",
+        "--meshes",
+        dir.to_str().unwrap(),
+        "--models",
+        "fandisk",
+        "--ratios",
+        "0.05",
+        "--runs",
+        "1",
+        "--json",
+    ]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    if let Err(e) = schema_named("bench-simplify").validate(&json) {
+        panic!("{e}: {json}");
+    }
+    let rows = json.as_array().unwrap();
+    assert_eq!(rows.len(), 3, "one row per method");
+    for r in rows {
+        let (n, m) = (
+            r["triangles_in"].as_u64().unwrap(),
+            r["triangles_out"].as_u64().unwrap(),
+        );
+        let ratio = r["ratio"].as_f64().unwrap();
+        assert!(
+            m > 0 && (m as f64) <= (ratio * n as f64).ceil() + 1.0,
+            "{r}"
+        );
+        assert!(
+            r["hausdorff"].as_f64().unwrap() >= r["mean"].as_f64().unwrap(),
+            "{r}"
+        );
+    }
+    let fail = hdlod(&["bench", "simplify", "--meshes", "/nonexistent", "--json"]);
+    assert!(!fail.status.success());
+    assert!(String::from_utf8_lossy(&fail.stderr).contains("/nonexistent"));
+}
+
+#[test]
+fn lod_writes_one_glb_and_measures_each_level() {
+    let dir = tempfile::tempdir().unwrap();
+    let out = dir.path().join("fandisk-lod.glb");
+    let f = fandisk();
+    let run = hdlod(&[
+        "lod",
+        f.to_str().unwrap(),
+        out.to_str().unwrap(),
+        "--levels",
+        "1,0.3,0.1",
+        "--method",
+        "vertex-removal",
+        "--json",
+    ]);
+    assert!(
+        run.status.success(),
+        "{}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let levels: serde_json::Value = serde_json::from_slice(&run.stdout).unwrap();
+    let levels = levels.as_array().unwrap();
+    assert_eq!(levels.len(), 3);
+    assert_eq!(levels[0]["triangles"], 12_946);
+    assert!(levels[0]["hausdorff"].as_f64().unwrap() < 1e-4);
+    for pair in levels.windows(2) {
+        assert!(pair[1]["triangles"].as_u64() < pair[0]["triangles"].as_u64());
+        assert!(pair[1]["screen_coverage"].as_f64() < pair[0]["screen_coverage"].as_f64());
+    }
+    assert!(levels[2]["hausdorff"].as_f64().unwrap() > 0.0);
+    let bytes = std::fs::read(&out).unwrap();
+    assert_eq!(&bytes[..4], b"glTF");
+
+    let o = out.to_str().unwrap();
+    for (levels, needle) in [("1,1", "level 1"), ("0.5,0", "level 1"), ("2", "level 0")] {
+        let r = hdlod(&["lod", f.to_str().unwrap(), o, "--levels", levels]);
+        let stderr = String::from_utf8_lossy(&r.stderr);
+        assert!(
+            !r.status.success() && stderr.contains(needle),
+            "{levels}: {stderr}"
+        );
+    }
+    let r = hdlod(&["lod", f.to_str().unwrap(), "x.obj"]);
+    assert!(String::from_utf8_lossy(&r.stderr).contains("x.obj"));
 }

@@ -9,10 +9,14 @@ mod mesh;
 mod proxy;
 mod reduce;
 mod simplify;
+mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
 pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff, one_sided_bound};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;
 pub use reduce::{Reduced, reduce_parts};
-pub use simplify::{Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify};
+pub use simplify::{
+    Method, Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify,
+};
+pub use vertex_removal::{FEATURE_ANGLE_DEGREES, vertex_removal, vertex_removal_with_angle};

@@ -119,6 +119,41 @@ pub fn edge_collapse(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
     })
 }
 
+/// One simplifier on its own, for comparing them (`hdlod simplify
+/// --method`, `hdlod bench simplify`, `hdlod lod`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "kebab-case")]
+pub enum Method {
+    /// Quadric edge collapse ([`edge_collapse`]).
+    Qem,
+    /// Vertex clustering ([`clustering`]).
+    Clustering,
+    /// Vertex removal ([`super::vertex_removal()`]).
+    VertexRemoval,
+}
+
+impl Method {
+    pub const ALL: [Method; 3] = [Method::Qem, Method::Clustering, Method::VertexRemoval];
+
+    /// The name used on the command line and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Qem => "qem",
+            Method::Clustering => "clustering",
+            Method::VertexRemoval => "vertex-removal",
+        }
+    }
+
+    /// Runs this simplifier alone on `mesh`.
+    pub fn run(self, mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
+        match self {
+            Method::Qem => edge_collapse(mesh, options),
+            Method::Clustering => clustering(mesh, options),
+            Method::VertexRemoval => super::vertex_removal(mesh, options),
+        }
+    }
+}
+
 /// Vertex clustering alone.
 pub fn clustering(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
     run_step(mesh, options, |m| clustering_indices(m, options))
@@ -147,7 +182,7 @@ fn unchanged(mesh: Mesh) -> Simplified {
 /// The mesh without the triangles meshoptimizer must not see: out-of-range
 /// indices (undefined behaviour in C) and non-finite corners. Attribute
 /// arrays of the wrong length are dropped rather than trusted.
-fn cleaned(mesh: &Mesh) -> Mesh {
+pub(super) fn cleaned(mesh: &Mesh) -> Mesh {
     let n = mesh.positions.len();
     let ok = |i: u32| (i as usize) < n && mesh.positions[i as usize].is_finite();
     let indices = mesh
@@ -237,7 +272,7 @@ fn clustering_indices(mesh: &Mesh, options: &SimplifyOptions) -> Vec<u32> {
 
 /// The mesh made of `indices` (into `mesh`'s vertices) with only the
 /// vertices they use, in first-use order.
-fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
+pub(super) fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
     let mut remap = vec![u32::MAX; mesh.positions.len()];
     let mut out = Mesh::default();
     out.indices.reserve(indices.len());

@@ -48,6 +48,81 @@ pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
     std::fs::write(path, mesh_to_glb(mesh)).map_err(|e| Error::io(path, e))
 }
 
+/// A discrete LOD chain as one GLB, after the MSFT_lod extension
+/// (<https://github.com/KhronosGroup/glTF/tree/main/extensions/2.0/Vendor/MSFT_lod>):
+/// one node per level, the scene's root being the first (most detailed)
+/// with `extensions.MSFT_lod.ids` listing the others from finer to coarser
+/// and `extras.MSFT_screencoverage` the least screen coverage (0 to 1) at
+/// which each level is drawn, one per level. Viewers that do not know the
+/// extension draw the root, the full detail. [`write_lod`] checks what
+/// this needs: `levels` and `coverage` of the same, non-zero length, and
+/// every level a valid mesh with a triangle.
+fn lod_to_glb(levels: &[Mesh], coverage: &[f32]) -> Vec<u8> {
+    let mut glb = GlbBuilder::new();
+    let nodes: Vec<_> = levels
+        .iter()
+        .map(|mesh| {
+            let accessors = glb.add_mesh(mesh);
+            let m = glb.add_primitive(&accessors, None);
+            glb.add_node(m, &Mat4::IDENTITY, None)
+        })
+        .collect();
+    let lower: Vec<usize> = nodes[1..].iter().map(|n| n.value()).collect();
+    let root = nodes[0].value();
+    glb.finish_with(vec![nodes[0]], |json| {
+        if lower.is_empty() {
+            return;
+        }
+        json["extensionsUsed"] = serde_json::json!(["MSFT_lod"]);
+        let node = &mut json["nodes"][root];
+        node["extensions"] = serde_json::json!({ "MSFT_lod": { "ids": lower } });
+        node["extras"] = serde_json::json!({ "MSFT_screencoverage": coverage });
+    })
+}
+
+/// Writes [`lod_to_glb`] to `path`, after checking each level.
+pub fn write_lod(levels: &[Mesh], coverage: &[f32], path: &Path) -> Result<()> {
+    if levels.is_empty() || levels.len() != coverage.len() {
+        return Err(Error::invalid(
+            path,
+            "levels",
+            format!(
+                "{} levels and {} screen coverages: need one coverage per level, at least one level",
+                levels.len(),
+                coverage.len()
+            ),
+        ));
+    }
+    for (i, mesh) in levels.iter().enumerate() {
+        mesh.validate()
+            .and_then(|()| {
+                (!mesh.is_empty())
+                    .then_some(())
+                    .ok_or_else(|| "no triangles".to_string())
+            })
+            .map_err(|m| Error::invalid(path, format!("level {i}"), m))?;
+    }
+    let levels: Vec<std::borrow::Cow<Mesh>> = levels.iter().map(unit_normals).collect();
+    let levels: Vec<Mesh> = levels.into_iter().map(|m| m.into_owned()).collect();
+    std::fs::write(path, lod_to_glb(&levels, coverage)).map_err(|e| Error::io(path, e))
+}
+
+/// glTF requires unit normals, and mesh files do not always have them
+/// (horse.ply's are not): they are normalised, and a level with a normal
+/// of zero length loses its normals (viewers then shade it flat) rather
+/// than carry an invalid one.
+fn unit_normals(mesh: &Mesh) -> std::borrow::Cow<'_, Mesh> {
+    let unit = |n: &Vec3| (n.length() - 1.0).abs() <= 1e-4;
+    if mesh.normals.iter().all(unit) {
+        return std::borrow::Cow::Borrowed(mesh);
+    }
+    let normals: Option<Vec<Vec3>> = mesh.normals.iter().map(|n| n.try_normalize()).collect();
+    std::borrow::Cow::Owned(Mesh {
+        normals: normals.unwrap_or_default(),
+        ..mesh.clone()
+    })
+}
+
 /// The accessors of one mesh written into the buffer.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct MeshAccessors {
@@ -245,8 +320,25 @@ impl GlbBuilder {
         })
     }
 
-    /// The GLB bytes, with `nodes` as the roots of the one scene.
-    pub(crate) fn finish(mut self, nodes: Vec<json::Index<json::Node>>) -> Vec<u8> {
+    /// The GLB bytes, with `nodes` as the roots of the one scene, after
+    /// `edit` has changed the glTF JSON (for extensions the `gltf` types do
+    /// not model).
+    pub(crate) fn finish_with(
+        mut self,
+        nodes: Vec<json::Index<json::Node>>,
+        edit: impl FnOnce(&mut serde_json::Value),
+    ) -> Vec<u8> {
+        self.close(nodes);
+        let mut value = serde_json::to_value(&self.root).expect("glTF JSON serialises");
+        edit(&mut value);
+        let json_bytes = serde_json::to_vec(&value).expect("JSON serialises");
+        let mut out = Vec::with_capacity(json_bytes.len() + self.bin.len() + 40);
+        write_container(&mut out, &json_bytes, &self.bin).expect("writing to a Vec cannot fail");
+        out
+    }
+
+    /// The buffer and the one scene, the last objects of every GLB.
+    fn close(&mut self, nodes: Vec<json::Index<json::Node>>) {
         if !self.bin.is_empty() {
             self.root.push(json::Buffer {
                 byte_length: USize64::from(self.bin.len()),
@@ -263,6 +355,11 @@ impl GlbBuilder {
             nodes,
         });
         self.root.scene = Some(scene);
+    }
+
+    /// The GLB bytes, with `nodes` as the roots of the one scene.
+    pub(crate) fn finish(mut self, nodes: Vec<json::Index<json::Node>>) -> Vec<u8> {
+        self.close(nodes);
         let json_bytes = json::serialize::to_vec(&self.root).expect("glTF JSON serialises");
         let mut out = Vec::with_capacity(json_bytes.len() + self.bin.len() + 40);
         write_container(&mut out, &json_bytes, &self.bin).expect("writing to a Vec cannot fail");

@@ -19,6 +19,8 @@ pub enum Bench {
     Ws(WsArgs),
     /// Build time per object as the scene grows (n log n, not n^2).
     Build(super::bench_build::Args),
+    /// The three simplifiers on real meshes, as the decimation theses compare them.
+    Simplify(super::bench_simplify::Args),
 }
 
 #[derive(clap::Args)]
@@ -61,6 +63,7 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
     match bench {
         Bench::Paper(a) => paper_table(a),
         Bench::Build(a) => super::bench_build::run(a),
+        Bench::Simplify(a) => super::bench_simplify::run(a),
         Bench::Ws(a) => ws(a),
     }
 }

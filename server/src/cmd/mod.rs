@@ -1,11 +1,13 @@
 pub mod bench;
 pub mod bench_build;
+pub mod bench_simplify;
 pub mod build;
 pub mod cut;
 pub mod demo;
 pub mod export_tiles;
 pub mod fixture;
 pub mod inspect;
+pub mod lod;
 pub mod progress;
 pub mod serve;
 pub mod simplify;

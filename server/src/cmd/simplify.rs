@@ -1,4 +1,4 @@
-//! `hdlod simplify IN OUT --method qem|clustering (--ratio R | --error E) [--json]`:
+//! `hdlod simplify IN OUT --method qem|clustering|vertex-removal (--ratio R | --error E) [--json]`:
 //! simplifies one mesh file and measures the result against the input (the
 //! Hausdorff bound, mean and RMS distance, volume and area ratios).
 //! The JSON output is described by `schemas/simplify.schema.json`.
@@ -11,12 +11,24 @@ use hdlod::geometry::{self, HausdorffOptions, Mesh, SimplifyOptions, measure};
 use serde::Serialize;
 
 #[derive(Clone, Copy, clap::ValueEnum, Serialize)]
-#[serde(rename_all = "snake_case")]
+#[serde(rename_all = "kebab-case")]
 pub enum Method {
     /// Quadric edge collapse.
     Qem,
     /// Vertex clustering.
     Clustering,
+    /// Vertex removal (Schroeder et al. 1992).
+    VertexRemoval,
+}
+
+impl From<Method> for geometry::Method {
+    fn from(m: Method) -> Self {
+        match m {
+            Method::Qem => geometry::Method::Qem,
+            Method::Clustering => geometry::Method::Clustering,
+            Method::VertexRemoval => geometry::Method::VertexRemoval,
+        }
+    }
 }
 
 #[derive(clap::Args)]
@@ -88,10 +100,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
 
     let start = Instant::now();
-    let out = match args.method {
-        Method::Qem => geometry::edge_collapse(&mesh, &options),
-        Method::Clustering => geometry::clustering(&mesh, &options),
-    };
+    let out = geometry::Method::from(args.method).run(&mesh, &options);
     let seconds = start.elapsed().as_secs_f64();
 
     write(&out, &args.output)?;
@@ -133,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 /// The Hausdorff bound within 1% of itself: a first pass at a tolerance of
 /// 0.1% of the mesh size finds the scale of the distance, a second one
 /// tightens the gap if the first left it wider than 1%.
-fn measured_distance(a: &Mesh, b: &Mesh, seed: u64) -> geometry::Hausdorff {
+pub(crate) fn measured_distance(a: &Mesh, b: &Mesh, seed: u64) -> geometry::Hausdorff {
     let diagonal = a.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length());
     let first = geometry::hausdorff(
         a,
@@ -163,7 +172,7 @@ fn extension(path: &Path) -> String {
         .to_ascii_lowercase()
 }
 
-fn read(path: &Path) -> anyhow::Result<Mesh> {
+pub(crate) fn read(path: &Path) -> anyhow::Result<Mesh> {
     let mesh = match extension(path).as_str() {
         "obj" => hdlod::io::obj::read_mesh(path)?,
         "ply" => hdlod::io::ply::read_mesh(path)?,
