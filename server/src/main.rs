@@ -40,6 +40,9 @@ enum Command {
     Bench(cmd::bench::Bench),
     /// Simplify one mesh file and measure the result against it.
     Simplify(cmd::simplify::Args),
+    /// Import BIM models and their schedule into a scene.
+    #[command(subcommand)]
+    Import(cmd::import::Import),
 }
 
 fn main() -> ExitCode {
@@ -59,6 +62,7 @@ fn main() -> ExitCode {
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),
         Command::Simplify(a) => cmd::simplify::run(a),
+        Command::Import(c) => cmd::import::run(c),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

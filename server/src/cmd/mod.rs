@@ -4,6 +4,7 @@ pub mod build;
 pub mod cut;
 pub mod demo;
 pub mod fixture;
+pub mod import;
 pub mod inspect;
 pub mod progress;
 pub mod serve;
