@@ -182,8 +182,8 @@ pub fn import(
         }
         if let Some(first) = duplicates.first() {
             report.warnings.push(format!(
-                "{file}: {} elements have a GlobalId that an earlier element has (e.g. {first}); \
-                 kept the first",
+                "{file}: {} element(s) with a GlobalId already imported (e.g. {first}); kept the \
+                 first",
                 duplicates.len()
             ));
         }
