@@ -122,6 +122,22 @@ fn link_csv_groups_rows_by_task() {
     );
 }
 
+#[test]
+fn schedules_by_extension() {
+    let dir = tempfile::tempdir().unwrap();
+    // IFC4 tasks from another file.
+    let tasks = hdlod::import::read_schedule(&tiny()).unwrap();
+    assert_eq!(tasks.len(), 2);
+    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.ifc", "hello"))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("plan.ifc") && e.contains("FILE_SCHEMA"), "{e}");
+    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.mpp", ""))
+        .unwrap_err()
+        .to_string();
+    assert!(e.contains("plan.mpp") && e.contains(".xml"), "{e}");
+}
+
 fn rules(dir: &Path, rules: &str) -> PathBuf {
     write(
         dir,

@@ -159,10 +159,18 @@ pub fn read(path: &Path) -> Result<Model> {
         let Some(guid) = entity.get_string(0).filter(|g| !g.is_empty()) else {
             return Err(Error::invalid(path, format!("#{id}"), "no GlobalId"));
         };
-        let parts = if voids.contains_key(&id) {
-            router.process_element_with_submeshes_and_voids(&entity, &mut decoder, &voids)
-        } else {
-            router.process_element_with_submeshes(&entity, &mut decoder)
+        // The mesher runs on arbitrary user geometry: should it panic on an
+        // element, that element is skipped like one it cannot mesh.
+        let parts = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
+            if voids.contains_key(&id) {
+                router.process_element_with_submeshes_and_voids(&entity, &mut decoder, &voids)
+            } else {
+                router.process_element_with_submeshes(&entity, &mut decoder)
+            }
+        }));
+        let Ok(parts) = parts else {
+            model.skip(&class, "geometry failed (mesher panicked)");
+            continue;
         };
         let parts = match parts {
             Ok(p) if !p.is_empty() => p,

@@ -353,7 +353,9 @@ pub fn read_schedule(path: &Path) -> Result<Vec<ScheduleTask>> {
         "csv" => links_csv::read(path),
         "ifc" | "ifczip" => {
             let step = ifc::read_step(path)?;
-            let schema = ifc::header_schema(&step).unwrap_or_default();
+            let schema = ifc::header_schema(&step).ok_or_else(|| {
+                Error::invalid(path, "HEADER", "no FILE_SCHEMA: not an IFC (STEP) file")
+            })?;
             ifc_tasks::read(path, &schema, &step)
         }
         _ => Err(Error::argument(
