@@ -29,8 +29,11 @@ async function main(files) {
   return reports.every((r) => r.issues.numErrors === 0) ? 0 : 1;
 }
 
+// exitCode, not exit(): exit() would cut a long report short on a pipe.
 main(process.argv.slice(2)).then(
-  (code) => process.exit(code),
+  (code) => {
+    process.exitCode = code;
+  },
   (err) => {
     console.error(`validate-gltf: ${err}`);
     process.exit(2);

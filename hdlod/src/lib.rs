@@ -3,7 +3,7 @@
 //! Data flows one way through the modules:
 //! [`scene`] (model, schedule, `hdlod-scene/1` files) -> [`geometry`] (merge,
 //! simplify, Hausdorff) -> cluster (the tree builder) -> [`tree`] (the
-//! `hdlod-tree/1` format and the cut). [`io`] reads and writes mesh files and
+//! `hdlod-tree/1` format and the cut) -> [`tiles`] (time slices as 3D Tiles). [`io`] reads and writes mesh files and
 //! [`fixture`] generates test scenes. See `docs/ARCHITECTURE.md` for the map.
 
 pub mod cluster;
@@ -13,6 +13,7 @@ pub mod geometry;
 pub mod import;
 pub mod io;
 pub mod scene;
+pub mod tiles;
 pub mod time;
 pub mod tree;
 

@@ -3,6 +3,7 @@
 //! form the builder produces and the cut reads: clusters in a `Vec` indexed
 //! by id, visibility as sorted steps.
 
+pub mod baseline;
 pub mod camera;
 pub mod cut;
 pub mod format;
@@ -20,6 +21,7 @@ use crate::error::{Error, Result};
 use crate::scene::{Keyframe, Motion, Up};
 use crate::time::{TimeSpan, format_date, parse_date};
 
+pub use baseline::Baseline;
 pub use camera::{CameraSpec, View, Viewport};
 pub use cut::{Cut, CutItem, CutStats, cut};
 pub use format::ClusterClass;

@@ -8,7 +8,7 @@ use glam::DVec3;
 use hdlod::scene::Up;
 use hdlod::time::{TimeValue, format_date};
 use hdlod::tree::cut::cut_into;
-use hdlod::tree::{CameraSpec, Cut, Tree, View, Viewport};
+use hdlod::tree::{Baseline, CameraSpec, Cut, Tree, View, Viewport};
 use serde::{Deserialize, Serialize};
 
 use super::error::ApiError;
@@ -51,6 +51,9 @@ pub struct StatsOut {
     pub triangles: u64,
     pub visited: usize,
     pub micros: f64,
+    /// Every original object present at the time, at full detail.
+    pub baseline_triangles: u64,
+    pub baseline_objects: u64,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize)]
@@ -215,7 +218,8 @@ pub fn cluster_out(tree: &Tree, prefix: &str, item: &hdlod::tree::CutItem) -> Cl
     }
 }
 
-pub fn response(tree: &Tree, t: f64, cut: &Cut, micros: f64) -> CutResponse {
+pub fn response(tree: &Tree, baseline: &Baseline, t: f64, cut: &Cut, micros: f64) -> CutResponse {
+    let (baseline_triangles, baseline_objects) = baseline.at(t);
     let prefix = scene_path(&tree.scene);
     CutResponse {
         time: t,
@@ -230,14 +234,20 @@ pub fn response(tree: &Tree, t: f64, cut: &Cut, micros: f64) -> CutResponse {
             triangles: cut.stats.triangles,
             visited: cut.stats.visited,
             micros,
+            baseline_triangles,
+            baseline_objects,
         },
     }
 }
 
 /// The whole request: check, cut, answer.
-pub fn answer(tree: &Tree, request: &CutRequest) -> Result<CutResponse, ApiError> {
+pub fn answer(
+    tree: &Tree,
+    baseline: &Baseline,
+    request: &CutRequest,
+) -> Result<CutResponse, ApiError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
     let micros = run(tree, &view, t, &mut cut, &mut stack);
-    Ok(response(tree, t, &cut, micros))
+    Ok(response(tree, baseline, t, &cut, micros))
 }

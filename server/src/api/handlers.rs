@@ -148,7 +148,7 @@ fn cut_answer(
     request: &CutRequest,
 ) -> Answer<Json<cut::CutResponse>> {
     let s = find(state, name)?;
-    let answer = cut::answer(&s.tree, request)?;
+    let answer = cut::answer(&s.tree, &s.baseline, request)?;
     state
         .metrics
         .cut(answer.stats.clusters, answer.stats.triangles);

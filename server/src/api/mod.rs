@@ -8,6 +8,8 @@ pub mod error;
 mod handlers;
 pub mod metrics;
 mod stream;
+mod tiles;
+mod viewer;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
@@ -19,7 +21,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
-use hdlod::tree::{Summary, Tree};
+use hdlod::tree::{Baseline, Summary, Tree};
 use tower_http::compression::CompressionLayer;
 
 use self::metrics::Metrics;
@@ -31,6 +33,7 @@ pub struct LoadedScene {
     pub tree: Tree,
     pub dir: PathBuf,
     pub summary: Summary,
+    pub baseline: Baseline,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -44,8 +47,10 @@ pub struct AppState {
 fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
     let summary = tree.summary();
+    let baseline = Baseline::of(&tree);
     Ok(LoadedScene {
         tree,
+        baseline,
         dir: dir.clone(),
         summary,
     })
@@ -120,6 +125,8 @@ async fn record(State(state): State<Arc<AppState>>, request: Request, next: Next
 
 pub fn router(state: Arc<AppState>) -> Router {
     Router::new()
+        .route("/", get(viewer::index))
+        .route("/viewer/{file}", get(viewer::asset))
         .route("/healthz", get(handlers::healthz))
         .route("/metrics", get(handlers::metrics))
         .route("/api/v1/openapi.json", get(handlers::openapi))
@@ -134,6 +141,14 @@ pub fn router(state: Arc<AppState>) -> Router {
             get(handlers::geometry),
         )
         .route("/api/v1/scenes/{scene}/stream", get(stream::stream))
+        .route(
+            "/api/v1/scenes/{scene}/tiles/tileset.json",
+            get(tiles::tileset),
+        )
+        .route(
+            "/api/v1/scenes/{scene}/tiles/{time}/{file}",
+            get(tiles::external),
+        )
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(state.clone(), record))

@@ -96,6 +96,7 @@ impl Session {
         self.held = next;
         self.scene = Some(scene.clone());
         self.seq += 1;
+        let (baseline_triangles, baseline_objects) = scene.baseline.at(t);
         let message = Update {
             seq: self.seq,
             reset,
@@ -108,6 +109,8 @@ impl Session {
                 triangles: self.cut.stats.triangles,
                 visited: self.cut.stats.visited,
                 micros,
+                baseline_triangles,
+                baseline_objects,
             },
         };
         Ok(serde_json::to_string(&message).expect("plain data serialises"))

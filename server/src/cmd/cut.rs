@@ -77,7 +77,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         viewport: cut::parse_viewport("--viewport", &args.viewport).map_err(api)?,
         pixel_error: args.pixel_error,
     };
-    let answer = cut::answer(&tree, &request).map_err(api)?;
+    let baseline = hdlod::tree::Baseline::of(&tree);
+    let answer = cut::answer(&tree, &baseline, &request).map_err(api)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&answer)?);
         return Ok(());

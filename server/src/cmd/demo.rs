@@ -55,7 +55,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     eprintln!(
-        "serving; try: curl 'http://{}/api/v1/scenes/skyscraper-{}'",
+        "serving; open the viewer at http://{0}/?scene=skyscraper-{1} \
+         (the API: curl 'http://{0}/api/v1/scenes/skyscraper-{1}')",
         args.addr, args.scale
     );
     super::serve::serve(&args.addr, vec![tree_dir])

@@ -3,6 +3,7 @@ pub mod bench_build;
 pub mod build;
 pub mod cut;
 pub mod demo;
+pub mod export_tiles;
 pub mod fixture;
 pub mod import;
 pub mod inspect;

@@ -1,0 +1,490 @@
+//! Time slices as 3D Tiles 1.1 on the tree built from the committed tiny
+//! fixture: the files follow the official 3D Tiles 1.1 JSON schemas, and a
+//! 3D Tiles traversal of them (transforms composed down the tiles, external
+//! tilesets followed, content URIs resolved) reproduces the cut.
+
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+use std::sync::OnceLock;
+
+use glam::{DMat4, DVec3};
+use hdlod::cluster::{BuildConfig, Silent, build_to};
+use hdlod::scene::{Up, format};
+use hdlod::tiles::{
+    DEFAULT_MAX_BYTES, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform, time_slice,
+};
+use hdlod::tree::cut::moved_box;
+use hdlod::tree::{Aabb, CameraSpec, Tree, View, Viewport, cut, load};
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+struct Built {
+    tree: Tree,
+    _tmp: tempfile::TempDir,
+}
+
+fn tree() -> &'static Tree {
+    static BUILT: OnceLock<Built> = OnceLock::new();
+    &BUILT
+        .get_or_init(|| {
+            let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
+            let scene = format::load(&fixture).expect("the tiny fixture loads");
+            let tmp = tempfile::tempdir().unwrap();
+            let dir = tmp.path().join("tree");
+            build_to(&scene, &BuildConfig::default(), &dir, &Silent).expect("the build succeeds");
+            Built {
+                tree: load(&dir).expect("the written tree loads"),
+                _tmp: tmp,
+            }
+        })
+        .tree
+}
+
+/// `shared/data/3d-tiles-schema` beside the repository: in the directory
+/// that holds it, or in the nearest ancestor that has one.
+fn schema_dir() -> PathBuf {
+    let repo = Path::new(env!("CARGO_MANIFEST_DIR")).join("..");
+    let repo = repo.canonicalize().unwrap();
+    repo.ancestors()
+        .skip(1)
+        .map(|a| a.join("shared/data/3d-tiles-schema"))
+        .find(|d| d.join("tileset.schema.json").is_file())
+        .unwrap_or_else(|| {
+            panic!(
+                "no shared/data/3d-tiles-schema beside {} (the official 3D Tiles 1.1 schemas)",
+                repo.display()
+            )
+        })
+}
+
+/// The official `tileset.schema.json`; its relative `$ref`s resolve as files
+/// next to it.
+fn tileset_validator() -> jsonschema::Validator {
+    let path = schema_dir().join("tileset.schema.json");
+    let text = std::fs::read_to_string(&path).unwrap();
+    let schema: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let base = format!("file://{}", path.canonicalize().unwrap().display());
+    jsonschema::options()
+        .with_base_uri(base)
+        .build(&schema)
+        .expect("the 3D Tiles schemas compile")
+}
+
+fn schema_errors(v: &jsonschema::Validator, value: &serde_json::Value) -> Vec<String> {
+    v.iter_errors(value)
+        .take(5)
+        .map(|e| format!("{}: {e}", e.instance_path()))
+        .collect()
+}
+
+fn times(tree: &Tree) -> [f64; 5] {
+    let s = tree.time.seconds;
+    [0.0, s / 3.0, s / 2.0, 2.0 * s / 3.0, s]
+}
+
+fn disk(max_bytes: usize) -> Options {
+    Options {
+        max_bytes,
+        ..Options::new("geometry", "tilesets")
+    }
+}
+
+#[test]
+fn slices_follow_the_3d_tiles_schemas() {
+    let tree = tree();
+    let validator = tileset_validator();
+    // The schema bites: a tileset without its root is refused.
+    let mut broken = serde_json::to_value(
+        time_slice(tree, 0.0, &disk(DEFAULT_MAX_BYTES))
+            .unwrap()
+            .root,
+    )
+    .unwrap();
+    let mut negative = broken.clone();
+    broken.as_object_mut().unwrap().remove("root");
+    assert!(!schema_errors(&validator, &broken).is_empty());
+    // ... and so do the schemas it refers to (tile, bounding volume).
+    negative["root"]["geometricError"] = serde_json::json!(-1.0);
+    assert!(!schema_errors(&validator, &negative).is_empty());
+    let mut short_box = negative.clone();
+    short_box["root"]["geometricError"] = serde_json::json!(1.0);
+    assert!(schema_errors(&validator, &short_box).is_empty());
+    short_box["root"]["boundingVolume"]["box"] = serde_json::json!(vec![0.0; 11]);
+    assert!(!schema_errors(&validator, &short_box).is_empty());
+
+    let mut split_seen = 0;
+    for t in times(tree) {
+        for max_bytes in [DEFAULT_MAX_BYTES, 16 * 1024] {
+            let slice = time_slice(tree, t, &disk(max_bytes)).unwrap();
+            let files = std::iter::once((None, &slice.root))
+                .chain(slice.external.iter().map(|(id, s)| (Some(*id), s)));
+            for (id, tileset) in files {
+                let json = serde_json::to_value(tileset).unwrap();
+                let errors = schema_errors(&validator, &json);
+                assert!(errors.is_empty(), "t = {t}, file {id:?}: {errors:?}");
+                let bytes = serde_json::to_vec(tileset).unwrap().len();
+                assert!(bytes <= max_bytes, "t = {t}, file {id:?}: {bytes} bytes");
+                assert_eq!(tileset.asset.version, "1.1");
+            }
+            if max_bytes == DEFAULT_MAX_BYTES {
+                assert!(slice.external.is_empty(), "the tiny tree fits one file");
+            } else if slice.external.len() > 1 {
+                split_seen += 1;
+            }
+        }
+    }
+    assert!(
+        split_seen >= 3,
+        "a small budget splits the slices ({split_seen})"
+    );
+}
+
+/// One tile as a client sees it: its composed transform and the file that
+/// holds it (`None` for the root file).
+struct Visit<'a> {
+    tile: &'a Tile,
+    chain: DMat4,
+    file: Option<u32>,
+}
+
+/// The 3D Tiles reading of a time slice: `chain` composes the transforms,
+/// stubs whose content is a `.json` lead into external tilesets.
+struct Client<'a> {
+    slice: &'a TimeSlice,
+    options: &'a Options,
+}
+
+impl<'a> Client<'a> {
+    /// Resolves `uri` from the file it is in, relative to the root file's
+    /// directory, with `..` removed.
+    fn resolve(&self, file: Option<u32>, uri: &str) -> String {
+        let mut parts: Vec<&str> = match file {
+            None => vec![],
+            Some(_) => vec![self.options.subtileset_dir.as_str()],
+        };
+        for part in uri.split('/') {
+            match part {
+                ".." => {
+                    if parts.pop().is_none() {
+                        parts.push("..");
+                    }
+                }
+                p => parts.push(p),
+            }
+        }
+        parts.join("/")
+    }
+
+    /// The children of a visit, through an external tileset if it is a stub.
+    fn children(&self, visit: &Visit<'a>) -> Vec<Visit<'a>> {
+        let mut out = Vec::new();
+        if let Some(content) = &visit.tile.content
+            && content.uri.ends_with(".json")
+        {
+            let path = self.resolve(visit.file, &content.uri);
+            let id: u32 = path
+                .strip_prefix(&format!("{}/", self.options.subtileset_dir))
+                .and_then(|p| p.strip_suffix(".json"))
+                .and_then(|p| p.parse().ok())
+                .unwrap_or_else(|| panic!("{path} is an external tileset's path"));
+            let external: &Tileset = &self.slice.external[&id];
+            assert!(visit.tile.children.is_empty(), "a stub has no children");
+            out.push(self.visit(&external.root, visit.chain, Some(id)));
+        }
+        for child in &visit.tile.children {
+            out.push(self.visit(child, visit.chain, visit.file));
+        }
+        out
+    }
+
+    fn visit(&self, tile: &'a Tile, parent: DMat4, file: Option<u32>) -> Visit<'a> {
+        let own = tile
+            .transform
+            .map_or(DMat4::IDENTITY, |m| DMat4::from_cols_array(&m));
+        Visit {
+            tile,
+            chain: parent * own,
+            file,
+        }
+    }
+
+    /// The tile's box in the z-up world: the bounds of its 8 corners.
+    fn world_box(visit: &Visit) -> Aabb {
+        let b = &visit.tile.bounding_volume.obb;
+        let c = DVec3::new(b[0], b[1], b[2]);
+        let axes = [
+            DVec3::new(b[3], b[4], b[5]),
+            DVec3::new(b[6], b[7], b[8]),
+            DVec3::new(b[9], b[10], b[11]),
+        ];
+        let mut lo = DVec3::INFINITY;
+        let mut hi = DVec3::NEG_INFINITY;
+        for i in 0..8 {
+            let mut p = c;
+            for (k, a) in axes.iter().enumerate() {
+                p += if i >> k & 1 == 0 { -*a } else { *a };
+            }
+            let p = visit.chain.transform_point3(p);
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        Aabb::new(lo, hi)
+    }
+
+    /// Every tile with its visit, depth first.
+    fn all(&self) -> Vec<Visit<'a>> {
+        let mut stack = vec![self.visit(&self.slice.root.root, DMat4::IDENTITY, None)];
+        let mut out = Vec::new();
+        while let Some(v) = stack.pop() {
+            stack.extend(self.children(&v));
+            out.push(v);
+        }
+        out
+    }
+
+    /// The content tiles a 3D Tiles client draws with `REPLACE` refinement:
+    /// refine where `error / distance >= r`, draw content where a tile is
+    /// not refined. `error` picks the geometric error of a tile.
+    fn draw(&self, view: &View, error: &dyn Fn(&Tile) -> f64) -> Vec<(u32, String)> {
+        let mut out = Vec::new();
+        let mut stack = vec![self.visit(&self.slice.root.root, DMat4::IDENTITY, None)];
+        while let Some(v) = stack.pop() {
+            let b = Self::world_box(&v);
+            if view.outside(&b) {
+                continue;
+            }
+            let children = self.children(&v);
+            let stub = v
+                .tile
+                .content
+                .as_ref()
+                .is_some_and(|c| c.uri.ends_with(".json"));
+            let refine =
+                !children.is_empty() && (stub || error(v.tile) >= view.r() * view.distance(&b));
+            if refine {
+                stack.extend(children.into_iter().rev());
+            } else if let Some(content) = &v.tile.content {
+                let id = v.tile.extras.unwrap().cluster;
+                out.push((id, self.resolve(v.file, &content.uri)));
+            }
+        }
+        out
+    }
+}
+
+/// The scene frame to the tileset's z-up world.
+fn to_world(up: Up) -> DMat4 {
+    root_transform(up) * Y_UP_TO_Z_UP
+}
+
+fn tree_with_up(up: Up) -> Tree {
+    let mut t = tree().clone();
+    t.up = up;
+    t
+}
+
+#[test]
+fn boxes_transforms_and_content_are_the_cuts() {
+    let mut moving = 0;
+    for up in [Up::Y, Up::Z] {
+        let tree = tree_with_up(up);
+        let world = to_world(up);
+        for t in times(&tree) {
+            let options = disk(16 * 1024);
+            let slice = time_slice(&tree, t, &options).unwrap();
+            let client = Client {
+                slice: &slice,
+                options: &options,
+            };
+            let mut seen = 0;
+            for visit in client.all() {
+                if visit
+                    .tile
+                    .content
+                    .as_ref()
+                    .is_some_and(|c| c.uri.ends_with(".json"))
+                {
+                    continue;
+                }
+                seen += 1;
+                let id = visit.tile.extras.unwrap().cluster;
+                let c = &tree.clusters[id as usize];
+                let v = c.visibility.at(t);
+                assert!(v > 0.0, "cluster {id} is absent at {t} but has a tile");
+                let (pose, cut_box) = match &c.motion {
+                    Some(m) => {
+                        let pose = m.at(t).as_dmat4();
+                        moving += 1;
+                        (pose, moved_box(&c.bounds, &pose))
+                    }
+                    None => (DMat4::IDENTITY, c.bounds),
+                };
+                // The tile's box in the world is the cut's box in the world.
+                let expected = moved_box(&cut_box, &world);
+                let got = Client::world_box(&visit);
+                let tol = 1e-6 * (1.0 + tree.bounds.diagonal());
+                assert!(
+                    got.min.abs_diff_eq(expected.min, tol)
+                        && got.max.abs_diff_eq(expected.max, tol),
+                    "{up:?} t = {t} cluster {id}: {got:?} vs {expected:?}"
+                );
+                // The content, turned y-up to z-up as a client loads glTF and
+                // placed by the tile transforms, lands where the cut puts it.
+                if let Some(content) = &visit.tile.content {
+                    assert!(v >= 0.5);
+                    let hash = c.geometry.as_ref().unwrap();
+                    assert_eq!(
+                        client.resolve(visit.file, &content.uri),
+                        format!("geometry/{hash}.glb")
+                    );
+                    let placed = visit.chain * Y_UP_TO_Z_UP;
+                    let wanted = world * pose;
+                    assert!(
+                        placed.abs_diff_eq(wanted, 1e-9 * (1.0 + tree.bounds.diagonal())),
+                        "{up:?} t = {t} cluster {id}: content placed by {placed} instead of {wanted}"
+                    );
+                } else {
+                    assert!(
+                        v < 0.5 || c.geometry.is_none(),
+                        "cluster {id} lost its content"
+                    );
+                }
+                // Errors shrink strictly downwards and bound delta_c(t).
+                assert!(visit.tile.geometric_error >= c.delta(v));
+                for child in &visit.tile.children {
+                    assert!(child.geometric_error < visit.tile.geometric_error);
+                }
+            }
+            let present = tree
+                .clusters
+                .iter()
+                .filter(|c| c.visibility.at(t) > 0.0)
+                .count();
+            assert_eq!(
+                seen, present,
+                "{up:?} t = {t}: one tile per present cluster"
+            );
+        }
+    }
+    assert!(moving > 0, "moving clusters were checked");
+}
+
+fn random_views(tree: &Tree, up: Up, n: usize) -> Vec<(CameraSpec, Viewport, f64)> {
+    let world = to_world(up);
+    let centre = (tree.bounds.min + tree.bounds.max) / 2.0;
+    let size = tree.bounds.diagonal();
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    (0..n)
+        .map(|_| {
+            let mut point = |spread: f64| {
+                centre
+                    + DVec3::new(
+                        rng.random_range(-1.0..1.0),
+                        rng.random_range(0.0..1.0),
+                        rng.random_range(-1.0..1.0),
+                    ) * spread
+            };
+            let eye = point(size * 0.8);
+            let target = point(size * 0.1);
+            let up_axis = world.transform_vector3(DVec3::Y);
+            let spec = CameraSpec {
+                position: Some(world.transform_point3(eye).to_array()),
+                target: Some(world.transform_point3(target).to_array()),
+                up: Some(up_axis.to_array()),
+                ..Default::default()
+            };
+            let viewport = Viewport {
+                width: 1280,
+                height: 720,
+            };
+            (spec, viewport, 1.0)
+        })
+        .collect()
+}
+
+/// A camera in the scene frame from one in the tileset's world.
+fn scene_camera(spec: &CameraSpec, up: Up) -> CameraSpec {
+    let back = to_world(up).inverse();
+    let p = |v: [f64; 3]| back.transform_point3(DVec3::from_array(v)).to_array();
+    let d = |v: [f64; 3]| back.transform_vector3(DVec3::from_array(v)).to_array();
+    CameraSpec {
+        position: spec.position.map(p),
+        target: spec.target.map(p),
+        up: spec.up.map(d),
+        ..spec.clone()
+    }
+}
+
+#[test]
+fn a_3d_tiles_traversal_draws_the_cut() {
+    let mut total_cut = 0u64;
+    let mut total_tiles = 0u64;
+    for up in [Up::Y, Up::Z] {
+        let tree = tree_with_up(up);
+        for t in times(&tree) {
+            for max_bytes in [DEFAULT_MAX_BYTES, 16 * 1024] {
+                let options = disk(max_bytes);
+                let slice = time_slice(&tree, t, &options).unwrap();
+                let client = Client {
+                    slice: &slice,
+                    options: &options,
+                };
+                for (spec, viewport, pixel_error) in random_views(&tree, up, 40) {
+                    let world_view = View::new(&spec, viewport, pixel_error, DVec3::Z).unwrap();
+                    let scene_view =
+                        View::new(&scene_camera(&spec, up), viewport, pixel_error, DVec3::Y)
+                            .unwrap();
+                    let expected: Vec<u32> = cut(&tree, &scene_view, t)
+                        .items
+                        .iter()
+                        .map(|i| i.id)
+                        .collect();
+                    // With the cut's own errors, the tileset is the cut.
+                    let delta = |tile: &Tile| {
+                        let x = tile.extras.unwrap();
+                        tree.clusters[x.cluster as usize].delta(x.visibility)
+                    };
+                    let drawn = client.draw(&world_view, &delta);
+                    let ids: Vec<u32> = drawn.iter().map(|d| d.0).collect();
+                    assert_eq!(ids, expected, "{up:?} t = {t}, {spec:?}");
+                    for (id, path) in &drawn {
+                        let hash = tree.clusters[*id as usize].geometry.as_ref().unwrap();
+                        assert_eq!(path, &format!("geometry/{hash}.glb"));
+                    }
+                    // With the written errors (raised to shrink downwards) a
+                    // client draws at least as finely, about as much.
+                    let tiles: u64 = client
+                        .draw(&world_view, &|tile: &Tile| tile.geometric_error)
+                        .iter()
+                        .map(|d| tree.clusters[d.0 as usize].triangles)
+                        .sum();
+                    let cut_triangles: u64 = expected
+                        .iter()
+                        .map(|&i| tree.clusters[i as usize].triangles)
+                        .sum();
+                    total_cut += cut_triangles;
+                    total_tiles += tiles;
+                }
+            }
+        }
+    }
+    let ratio = total_tiles as f64 / total_cut as f64;
+    eprintln!("triangles: tileset {total_tiles}, cut {total_cut}, ratio {ratio:.4}");
+    assert!(total_cut > 0);
+    assert!((0.95..=1.05).contains(&ratio), "ratio {ratio}");
+}
+
+#[test]
+fn bad_arguments_are_named() {
+    let tree = tree();
+    let err = time_slice(tree, f64::NAN, &disk(DEFAULT_MAX_BYTES)).unwrap_err();
+    assert!(err.to_string().starts_with("time"), "{err}");
+    let err = time_slice(tree, 0.0, &Options::new("geometry", "a/b")).unwrap_err();
+    assert!(err.to_string().starts_with("subtileset_dir"), "{err}");
+    let err = time_slice(tree, 0.0, &disk(100)).unwrap_err();
+    assert!(err.to_string().starts_with("max_bytes"), "{err}");
+    let files: BTreeMap<u32, Tileset> = time_slice(tree, -1e6, &disk(DEFAULT_MAX_BYTES))
+        .unwrap()
+        .external;
+    assert!(files.is_empty());
+}

@@ -1,0 +1,48 @@
+//! The web viewer (`server/viewer/`, docs/viewer.md), embedded in the
+//! binary so that `hdlod serve` needs no files beside the trees: `/` is its
+//! page, `/viewer/FILE` its scripts and style. Plain files, no build step.
+
+use axum::extract::Path;
+use axum::http::{HeaderValue, header};
+use axum::response::{IntoResponse, Response};
+
+use super::error::ApiError;
+
+const HTML: &str = "text/html; charset=utf-8";
+const JS: &str = "text/javascript; charset=utf-8";
+const CSS: &str = "text/css; charset=utf-8";
+
+/// Name, content type, bytes of every file under `/viewer/`.
+const FILES: [(&str, &str, &str); 8] = [
+    ("index.html", HTML, include_str!("../../viewer/index.html")),
+    ("viewer.css", CSS, include_str!("../../viewer/viewer.css")),
+    ("main.js", JS, include_str!("../../viewer/main.js")),
+    ("glb.js", JS, include_str!("../../viewer/glb.js")),
+    ("mat4.js", JS, include_str!("../../viewer/mat4.js")),
+    ("camera.js", JS, include_str!("../../viewer/camera.js")),
+    ("renderer.js", JS, include_str!("../../viewer/renderer.js")),
+    ("stream.js", JS, include_str!("../../viewer/stream.js")),
+];
+
+fn file(name: &str) -> Option<Response> {
+    let (_, kind, text) = FILES.iter().find(|(n, _, _)| *n == name)?;
+    Some(
+        (
+            [
+                (header::CONTENT_TYPE, HeaderValue::from_static(kind)),
+                // The files change with the binary: revalidate, never go stale.
+                (header::CACHE_CONTROL, HeaderValue::from_static("no-cache")),
+            ],
+            *text,
+        )
+            .into_response(),
+    )
+}
+
+pub async fn index() -> Response {
+    file("index.html").expect("index.html is embedded")
+}
+
+pub async fn asset(Path(name): Path<String>) -> Result<Response, ApiError> {
+    file(&name).ok_or_else(|| ApiError::not_found("file", format!("no viewer file {name:?}")))
+}

@@ -1,0 +1,124 @@
+//! `hdlod export-tiles TREE --time T --out DIR [--max-bytes N]`: the time
+//! slice that `GET .../tiles/tileset.json?time=T` serves, on disk:
+//! `DIR/tileset.json`, `DIR/tilesets/{id}.json` (external tilesets) and
+//! `DIR/geometry/{hash}.glb` (the content, copied from the tree). Written
+//! into a temporary sibling directory first and renamed into place, so DIR
+//! is either the old export or the whole new one.
+
+use std::collections::BTreeSet;
+use std::fs;
+use std::path::{Path, PathBuf};
+
+use anyhow::Context;
+use hdlod::tiles::{DEFAULT_MAX_BYTES, Options, Tile, Tileset, time_slice};
+use hdlod::tree::format::GEOMETRY_DIR;
+
+use crate::api::cut::parse_time;
+
+const SUBTILESETS: &str = "tilesets";
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// A tree directory (hdlod-tree/1).
+    tree: PathBuf,
+    /// Seconds since the scene's start, or an ISO 8601 date.
+    #[arg(long)]
+    time: String,
+    /// The directory to write (replaced if it exists).
+    #[arg(long)]
+    out: PathBuf,
+    /// Largest JSON file in bytes; larger slices move subtrees to external
+    /// tilesets.
+    #[arg(long, default_value_t = DEFAULT_MAX_BYTES)]
+    max_bytes: usize,
+}
+
+fn collect(tile: &Tile, hashes: &mut BTreeSet<String>, tiles: &mut usize) {
+    *tiles += 1;
+    if let Some(c) = &tile.content
+        && let Some(file) = c.uri.rsplit('/').next().filter(|f| f.ends_with(".glb"))
+    {
+        hashes.insert(file.to_owned());
+    }
+    for child in &tile.children {
+        collect(child, hashes, tiles);
+    }
+}
+
+fn write_json(path: &Path, tileset: &Tileset) -> anyhow::Result<()> {
+    let bytes = serde_json::to_vec(tileset)?;
+    fs::write(path, bytes).with_context(|| path.display().to_string())
+}
+
+/// Writes everything into `tmp`.
+fn write(tmp: &Path, tree_dir: &Path, slice: &hdlod::tiles::TimeSlice) -> anyhow::Result<()> {
+    let sub = tmp.join(SUBTILESETS);
+    let geometry = tmp.join(GEOMETRY_DIR);
+    for dir in [&sub, &geometry] {
+        fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+    }
+    let mut hashes = BTreeSet::new();
+    let mut tiles = 0;
+    write_json(&tmp.join("tileset.json"), &slice.root)?;
+    collect(&slice.root.root, &mut hashes, &mut tiles);
+    for (id, tileset) in &slice.external {
+        write_json(&sub.join(format!("{id}.json")), tileset)?;
+        collect(&tileset.root, &mut hashes, &mut tiles);
+    }
+    for file in &hashes {
+        let from = tree_dir.join(GEOMETRY_DIR).join(file);
+        fs::copy(&from, geometry.join(file)).with_context(|| from.display().to_string())?;
+    }
+    println!(
+        "{} tiles, {} external tilesets, {} content files",
+        tiles - slice.external.len(),
+        slice.external.len(),
+        hashes.len()
+    );
+    Ok(())
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let tree = hdlod::tree::load(&args.tree)?;
+    let t = tree
+        .time
+        .resolve(&parse_time(&args.time))
+        .map_err(|m| anyhow::anyhow!("--time: {m}"))?;
+    let options = Options {
+        max_bytes: args.max_bytes,
+        ..Options::new(GEOMETRY_DIR, SUBTILESETS)
+    };
+    let slice = time_slice(&tree, t, &options)?;
+
+    let out = &args.out;
+    let name = out
+        .file_name()
+        .with_context(|| format!("--out {}: names no directory", out.display()))?
+        .to_string_lossy()
+        .into_owned();
+    if let Some(parent) = out.parent().filter(|p| !p.as_os_str().is_empty()) {
+        fs::create_dir_all(parent).with_context(|| parent.display().to_string())?;
+    }
+    let pid = std::process::id();
+    let tmp = out.with_file_name(format!(".{name}.tmp-{pid}"));
+    let old = out.with_file_name(format!(".{name}.old-{pid}"));
+    if let Err(e) = write(&tmp, &args.tree, &slice) {
+        let _ = fs::remove_dir_all(&tmp);
+        return Err(e);
+    }
+    let had_old = out.exists();
+    if had_old {
+        fs::rename(out, &old).with_context(|| out.display().to_string())?;
+    }
+    if let Err(e) = fs::rename(&tmp, out) {
+        if had_old {
+            let _ = fs::rename(&old, out);
+        }
+        let _ = fs::remove_dir_all(&tmp);
+        return Err(e).with_context(|| out.display().to_string());
+    }
+    if had_old {
+        fs::remove_dir_all(&old).with_context(|| old.display().to_string())?;
+    }
+    Ok(())
+}

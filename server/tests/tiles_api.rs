@@ -1,0 +1,245 @@
+//! Time slices as 3D Tiles 1.1 from the real server and `hdlod export-tiles`
+//! on the tree of the tiny fixture: every tileset file follows the official
+//! schemas, every content GLB passes the Khronos glTF validator, the served
+//! and the exported slices are the same, bad requests get a 4xx naming the
+//! field.
+
+mod tiles_support;
+
+use std::path::{Path, PathBuf};
+use std::process::Command;
+use std::time::Duration;
+
+use reqwest::StatusCode;
+use reqwest::blocking::Client;
+use serde_json::Value;
+use tiles_support::{SCENE, Server, assert_tileset, build_tree, hdlod, repo, tileset_validator};
+
+fn client() -> Client {
+    Client::builder()
+        .timeout(Duration::from_secs(20))
+        .build()
+        .unwrap()
+}
+
+fn tiles_path(query: &str) -> String {
+    format!("/api/v1/scenes/{SCENE}/tiles/tileset.json{query}")
+}
+
+/// Every `content.uri` of a tileset, depth first.
+fn uris(tile: &Value, out: &mut Vec<String>) {
+    if let Some(uri) = tile["content"]["uri"].as_str() {
+        out.push(uri.to_owned());
+    }
+    for child in tile["children"].as_array().into_iter().flatten() {
+        uris(child, out);
+    }
+}
+
+#[test]
+fn served_slices_follow_the_schemas() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(&build_tree(dir.path()));
+    let http = client();
+    let validator = tileset_validator();
+    let doc: Value = http
+        .get(server.url("/api/v1/openapi.json"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    for path in [
+        "/api/v1/scenes/{scene}/tiles/tileset.json",
+        "/api/v1/scenes/{scene}/tiles/{time}/{id}.json",
+    ] {
+        assert!(doc["paths"].get(path).is_some(), "{path} documented");
+    }
+    for time in ["0", "2024-05-03T05:40:00Z", "2024-06-15", "15613200"] {
+        let answer = http
+            .get(server.url(&tiles_path(&format!("?time={time}"))))
+            .send()
+            .unwrap();
+        assert_eq!(answer.status(), StatusCode::OK, "time {time}");
+        assert!(
+            answer.headers()["content-type"]
+                .to_str()
+                .unwrap()
+                .starts_with("application/json")
+        );
+        let tileset: Value = answer.json().unwrap();
+        assert_tileset(&validator, &tileset, time);
+        assert_eq!(tileset["root"]["refine"], "REPLACE");
+        // Content resolves to the geometry endpoint, which serves it.
+        let mut content = Vec::new();
+        uris(&tileset["root"], &mut content);
+        if time != "0" {
+            assert!(!content.is_empty(), "time {time}: the site has content");
+        }
+        for uri in content.iter().take(3) {
+            let hash = uri.strip_prefix("../geometry/").expect("a geometry URI");
+            let glb = http
+                .get(server.url(&format!("/api/v1/scenes/{SCENE}/geometry/{hash}")))
+                .send()
+                .unwrap();
+            assert_eq!(glb.status(), StatusCode::OK, "{uri}");
+        }
+    }
+
+    let error = |path: &str, status: StatusCode, field: &str| {
+        let answer = http.get(server.url(path)).send().unwrap();
+        assert_eq!(answer.status(), status, "{path}");
+        let body: Value = answer.json().unwrap();
+        assert_eq!(body["error"]["field"], field, "{path}: {body}");
+    };
+    error(&tiles_path(""), StatusCode::BAD_REQUEST, "time");
+    error(
+        &tiles_path("?time=yesterday"),
+        StatusCode::BAD_REQUEST,
+        "time",
+    );
+    error(&tiles_path("?time=1e300"), StatusCode::BAD_REQUEST, "time");
+    error(
+        &tiles_path("?time=0&camera=1"),
+        StatusCode::BAD_REQUEST,
+        "camera",
+    );
+    error(
+        "/api/v1/scenes/nowhere/tiles/tileset.json?time=0",
+        StatusCode::NOT_FOUND,
+        "scene",
+    );
+    let sub = |rest: &str| format!("/api/v1/scenes/{SCENE}/tiles/{rest}");
+    error(&sub("5204400/0.json"), StatusCode::NOT_FOUND, "subtree");
+    error(&sub("5204400/x.json"), StatusCode::NOT_FOUND, "subtree");
+    error(&sub("soon/1.json"), StatusCode::NOT_FOUND, "time");
+}
+
+fn export(tree: &Path, time: &str, out: &Path, max_bytes: Option<&str>) -> std::process::Output {
+    let mut args: Vec<&std::ffi::OsStr> = vec![
+        "export-tiles".as_ref(),
+        tree.as_os_str(),
+        "--time".as_ref(),
+        time.as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ];
+    if let Some(m) = max_bytes {
+        args.push("--max-bytes".as_ref());
+        args.push(m.as_ref());
+    }
+    hdlod(&args)
+}
+
+fn read_json(path: &Path) -> Value {
+    serde_json::from_slice(&std::fs::read(path).unwrap()).unwrap()
+}
+
+fn glb_reports(files: &[PathBuf]) -> Vec<Value> {
+    let tools = repo().join("tools");
+    assert!(
+        tools.join("node_modules/gltf-validator").is_dir(),
+        "the glTF validator is not installed: run scripts/test (npm ci --prefix tools)"
+    );
+    let out = Command::new("node")
+        .arg(tools.join("validate-gltf.js"))
+        .args(files)
+        .output()
+        .expect("node runs");
+    assert!(
+        out.status.code() != Some(2),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).unwrap()
+}
+
+#[test]
+fn exported_slices_match_the_served_ones_and_pass_the_validators() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = build_tree(dir.path());
+    let validator = tileset_validator();
+    let time = "2024-05-03T05:40:00Z";
+
+    // A small budget forces external tilesets on the tiny tree.
+    let split = dir.path().join("out/split");
+    let out = export(&tree, time, &split, Some("16000"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let mut files = vec![split.join("tileset.json")];
+    for entry in std::fs::read_dir(split.join("tilesets")).unwrap() {
+        files.push(entry.unwrap().path());
+    }
+    assert!(files.len() > 2, "external tilesets written: {files:?}");
+    let mut glbs = Vec::new();
+    for file in &files {
+        let bytes = std::fs::metadata(file).unwrap().len();
+        assert!(bytes <= 16000, "{}: {bytes} bytes", file.display());
+        let tileset = read_json(file);
+        assert_tileset(&validator, &tileset, &file.display().to_string());
+        let mut content = Vec::new();
+        uris(&tileset["root"], &mut content);
+        for uri in content {
+            // Every URI resolves to a file of the export.
+            let target = file.parent().unwrap().join(&uri);
+            assert!(target.is_file(), "{}: {uri}", file.display());
+            if uri.ends_with(".glb") {
+                glbs.push(target.canonicalize().unwrap());
+            }
+        }
+    }
+    glbs.sort();
+    glbs.dedup();
+    let written = std::fs::read_dir(split.join("geometry")).unwrap().count();
+    assert_eq!(glbs.len(), written, "exactly the content GLBs are copied");
+    assert!(written > 100);
+    let reports = glb_reports(&glbs);
+    assert_eq!(reports.len(), glbs.len());
+    for (file, report) in glbs.iter().zip(&reports) {
+        assert_eq!(
+            report["issues"]["numErrors"],
+            0,
+            "{}: {}",
+            file.display(),
+            report["issues"]["messages"]
+        );
+        assert!(report["info"]["drawCallCount"].as_u64().unwrap() >= 1);
+    }
+
+    // Unsplit, the export is the served tileset with its GLBs beside it.
+    let whole = dir.path().join("out/whole");
+    assert!(export(&tree, time, &whole, None).status.success());
+    let server = Server::start(&tree);
+    let served: Value = client()
+        .get(server.url(&tiles_path(&format!("?time={time}"))))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let on_disk = read_json(&whole.join("tileset.json"));
+    let served = serde_json::to_string(&served)
+        .unwrap()
+        .replace("\"../geometry/", "\"geometry/");
+    assert_eq!(served, serde_json::to_string(&on_disk).unwrap());
+
+    // A second export replaces the first whole, leaving nothing beside it.
+    assert!(export(&tree, "0", &whole, None).status.success());
+    assert!(read_json(&whole.join("tileset.json"))["root"]["children"].is_array());
+    let names: Vec<String> = std::fs::read_dir(dir.path().join("out"))
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    assert_eq!(names.len(), 2, "{names:?}");
+
+    // Bad input: the message names the argument, the old export stays.
+    let bad = export(&tree, "someday", &whole, None);
+    assert!(!bad.status.success());
+    let stderr = String::from_utf8_lossy(&bad.stderr);
+    assert!(stderr.contains("--time"), "{stderr}");
+    assert!(whole.join("tileset.json").is_file());
+    let missing = export(&dir.path().join("no-tree"), "0", &whole, None);
+    assert!(!missing.status.success());
+    assert!(String::from_utf8_lossy(&missing.stderr).contains("no-tree"));
+}

@@ -1,0 +1,119 @@
+// A minimal GLB reader for what the server's tree writer emits
+// (hdlod/src/io/glb.rs): one mesh of triangle primitives with POSITION,
+// NORMAL and COLOR_0 (optional), and indices. Written here rather than
+// bundling a glTF library: the viewer has no build step and this subset is
+// about a hundred lines. Nodes are ignored: cluster GLBs hold one mesh in
+// the cluster's frame, and the cut's `transform` places dynamic ones.
+
+const MAGIC = 0x46546c67; // "glTF"
+const JSON_CHUNK = 0x4e4f534a;
+const BIN_CHUNK = 0x004e4942;
+const COMPONENTS = { SCALAR: 1, VEC2: 2, VEC3: 3, VEC4: 4 };
+const TYPES = {
+  5120: [Int8Array, 127],
+  5121: [Uint8Array, 255],
+  5122: [Int16Array, 32767],
+  5123: [Uint16Array, 65535],
+  5125: [Uint32Array, 0],
+  5126: [Float32Array, 0],
+};
+
+export class GlbError extends Error {}
+
+function readAccessor(gltf, bin, index, what) {
+  const accessor = gltf.accessors?.[index];
+  if (!accessor) throw new GlbError(`${what}: no accessor ${index}`);
+  const view = gltf.bufferViews?.[accessor.bufferView];
+  if (!view) throw new GlbError(`${what}: accessor ${index} has no buffer view`);
+  const [Type, max] = TYPES[accessor.componentType] || [];
+  const n = COMPONENTS[accessor.type];
+  if (!Type || !n) throw new GlbError(`${what}: unsupported accessor type ${accessor.type}/${accessor.componentType}`);
+  const offset = bin.byteOffset + (view.byteOffset || 0) + (accessor.byteOffset || 0);
+  const size = Type.BYTES_PER_ELEMENT;
+  const stride = view.byteStride || n * size;
+  const count = accessor.count;
+  if ((view.byteOffset || 0) + (accessor.byteOffset || 0) + (count - 1) * stride + n * size > bin.byteLength) {
+    throw new GlbError(`${what}: accessor ${index} runs past the binary chunk`);
+  }
+  let out;
+  if (stride === n * size && offset % size === 0) {
+    out = new Type(bin.buffer, offset, count * n);
+  } else {
+    out = new Type(count * n);
+    const dv = new DataView(bin.buffer);
+    const get = {
+      1: (o) => (Type === Int8Array ? dv.getInt8(o) : dv.getUint8(o)),
+      2: (o) => (Type === Int16Array ? dv.getInt16(o, true) : dv.getUint16(o, true)),
+      4: (o) => (Type === Float32Array ? dv.getFloat32(o, true) : dv.getUint32(o, true)),
+    }[size];
+    for (let i = 0; i < count; i++) {
+      for (let k = 0; k < n; k++) out[i * n + k] = get(offset + i * stride + k * size);
+    }
+  }
+  // Normalised integer colours become floats in [0, 1].
+  if (accessor.normalized && max) out = Float32Array.from(out, (v) => Math.max(v / max, -1));
+  return { data: out, components: n, count };
+}
+
+// -> {positions, normals|null, colors|null (RGBA), indices (Uint32Array), triangles}
+export function parseGlb(buffer) {
+  const dv = new DataView(buffer);
+  if (buffer.byteLength < 20 || dv.getUint32(0, true) !== MAGIC) throw new GlbError("not a GLB file");
+  if (dv.getUint32(4, true) !== 2) throw new GlbError(`GLB version ${dv.getUint32(4, true)}, expected 2`);
+  let gltf = null;
+  let bin = null;
+  for (let at = 12; at + 8 <= buffer.byteLength; ) {
+    const length = dv.getUint32(at, true);
+    const type = dv.getUint32(at + 4, true);
+    const body = new Uint8Array(buffer, at + 8, Math.min(length, buffer.byteLength - at - 8));
+    if (type === JSON_CHUNK) gltf = JSON.parse(new TextDecoder().decode(body));
+    else if (type === BIN_CHUNK) bin = body;
+    at += 8 + length;
+  }
+  if (!gltf) throw new GlbError("no JSON chunk");
+  if (!bin) throw new GlbError("no binary chunk");
+  const parts = [];
+  for (const [m, mesh] of (gltf.meshes || []).entries()) {
+    for (const [p, prim] of mesh.primitives.entries()) {
+      if ((prim.mode ?? 4) !== 4) continue;
+      const what = `mesh ${m} primitive ${p}`;
+      const a = prim.attributes || {};
+      if (a.POSITION === undefined) throw new GlbError(`${what}: no POSITION`);
+      const pos = readAccessor(gltf, bin, a.POSITION, `${what} POSITION`);
+      const nor = a.NORMAL !== undefined ? readAccessor(gltf, bin, a.NORMAL, `${what} NORMAL`) : null;
+      const col = a.COLOR_0 !== undefined ? readAccessor(gltf, bin, a.COLOR_0, `${what} COLOR_0`) : null;
+      const idx = prim.indices !== undefined
+        ? readAccessor(gltf, bin, prim.indices, `${what} indices`).data
+        : Uint32Array.from({ length: pos.count }, (_, i) => i);
+      parts.push({ pos, nor, col, idx });
+    }
+  }
+  if (!parts.length) throw new GlbError("no triangle primitive");
+  // One draw call per cluster: the primitives are concatenated.
+  const vertices = parts.reduce((s, p) => s + p.pos.count, 0);
+  const indexCount = parts.reduce((s, p) => s + p.idx.length, 0);
+  const positions = new Float32Array(vertices * 3);
+  const hasNormals = parts.every((p) => p.nor);
+  const normals = hasNormals ? new Float32Array(vertices * 3) : null;
+  const hasColors = parts.some((p) => p.col);
+  const colors = hasColors ? new Float32Array(vertices * 4).fill(1) : null;
+  const indices = new Uint32Array(indexCount);
+  let v = 0;
+  let i = 0;
+  for (const p of parts) {
+    positions.set(p.pos.data, v * 3);
+    if (normals) normals.set(p.nor.data, v * 3);
+    if (colors && p.col) {
+      for (let k = 0; k < p.col.count; k++) {
+        for (let c = 0; c < p.col.components; c++) colors[(v + k) * 4 + c] = p.col.data[k * p.col.components + c];
+      }
+    }
+    for (let k = 0; k < p.idx.length; k++) {
+      if (p.idx[k] >= p.pos.count) throw new GlbError(`index ${p.idx[k]} past ${p.pos.count} vertices`);
+      indices[i + k] = p.idx[k] + v;
+    }
+    v += p.pos.count;
+    i += p.idx.length;
+  }
+  return { positions, normals, colors, indices, triangles: indexCount / 3 };
+}

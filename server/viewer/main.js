@@ -1,0 +1,471 @@
+// The hdlod web viewer: a 4D construction site at any date. The cut (which
+// clusters to draw) comes from the server's stream for the current time,
+// camera and pixel error; this page fetches the clusters' GLBs once, draws
+// them, moves dynamic ones to their transforms and shows what it costs
+// against drawing every present object (docs/viewer.md).
+
+import { Camera, FOV_Y_DEG } from "./camera.js";
+import { Renderer, classColour, levelColour } from "./renderer.js";
+import { CutConnection, GeometryCache } from "./stream.js";
+import { project } from "./mat4.js";
+
+const $ = (id) => document.getElementById(id);
+const DAY = 86400;
+
+const ui = {
+  canvas: $("view"), scene: $("scene"), play: $("play"), speed: $("speed"), time: $("time"),
+  date: $("date"), pixelError: $("pixel-error"), pixelErrorValue: $("pixel-error-value"),
+  colour: $("colour"), mode: $("mode"), stats: $("stats"), legend: $("legend"), message: $("message"),
+};
+
+const viewer = {
+  ready: false,
+  scene: null, // the scene's metadata (GET /api/v1/scenes/{scene})
+  t: 0,
+  pixelError: 1,
+  colourMode: "vertex",
+  playing: false,
+  clusters: new Map(), // id -> {info (cut cluster), gpu, transform}
+  stats: null, // the last answer's stats
+  latency: 0,
+  frameMs: 0,
+  lastRequest: null, // the request of the cut that is drawn
+  seq: 0,
+  viewKey: "",
+  needsDraw: true,
+  matrices: null,
+  error: null,
+};
+
+let renderer;
+let camera;
+let cache;
+let connection;
+
+function showMessage(text) {
+  viewer.error = text;
+  ui.message.textContent = text || "";
+  ui.message.hidden = !text;
+}
+
+async function getJson(url) {
+  let response;
+  try {
+    response = await fetch(url);
+  } catch (e) {
+    throw new Error(`Cannot reach the hdlod server at ${location.origin} (${e.message}). Is \`hdlod serve\` running?`);
+  }
+  let body = null;
+  try {
+    body = await response.json();
+  } catch {
+    // A non-JSON answer is reported by its status below.
+  }
+  if (!response.ok) {
+    const m = body && body.error ? body.error.message : response.statusText;
+    const e = new Error(`${url}: ${response.status} ${m}`);
+    e.status = response.status;
+    throw e;
+  }
+  return body;
+}
+
+function formatDate(t) {
+  const start = Date.parse(viewer.scene.time.start);
+  return new Date(start + t * 1000).toISOString().replace("T", " ").slice(0, 16);
+}
+
+function parseTime(text) {
+  if (text === null || text === "") return null;
+  const n = Number(text);
+  if (Number.isFinite(n)) return n;
+  const ms = Date.parse(text);
+  return Number.isFinite(ms) ? (ms - Date.parse(viewer.scene.time.start)) / 1000 : null;
+}
+
+function span() {
+  return viewer.scene.time.seconds;
+}
+
+function setTime(t) {
+  viewer.t = Math.max(0, Math.min(span(), t));
+  ui.time.value = String(Math.round((viewer.t / Math.max(span(), 1e-9)) * 10000));
+  ui.date.textContent = formatDate(viewer.t);
+  viewer.needsDraw = true;
+}
+
+function sliderToPixelError(v) {
+  return 0.5 * 2 ** (v / 10);
+}
+
+function setPixelError(p) {
+  viewer.pixelError = p;
+  ui.pixelError.value = String(Math.round(10 * Math.log2(p / 0.5)));
+  ui.pixelErrorValue.textContent = p < 10 ? p.toFixed(1) : p.toFixed(0);
+}
+
+function setColourMode(mode) {
+  viewer.colourMode = mode;
+  urlDirty = true;
+  ui.colour.value = mode;
+  const swatch = (rgb, name) =>
+    `<span style="background: rgb(${rgb.map((c) => Math.round(c * 255)).join(",")})"></span>${name}`;
+  if (mode === "class") {
+    ui.legend.innerHTML = ["static", "pseudo_dynamic", "dynamic"].map((c) => swatch(classColour(c), c.replace("_", "-"))).join("");
+  } else if (mode === "level") {
+    ui.legend.innerHTML = [0, 1, 2, 3, 4, 5, 6].map((l) => swatch(levelColour(l), l === 6 ? "6+" : String(l))).join("") + " (0: original objects)";
+  } else {
+    ui.legend.innerHTML = "";
+  }
+  viewer.needsDraw = true;
+}
+
+function setPlaying(on) {
+  viewer.playing = on && viewer.t < span();
+  if (on && !viewer.playing) {
+    setTime(0);
+    viewer.playing = true;
+  }
+  ui.play.innerHTML = viewer.playing ? "&#10074;&#10074;" : "&#9654;";
+}
+
+function setMode(mode) {
+  camera.mode = mode;
+  ui.mode.textContent = mode;
+}
+
+function viewportSize() {
+  const dpr = window.devicePixelRatio || 1;
+  const w = Math.max(1, Math.round(ui.canvas.clientWidth * dpr));
+  const h = Math.max(1, Math.round(ui.canvas.clientHeight * dpr));
+  if (ui.canvas.width !== w || ui.canvas.height !== h) {
+    ui.canvas.width = w;
+    ui.canvas.height = h;
+    viewer.needsDraw = true;
+  }
+  return [w, h];
+}
+
+function cutRequest(width, height) {
+  const m = camera.matrices(width / height);
+  viewer.matrices = m;
+  return {
+    time: viewer.t,
+    camera: {
+      position: m.eye,
+      target: camera.target,
+      up: camera.u,
+      fov_y_deg: FOV_Y_DEG,
+      aspect: width / height,
+      near: m.near,
+      far: m.far,
+    },
+    viewport: { width, height },
+    pixel_error: viewer.pixelError,
+  };
+}
+
+async function onMessage(msg, request, millis) {
+  if (msg.error) {
+    showMessage(`The server refused the view: ${msg.error.field ? msg.error.field + ": " : ""}${msg.error.message}`);
+    return;
+  }
+  const loads = await Promise.allSettled(msg.add.map((c) => cache.get(c.geometry)));
+  const failed = loads.filter((l) => l.status === "rejected").map((l) => l.reason.message);
+  if (msg.reset) viewer.clusters.clear();
+  for (const id of msg.remove) viewer.clusters.delete(id);
+  msg.add.forEach((c, i) => {
+    if (loads[i].status === "fulfilled") {
+      viewer.clusters.set(c.id, { info: c, gpu: loads[i].value, transform: c.transform && new Float32Array(c.transform) });
+    }
+  });
+  for (const u of msg.update) {
+    const held = viewer.clusters.get(u.id);
+    if (held) held.transform = u.transform && new Float32Array(u.transform);
+  }
+  viewer.stats = msg.stats;
+  viewer.latency = millis;
+  viewer.seq = msg.seq;
+  viewer.lastRequest = request;
+  viewer.needsDraw = true;
+  updateStats();
+  if (failed.length) showMessage(`Could not load ${failed.length} cluster(s): ${failed[0]}`);
+  else if (viewer.error && viewer.error.startsWith("Could not load")) showMessage(null);
+}
+
+function tint(c) {
+  if (viewer.colourMode === "class") return classColour(c.info.class);
+  if (viewer.colourMode === "level") return levelColour(c.info.level);
+  return null;
+}
+
+function draw(width, height) {
+  const start = performance.now();
+  const items = [];
+  for (const c of viewer.clusters.values()) items.push({ gpu: c.gpu, transform: c.transform, tint: tint(c) });
+  renderer.draw(items, viewer.matrices, width, height);
+  const ms = performance.now() - start;
+  viewer.frameMs = viewer.frameMs ? viewer.frameMs * 0.8 + ms * 0.2 : ms;
+}
+
+function drawnTriangles() {
+  let n = 0;
+  for (const c of viewer.clusters.values()) n += c.info.triangles;
+  return n;
+}
+
+function number(n) {
+  return Math.round(n).toLocaleString("en-US");
+}
+
+function updateStats() {
+  const s = viewer.stats;
+  if (!s) return;
+  const tri = drawnTriangles();
+  const ratio = tri > 0 ? (s.baseline_triangles / tri).toFixed(1) + "x" : "-";
+  const lines = [
+    `clusters drawn   ${number(viewer.clusters.size)}`,
+    `triangles drawn  ${number(tri)}`,
+    `baseline         ${number(s.baseline_triangles)} tris`,
+    `                 ${number(s.baseline_objects)} objects`,
+    `saving           ${ratio}`,
+    `GLB loaded       ${(cache.bytes / 1048576).toFixed(2)} MB, ${cache.files} files`,
+    `cut latency      ${viewer.latency.toFixed(1)} ms (server ${(s.micros / 1000).toFixed(2)} ms)`,
+    `frame (CPU)      ${viewer.frameMs.toFixed(1)} ms`,
+  ];
+  ui.stats.textContent = lines.join("\n");
+}
+
+// The address follows the view (at most twice a second) so it can be shared.
+let lastUrlUpdate = -Infinity;
+let urlDirty = false;
+function updateUrl(now) {
+  if (!urlDirty || now - lastUrlUpdate < 500) return;
+  lastUrlUpdate = now;
+  urlDirty = false;
+  const params = new URLSearchParams(location.search);
+  params.set("scene", viewer.scene.name);
+  params.set("time", formatDate(viewer.t).replace(" ", "T") + "Z");
+  params.set("pixel_error", String(viewer.pixelError));
+  params.set("colour", viewer.colourMode);
+  history.replaceState(null, "", `?${params}`);
+}
+
+let lastFrame = performance.now();
+let lastStats = 0;
+const keys = new Set();
+
+function frame(now) {
+  const dt = Math.min((now - lastFrame) / 1000, 0.25);
+  lastFrame = now;
+  if (viewer.playing) {
+    setTime(viewer.t + dt * Number(ui.speed.value) * DAY);
+    if (viewer.t >= span()) setPlaying(false);
+  }
+  if (camera.mode === "fly" && keys.size) {
+    const k = (a, b) => (keys.has(a) ? 1 : 0) - (keys.has(b) ? 1 : 0);
+    const step = dt * camera.sceneRadius * 0.4 * (keys.has("Shift") ? 3 : 1);
+    camera.move(k("w", "s"), k("d", "a"), k("e", "q"), step);
+  }
+  const [width, height] = viewportSize();
+  const request = cutRequest(width, height);
+  const key = JSON.stringify(request);
+  if (key !== viewer.viewKey) {
+    viewer.viewKey = key;
+    connection.request(request);
+    viewer.needsDraw = true;
+    urlDirty = true;
+  }
+  updateUrl(now);
+  if (viewer.needsDraw) {
+    viewer.needsDraw = false;
+    draw(width, height);
+  }
+  if (now - lastStats > 250) {
+    lastStats = now;
+    updateStats();
+  }
+  requestAnimationFrame(frame);
+}
+
+function bindInput() {
+  let drag = null;
+  ui.canvas.addEventListener("contextmenu", (e) => e.preventDefault());
+  ui.canvas.addEventListener("pointerdown", (e) => {
+    ui.canvas.focus();
+    ui.canvas.setPointerCapture(e.pointerId);
+    drag = { x: e.clientX, y: e.clientY, pan: e.button === 2 || e.shiftKey || e.button === 1 };
+  });
+  ui.canvas.addEventListener("pointermove", (e) => {
+    if (!drag) return;
+    const dx = e.clientX - drag.x;
+    const dy = e.clientY - drag.y;
+    drag.x = e.clientX;
+    drag.y = e.clientY;
+    if (drag.pan) camera.pan(dx, dy, ui.canvas.clientHeight);
+    else camera.rotate(dx, dy);
+  });
+  ui.canvas.addEventListener("pointerup", () => (drag = null));
+  ui.canvas.addEventListener("wheel", (e) => {
+    e.preventDefault();
+    camera.zoom(Math.exp(e.deltaY * 0.0015));
+  }, { passive: false });
+  window.addEventListener("keydown", (e) => {
+    if (e.target instanceof HTMLInputElement || e.target instanceof HTMLSelectElement) return;
+    if (e.key === " ") {
+      e.preventDefault();
+      setPlaying(!viewer.playing);
+    } else if (e.key === "f" || e.key === "F") {
+      setMode(camera.mode === "fly" ? "orbit" : "fly");
+    } else {
+      keys.add(e.key.length === 1 ? e.key.toLowerCase() : e.key);
+    }
+  });
+  window.addEventListener("keyup", (e) => keys.delete(e.key.length === 1 ? e.key.toLowerCase() : e.key));
+  window.addEventListener("blur", () => keys.clear());
+  ui.time.addEventListener("input", () => setTime((Number(ui.time.value) / 10000) * span()));
+  ui.play.addEventListener("click", () => setPlaying(!viewer.playing));
+  ui.pixelError.addEventListener("input", () => setPixelError(sliderToPixelError(Number(ui.pixelError.value))));
+  ui.colour.addEventListener("change", () => setColourMode(ui.colour.value));
+  ui.mode.addEventListener("click", () => setMode(camera.mode === "fly" ? "orbit" : "fly"));
+  ui.scene.addEventListener("change", () => {
+    const params = new URLSearchParams({ scene: ui.scene.value });
+    location.search = `?${params}`;
+  });
+}
+
+// The read-only test hook (docs/viewer.md): the browser tests drive the
+// viewer through it instead of hunting pixels.
+function testHook() {
+  return {
+    state() {
+      const m = viewer.matrices;
+      const w = ui.canvas.clientWidth;
+      const h = ui.canvas.clientHeight;
+      const dynamicScreenPositions = [];
+      for (const c of viewer.clusters.values()) {
+        if (!c.transform || !m) continue;
+        const [x, y, , cw] = project(m.viewProj, [c.transform[12], c.transform[13], c.transform[14]]);
+        if (cw <= 0) continue;
+        dynamicScreenPositions.push({ id: c.info.id, x: ((x / cw + 1) / 2) * w, y: ((1 - y / cw) / 2) * h });
+      }
+      return {
+        ready: viewer.ready,
+        error: viewer.error,
+        scene: viewer.scene && viewer.scene.name,
+        time: viewer.t,
+        date: viewer.scene && formatDate(viewer.t),
+        span: viewer.scene && span(),
+        playing: viewer.playing,
+        pixelError: viewer.pixelError,
+        colourMode: viewer.colourMode,
+        mode: camera && camera.mode,
+        distance: camera && camera.distance,
+        eye: camera && camera.eye(),
+        clusters: viewer.clusters.size,
+        triangles: drawnTriangles(),
+        ids: [...viewer.clusters.keys()].sort((a, b) => a - b),
+        serverStats: viewer.stats,
+        baseline: viewer.stats ? viewer.stats.baseline_triangles : null,
+        baselineObjects: viewer.stats ? viewer.stats.baseline_objects : null,
+        glbBytes: cache ? cache.bytes : 0,
+        glbFiles: cache ? cache.files : 0,
+        loading: cache ? cache.loading : 0,
+        latencyMs: viewer.latency,
+        frameMs: viewer.frameMs,
+        seq: viewer.seq,
+        settled: this.settled(),
+        dynamicScreenPositions,
+      };
+    },
+    // True when the drawn cut answers the current view and nothing loads.
+    settled() {
+      if (!viewer.ready || connection.busy() || cache.loading > 0 || !viewer.lastRequest) return false;
+      const [width, height] = viewportSize();
+      return JSON.stringify(viewer.lastRequest) === JSON.stringify(cutRequest(width, height));
+    },
+    lastRequest: () => viewer.lastRequest,
+    setTime: (t) => setTime(t),
+    setPixelError: (p) => setPixelError(p),
+    setColourMode: (m) => setColourMode(m),
+    // The distance as a multiple of the one where the whole scene fills the view.
+    setDistanceFactor: (f) => camera.zoom((camera.home * f) / camera.distance),
+    setCamera: ({ target, distance, azimuth, elevation }) => {
+      if (target) camera.target = target.slice();
+      if (distance) camera.distance = distance;
+      if (azimuth !== undefined) camera.azimuth = azimuth;
+      if (elevation !== undefined) camera.elevation = elevation;
+    },
+    play: (daysPerSecond) => {
+      if (daysPerSecond) {
+        const option = [...ui.speed.options].find((o) => Number(o.value) === daysPerSecond);
+        if (!option) ui.speed.add(new Option(`${daysPerSecond} days/s`, String(daysPerSecond)));
+        ui.speed.value = String(daysPerSecond);
+      }
+      setPlaying(true);
+    },
+    pause: () => setPlaying(false),
+  };
+}
+
+async function start() {
+  const params = new URLSearchParams(location.search);
+  window.hdlodViewer = testHook();
+  try {
+    renderer = new Renderer(ui.canvas);
+  } catch (e) {
+    showMessage(`Cannot draw here: ${e.message}`);
+    return;
+  }
+  let list;
+  try {
+    list = (await getJson("/api/v1/scenes")).scenes;
+  } catch (e) {
+    showMessage(e.message);
+    return;
+  }
+  if (!list.length) {
+    showMessage("The server has no scene. Start it with a tree: hdlod serve TREE");
+    return;
+  }
+  const wanted = params.get("scene");
+  const chosen = wanted === null ? list[0] : list.find((s) => s.name === wanted);
+  for (const s of list) ui.scene.add(new Option(s.name, s.name, false, s === chosen));
+  ui.scene.hidden = list.length < 2 && !!chosen;
+  if (!chosen) {
+    ui.scene.add(new Option("choose a scene", "", true, true));
+    ui.scene.hidden = false;
+    showMessage(`No scene named "${wanted}" on this server. Available: ${list.map((s) => s.name).join(", ")}.`);
+    return;
+  }
+  try {
+    viewer.scene = await getJson(chosen.url);
+  } catch (e) {
+    showMessage(e.status === 404 ? `The scene "${chosen.name}" is gone from the server.` : e.message);
+    return;
+  }
+  document.title = `${viewer.scene.name} - hdlod viewer`;
+  camera = new Camera(viewer.scene.up);
+  camera.frame(viewer.scene.bounds);
+  cache = new GeometryCache(renderer);
+  const t = parseTime(params.get("time"));
+  setTime(t === null ? 0 : t);
+  const p = Number(params.get("pixel_error"));
+  setPixelError(p > 0 ? p : 1);
+  setColourMode(["vertex", "class", "level"].includes(params.get("colour")) ? params.get("colour") : "vertex");
+  setMode("orbit");
+  bindInput();
+  const wsUrl = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${viewer.scene.stream}`;
+  connection = new CutConnection(wsUrl, {
+    message: onMessage,
+    status: (text) => {
+      if (text) showMessage(text);
+      else if (viewer.error && viewer.error.startsWith("Lost the connection")) showMessage(null);
+    },
+  });
+  connection.open();
+  viewer.ready = true;
+  requestAnimationFrame(frame);
+}
+
+start();
