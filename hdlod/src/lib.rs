@@ -10,6 +10,7 @@ pub mod cluster;
 pub mod error;
 pub mod fixture;
 pub mod geometry;
+pub mod import;
 pub mod io;
 pub mod scene;
 pub mod tiles;

@@ -44,6 +44,9 @@ enum Command {
     Simplify(cmd::simplify::Args),
     /// A discrete LOD chain of one mesh in one GLB (MSFT_lod).
     Lod(cmd::lod::Args),
+    /// Import BIM models and their schedule into a scene.
+    #[command(subcommand)]
+    Import(cmd::import::Import),
 }
 
 fn main() -> ExitCode {
@@ -65,6 +68,7 @@ fn main() -> ExitCode {
         Command::Bench(b) => cmd::bench::run(b),
         Command::Simplify(a) => cmd::simplify::run(a),
         Command::Lod(a) => cmd::lod::run(a),
+        Command::Import(c) => cmd::import::run(c),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

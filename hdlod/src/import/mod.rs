@@ -1,0 +1,370 @@
+//! Import of BIM models and their 4D schedules into an `hdlod-scene/1`
+//! scene (docs/import.md): IFC geometry ([`ifc`]), schedules from IFC4
+//! tasks ([`ifc_tasks`]), Microsoft Project XML ([`msproject`]) or a CSV of
+//! element-task links ([`links_csv`]), and linking rules ([`rules`]) for
+//! schedules that name no elements.
+//!
+//! The result is an ordinary [`Scene`]: one object per IFC element, id = its
+//! GlobalId, z up, metres; its tasks drive the visibility as everywhere else
+//! (`Scene::apply_schedule`).
+
+pub mod ifc;
+pub mod ifc_tasks;
+pub mod links_csv;
+pub mod msproject;
+pub mod rules;
+
+use std::collections::{BTreeMap, HashMap, HashSet};
+use std::path::{Path, PathBuf};
+use std::time::Instant;
+
+use chrono::{DateTime, Utc};
+use glam::Mat4;
+use rayon::prelude::*;
+use serde::Serialize;
+
+use crate::error::{Error, Result};
+use crate::scene::{Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility};
+use crate::time::{TimeSpan, format_date};
+
+/// A task as a schedule file gives it, with absolute dates.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ScheduleTask {
+    pub id: String,
+    pub name: String,
+    /// The type the schedule gives, if any (a rule may set it; the default
+    /// is construct).
+    pub kind: Option<TaskType>,
+    pub start: DateTime<Utc>,
+    pub finish: DateTime<Utc>,
+    /// GlobalIds of the elements the schedule itself links to the task.
+    pub objects: Vec<String>,
+}
+
+/// What to import besides the models.
+#[derive(Debug, Clone, Default)]
+pub struct Options {
+    /// The scene's name.
+    pub name: String,
+    /// A schedule: `.xml` (Microsoft Project), `.csv` (element-task links)
+    /// or `.ifc`/`.ifczip` (IFC4 tasks).
+    pub schedule: Option<PathBuf>,
+    /// Linking rules (`hdlod-links/1`).
+    pub links: Option<PathBuf>,
+}
+
+/// What an import did (schemas/import-report.schema.json).
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct Report {
+    pub files: Vec<FileReport>,
+    pub elements: usize,
+    pub triangles: usize,
+    /// Entities left out, over all files: IFC class -> reason -> count.
+    pub skipped: BTreeMap<String, BTreeMap<String, usize>>,
+    /// Tasks of the schedule (all sources) and those that act on objects.
+    pub tasks: usize,
+    pub scene_tasks: usize,
+    pub rules: Vec<RuleReport>,
+    /// Objects some task acts on.
+    pub scheduled: usize,
+    /// Objects no task acts on (shown throughout), when there is a schedule.
+    pub unmatched: Vec<String>,
+    pub time: TimeReport,
+    pub warnings: Vec<String>,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct FileReport {
+    pub file: String,
+    pub schema: String,
+    pub elements: usize,
+    pub triangles: usize,
+    /// Entities left out of this file.
+    pub skipped: usize,
+    /// IFC4 tasks found in the file.
+    pub tasks: usize,
+    pub seconds: f64,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct RuleReport {
+    pub name: String,
+    pub task: String,
+    pub task_name: String,
+    #[serde(rename = "type")]
+    pub kind: TaskType,
+    pub matched: usize,
+}
+
+#[derive(Debug, Clone, Default, Serialize)]
+pub struct TimeReport {
+    pub start: String,
+    pub end: String,
+}
+
+/// Imports IFC models, a schedule and linking rules into a scene. Files are
+/// read in parallel; `progress` is called as each one is done. Problems that
+/// do not stop the import (a rule that matches nothing, links to unknown
+/// elements, duplicate GlobalIds) are warnings in the report.
+pub fn import(
+    models: &[PathBuf],
+    options: &Options,
+    progress: &(dyn Fn(&Path) + Sync),
+) -> Result<(Scene, Report)> {
+    let clock = Instant::now();
+    if models.is_empty() {
+        return Err(Error::argument("models", "no IFC model given"));
+    }
+    let name = &options.name;
+    let read: Vec<(f64, ifc::Model)> = models
+        .par_iter()
+        .map(|path| {
+            let t = Instant::now();
+            let model = ifc::read(path)?;
+            progress(path);
+            Ok((t.elapsed().as_secs_f64(), model))
+        })
+        .collect::<Result<_>>()?;
+
+    let mut report = Report::default();
+    let mut meshes = Vec::new();
+    let mut objects: Vec<Object> = Vec::new();
+    let mut seen = HashSet::new();
+    let mut schedule: Vec<ScheduleTask> = Vec::new();
+    for (path, (seconds, model)) in models.iter().zip(read) {
+        let file = path
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .unwrap_or_default();
+        let mut skipped = model.skipped;
+        let mut file_report = FileReport {
+            file: file.clone(),
+            schema: model.schema,
+            elements: 0,
+            triangles: 0,
+            skipped: 0,
+            tasks: model.tasks.len(),
+            seconds,
+        };
+        let mut duplicates = Vec::new();
+        for e in model.elements {
+            if !seen.insert(e.id.clone()) {
+                duplicates.push(e.id);
+                *skipped
+                    .entry(e.class)
+                    .or_default()
+                    .entry("duplicate GlobalId".into())
+                    .or_default() += 1;
+                continue;
+            }
+            file_report.elements += 1;
+            file_report.triangles += e.mesh.triangle_count();
+            let mut properties = BTreeMap::new();
+            properties.insert(rules::FILE.to_string(), file.clone());
+            properties.insert(rules::CLASS.to_string(), e.class);
+            if !e.name.is_empty() {
+                properties.insert(rules::NAME.to_string(), e.name);
+            }
+            if let Some(s) = e.storey {
+                properties.insert(rules::STOREY.to_string(), s);
+            }
+            objects.push(Object {
+                id: e.id,
+                mesh: meshes.len(),
+                transform: Mat4::from_translation(e.origin.as_vec3()),
+                color: e.color,
+                visibility: Visibility::always(),
+                motion: None,
+                properties,
+            });
+            meshes.push(e.mesh);
+        }
+        if let Some(first) = duplicates.first() {
+            report.warnings.push(format!(
+                "{file}: {} element(s) with a GlobalId already imported (e.g. {first}); kept the \
+                 first",
+                duplicates.len()
+            ));
+        }
+        for (class, reasons) in skipped {
+            for (reason, n) in reasons {
+                file_report.skipped += n;
+                *report
+                    .skipped
+                    .entry(class.clone())
+                    .or_default()
+                    .entry(reason)
+                    .or_default() += n;
+            }
+        }
+        report.elements += file_report.elements;
+        report.triangles += file_report.triangles;
+        report.files.push(file_report);
+        schedule.extend(model.tasks);
+    }
+
+    if let Some(path) = &options.schedule {
+        schedule.extend(read_schedule(path)?);
+    }
+    let rules = match &options.links {
+        Some(path) => rules::read(path, &schedule)?,
+        None => Vec::new(),
+    };
+    report.tasks = schedule.len();
+
+    // (task, type) -> object ids, in order of first use.
+    let mut groups: Vec<((usize, TaskType), Vec<String>)> = Vec::new();
+    let mut group_of: HashMap<(usize, TaskType), usize> = HashMap::new();
+    let mut add = |key: (usize, TaskType), id: &str| {
+        let g = *group_of.entry(key).or_insert_with(|| {
+            groups.push((key, Vec::new()));
+            groups.len() - 1
+        });
+        groups[g].1.push(id.to_string());
+    };
+    let known: HashSet<&str> = objects.iter().map(|o| o.id.as_str()).collect();
+    let mut unknown = 0usize;
+    for (k, t) in schedule.iter().enumerate() {
+        let kind = t.kind.unwrap_or(TaskType::Construct);
+        for id in &t.objects {
+            if known.contains(id.as_str()) {
+                add((k, kind), id);
+            } else {
+                unknown += 1;
+            }
+        }
+    }
+    if unknown > 0 {
+        report.warnings.push(format!(
+            "{unknown} element links of the schedule name GlobalIds that are not in the models"
+        ));
+    }
+    for rule in &rules {
+        let task = &schedule[rule.task];
+        let kind = rule.kind.or(task.kind).unwrap_or(TaskType::Construct);
+        let mut matched = 0;
+        for o in objects.iter().filter(|o| rule.selects(o)) {
+            add((rule.task, kind), &o.id);
+            matched += 1;
+        }
+        if matched == 0 {
+            report
+                .warnings
+                .push(format!("rule {:?} matches no object", rule.name));
+        }
+        report.rules.push(RuleReport {
+            name: rule.name.clone(),
+            task: task.id.clone(),
+            task_name: task.name.clone(),
+            kind,
+            matched,
+        });
+    }
+
+    let linked: HashSet<&str> = groups
+        .iter()
+        .flat_map(|(_, ids)| ids.iter().map(String::as_str))
+        .collect();
+    report.scheduled = linked.len();
+    if !schedule.is_empty() || !rules.is_empty() {
+        report.unmatched = objects
+            .iter()
+            .filter(|o| !linked.contains(o.id.as_str()))
+            .map(|o| o.id.clone())
+            .collect();
+    }
+
+    let acting: Vec<&ScheduleTask> = if groups.is_empty() {
+        schedule.iter().collect()
+    } else {
+        groups.iter().map(|((k, _), _)| &schedule[*k]).collect()
+    };
+    let time = match (
+        acting.iter().map(|t| t.start).min(),
+        acting.iter().map(|t| t.finish).max(),
+    ) {
+        (Some(start), Some(end)) if end > start => TimeSpan {
+            start,
+            seconds: (end - start).num_milliseconds() as f64 / 1000.0,
+        },
+        // Nothing scheduled: a static scene over a nominal day.
+        (start, _) => TimeSpan {
+            start: start.unwrap_or(DateTime::UNIX_EPOCH),
+            seconds: 86_400.0,
+        },
+    };
+    report.time = TimeReport {
+        start: format_date(time.start),
+        end: format_date(time.end()),
+    };
+
+    let mut tasks = Vec::new();
+    let mut ids = HashSet::new();
+    for ((k, kind), objects) in groups {
+        let t = &schedule[k];
+        let mut id = t.id.clone();
+        if !ids.insert(id.clone()) {
+            id = format!("{}:{}", t.id, type_name(kind));
+            ids.insert(id.clone());
+        }
+        tasks.push(Task {
+            id,
+            name: t.name.clone(),
+            kind,
+            start: time.seconds_of(t.start),
+            finish: time.seconds_of(t.finish),
+            objects,
+        });
+    }
+    report.scene_tasks = tasks.len();
+
+    let mut scene = Scene {
+        name: name.clone(),
+        up: Up::Z,
+        time,
+        meshes,
+        objects,
+        tasks,
+        schedule_options: ScheduleOptions::default(),
+    };
+    scene.apply_schedule();
+    report.seconds = clock.elapsed().as_secs_f64();
+    Ok((scene, report))
+}
+
+fn type_name(kind: TaskType) -> &'static str {
+    match kind {
+        TaskType::Construct => "construct",
+        TaskType::Demolish => "demolish",
+        TaskType::Temporary => "temporary",
+        TaskType::Maintain => "maintain",
+    }
+}
+
+/// Reads a schedule by its extension.
+pub fn read_schedule(path: &Path) -> Result<Vec<ScheduleTask>> {
+    let ext = path
+        .extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default();
+    match ext.as_str() {
+        "xml" => msproject::read(path),
+        "csv" => links_csv::read(path),
+        "ifc" | "ifczip" => {
+            let step = ifc::read_step(path)?;
+            let schema = ifc::header_schema(&step).ok_or_else(|| {
+                Error::invalid(path, "HEADER", "no FILE_SCHEMA: not an IFC (STEP) file")
+            })?;
+            ifc_tasks::read(path, &schema, &step)
+        }
+        _ => Err(Error::argument(
+            "schedule",
+            format!(
+                "{}: unknown schedule format; expected .xml (Microsoft Project), .csv \
+                 (element-task links) or .ifc/.ifczip (IFC4 tasks)",
+                path.display()
+            ),
+        )),
+    }
+}

@@ -1,0 +1,262 @@
+//! IFC geometry and IFC4 tasks: the hand-written fixtures/ifc-tiny/tiny.ifc
+//! (every number below follows from its text), broken files, .ifczip, and
+//! the real Schependomlaan models when ../shared/data holds them.
+
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+use glam::Vec3;
+use hdlod::import::{Options, ifc, import};
+use hdlod::scene::{TaskType, VisibilityType};
+
+fn root() -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
+}
+
+fn tiny() -> PathBuf {
+    root().join("fixtures/ifc-tiny/tiny.ifc")
+}
+
+fn world_bounds(e: &ifc::Element) -> (Vec3, Vec3) {
+    let (lo, hi) = e.mesh.bounds().unwrap();
+    let o = e.origin.as_vec3();
+    (lo + o, hi + o)
+}
+
+fn close(a: Vec3, b: Vec3) -> bool {
+    (a - b).abs().max_element() < 1e-4
+}
+
+#[test]
+fn tiny_model_elements_in_metres_with_storey_and_style() {
+    let model = ifc::read(&tiny()).unwrap();
+    assert_eq!(model.schema, "IFC4");
+    let ids: Vec<&str> = model.elements.iter().map(|e| e.id.as_str()).collect();
+    assert_eq!(ids, ["2WallTinyHdlod00000001", "2SlabTinyHdlod00000001"]);
+    let (wall, slab) = (&model.elements[0], &model.elements[1]);
+
+    assert_eq!(wall.class, "IfcWall");
+    assert_eq!(wall.name, "wall A");
+    assert_eq!(wall.storey.as_deref(), Some("00 ground floor"));
+    // 4000 x 200 x 3000 mm placed at x = 1000 mm.
+    let (lo, hi) = world_bounds(wall);
+    assert!(close(lo, Vec3::new(1.0, 0.0, 0.0)), "{lo}");
+    assert!(close(hi, Vec3::new(5.0, 0.2, 3.0)), "{hi}");
+    // The opening is cut: a plain box has 12 triangles, a box with a hole
+    // through it more, and none inside the hole.
+    assert!(
+        wall.mesh.triangle_count() > 12,
+        "{}",
+        wall.mesh.triangle_count()
+    );
+    let o = wall.origin.as_vec3();
+    for t in wall.mesh.triangles() {
+        let c = (t[0] + t[1] + t[2]) / 3.0 + o;
+        let in_hole = c.x > 2.01 && c.x < 2.99 && c.z > 0.51 && c.z < 1.49;
+        assert!(
+            !(in_hole && c.y > 0.01 && c.y < 0.19),
+            "triangle inside the hole at {c}"
+        );
+    }
+    // Red from IfcStyledItem (linear 1, 0, 0), one colour so no vertex colours.
+    assert_eq!(wall.color, [1.0, 0.0, 0.0, 1.0]);
+    assert!(wall.mesh.colors.is_empty());
+
+    assert_eq!(slab.class, "IfcSlab");
+    let (lo, hi) = world_bounds(slab);
+    assert!(close(lo, Vec3::new(0.0, 0.0, 3.0)), "{lo}");
+    assert!(close(hi, Vec3::new(2.0, 2.0, 3.2)), "{hi}");
+    assert_eq!(slab.color, ifc::default_color("IfcSlab"));
+
+    let skipped = |class: &str| model.skipped.get(class).map(|r| r.values().sum::<usize>());
+    assert_eq!(skipped("IfcOpeningElement"), Some(1));
+    assert_eq!(skipped("IfcSpace"), Some(1));
+    assert_eq!(skipped("IfcBuildingElementProxy"), Some(1));
+    assert_eq!(model.skipped.len(), 3, "{:?}", model.skipped);
+}
+
+#[test]
+fn ifc4_tasks_drive_visibility() {
+    let model = ifc::read(&tiny()).unwrap();
+    let tasks: Vec<(&str, Option<TaskType>, &[String])> = model
+        .tasks
+        .iter()
+        .map(|t| (t.id.as_str(), t.kind, t.objects.as_slice()))
+        .collect();
+    assert_eq!(
+        tasks,
+        [
+            (
+                "T1",
+                Some(TaskType::Construct),
+                &["2WallTinyHdlod00000001".to_string()][..]
+            ),
+            (
+                "T2",
+                Some(TaskType::Demolish),
+                &["2SlabTinyHdlod00000001".to_string()][..]
+            ),
+        ]
+    );
+
+    let options = Options {
+        name: "tiny".into(),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny()], &options, &|_| {}).unwrap();
+    assert_eq!(report.elements, 2);
+    assert_eq!(report.scheduled, 2);
+    assert!(report.unmatched.is_empty());
+    // From the slab's removal (2024-02-01 08:00) to the wall's (2024-03-05 17:00).
+    assert_eq!(report.time.start, "2024-02-01T08:00:00Z");
+    assert_eq!(report.time.end, "2024-03-05T17:00:00Z");
+    let span = scene.time.seconds;
+    let wall = &scene.objects[0];
+    let slab = &scene.objects[1];
+    assert_eq!(wall.visibility.kind(span), VisibilityType::Appearing);
+    assert_eq!(slab.visibility.kind(span), VisibilityType::Disappearing);
+    let removed = scene
+        .time
+        .seconds_of(hdlod::time::parse_date("2024-02-02T17:00:00").unwrap());
+    assert!(slab.visibility.at(removed - 1.0) && !slab.visibility.at(removed + 1.0));
+    assert_eq!(wall.properties["storey"], "00 ground floor");
+    assert_eq!(wall.properties["ifc_class"], "IfcWall");
+    assert_eq!(wall.properties["source_file"], "tiny.ifc");
+    assert_eq!(scene.up, hdlod::scene::Up::Z);
+}
+
+fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
+    let path = dir.join(name);
+    std::fs::write(&path, text).unwrap();
+    path
+}
+
+#[test]
+fn broken_step_names_the_file_and_the_entity() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(tiny()).unwrap();
+    // A record that never closes.
+    let broken = text.replace(
+        "#48=IFCEXTRUDEDAREASOLID(#44,#21,#23,3000.);",
+        "#48=IFCEXTRUDEDAREASOLID(#44,#21,#23,3000.;",
+    );
+    let path = write(dir.path(), "broken.ifc", &broken);
+    let e = ifc::read(&path).unwrap_err().to_string();
+    assert!(e.contains("broken.ifc") && e.contains("#48"), "{e}");
+
+    let path = write(dir.path(), "nothing.ifc", "hello");
+    let e = ifc::read(&path).unwrap_err().to_string();
+    assert!(
+        e.contains("nothing.ifc") && e.contains("FILE_SCHEMA"),
+        "{e}"
+    );
+}
+
+#[test]
+fn unsupported_geometry_is_skipped_not_fatal() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = std::fs::read_to_string(tiny()).unwrap();
+    // The slab's body becomes an entity no mesher knows.
+    let odd = text.replace(
+        "#121=IFCFACETEDBREP(#120);",
+        "#121=IFCCARTESIANPOINT((1.,2.,3.));",
+    );
+    let path = write(dir.path(), "odd.ifc", &odd);
+    let model = ifc::read(&path).unwrap();
+    assert_eq!(model.elements.len(), 1);
+    assert!(model.skipped.contains_key("IfcSlab"), "{:?}", model.skipped);
+}
+
+#[test]
+fn ifczip_reads_the_ifc_inside() {
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("tiny.ifczip");
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&path).unwrap());
+    let options = zip::write::SimpleFileOptions::default()
+        .compression_method(zip::CompressionMethod::Deflated);
+    zip.start_file("model/tiny.ifc", options).unwrap();
+    zip.write_all(&std::fs::read(tiny()).unwrap()).unwrap();
+    zip.finish().unwrap();
+    let model = ifc::read(&path).unwrap();
+    assert_eq!(model.elements.len(), 2);
+
+    let empty = dir.path().join("empty.ifczip");
+    let mut zip = zip::ZipWriter::new(std::fs::File::create(&empty).unwrap());
+    zip.start_file("readme.txt", options).unwrap();
+    zip.finish().unwrap();
+    let e = ifc::read(&empty).unwrap_err().to_string();
+    assert!(e.contains("empty.ifczip") && e.contains("no .ifc"), "{e}");
+}
+
+/// The real building's data, next to the repository (as CI has it).
+fn schependomlaan() -> PathBuf {
+    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
+    [
+        here.join("../../shared/data/schependomlaan"),
+        here.join("../../../shared/data/schependomlaan"),
+    ]
+    .into_iter()
+    .find(|p| p.join("planning.xml").is_file())
+    .expect("shared/data/schependomlaan next to the repository")
+}
+
+/// The real building: every model imports, the rules link every element
+/// but the surveyor's marker, and the storeys rise in order through 2015.
+#[test]
+fn schependomlaan_rises_storey_by_storey() {
+    let data = schependomlaan();
+    let mut models: Vec<PathBuf> = std::fs::read_dir(data.join("ifc"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    models.sort();
+    assert_eq!(models.len(), 12);
+    let options = Options {
+        name: "schependomlaan".into(),
+        schedule: Some(data.join("planning.xml")),
+        links: Some(root().join("fixtures/schependomlaan/links.json")),
+    };
+    let (scene, report) = import(&models, &options, &|_| {}).unwrap();
+    assert!(report.elements > 650, "{}", report.elements);
+    assert!(report.triangles > 50_000, "{}", report.triangles);
+    assert!(
+        report.rules.iter().all(|r| r.matched > 0),
+        "{:?}",
+        report.rules
+    );
+    assert_eq!(report.unmatched.len(), 1, "{:?}", report.unmatched);
+    assert!(report.time.start.starts_with("2015-") && report.time.end.starts_with("2015-"));
+
+    // The first instant each storey shows an element, in storey order.
+    let span = scene.time.seconds;
+    let mut first: std::collections::BTreeMap<&str, f64> = Default::default();
+    for o in &scene.objects {
+        let Some(storey) = o.properties.get("storey") else {
+            continue;
+        };
+        if let Some(&(t, _)) = o.visibility.clipped(span).first() {
+            let e = first.entry(storey.as_str()).or_insert(t);
+            *e = e.min(t);
+        }
+    }
+    let order: Vec<f64> = ["00", "01", "02", "03"]
+        .iter()
+        .map(|s| {
+            first
+                .iter()
+                .find(|(k, _)| k.starts_with(s))
+                .map(|(_, &t)| t)
+                .unwrap()
+        })
+        .collect();
+    assert!(order.windows(2).all(|w| w[0] < w[1]), "{first:?}");
+    // Bounds in metres: a building of about 22 x 22 x 13 m.
+    let (mut lo, mut hi) = (Vec3::splat(f32::MAX), Vec3::splat(f32::MIN));
+    for o in &scene.objects {
+        let (a, b) = scene.meshes[o.mesh].bounds().unwrap();
+        lo = lo.min(o.transform.transform_point3(a));
+        hi = hi.max(o.transform.transform_point3(b));
+    }
+    let size = hi - lo;
+    assert!(size.max_element() < 30.0 && size.z > 10.0, "{size}");
+}

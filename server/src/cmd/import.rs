@@ -1,0 +1,141 @@
+//! `hdlod import ifc MODEL.ifc|.ifczip ... [--schedule FILE] [--links RULES.json]
+//! --out SCENE [--name NAME] [--json]`: BIM models and their schedule into an
+//! `hdlod-scene/1` scene (docs/import.md).
+
+use std::path::PathBuf;
+
+use anyhow::Context;
+use hdlod::cluster::Progress;
+use hdlod::import::{Options, Report, import};
+use hdlod::scene::format;
+
+use super::progress::Report as Bars;
+
+#[derive(clap::Subcommand)]
+pub enum Import {
+    /// IFC 2x3 / IFC4 models (.ifc, .ifczip) with an optional schedule.
+    Ifc(Args),
+}
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The IFC models (.ifc or .ifczip); their elements make one scene.
+    #[arg(required = true)]
+    models: Vec<PathBuf>,
+    /// A schedule: Microsoft Project XML (.xml), element-task links (.csv)
+    /// or IFC4 tasks (.ifc/.ifczip). IFC4 tasks inside the models are
+    /// always read.
+    #[arg(long)]
+    schedule: Option<PathBuf>,
+    /// Linking rules (hdlod-links/1, schemas/links.schema.json) that attach
+    /// objects to the schedule's tasks.
+    #[arg(long)]
+    links: Option<PathBuf>,
+    /// The scene directory to write (replaced atomically on success).
+    #[arg(long)]
+    out: PathBuf,
+    /// The scene's name (default: the name of the output directory).
+    #[arg(long)]
+    name: Option<String>,
+    /// Print the report as JSON on stdout (schemas/import-report.schema.json).
+    #[arg(long)]
+    json: bool,
+}
+
+pub fn run(command: Import) -> anyhow::Result<()> {
+    let Import::Ifc(args) = command;
+    let name = match &args.name {
+        Some(n) => n.clone(),
+        None => args
+            .out
+            .file_name()
+            .map(|f| f.to_string_lossy().into_owned())
+            .context("--out has no directory name to name the scene after; give --name")?,
+    };
+    let options = Options {
+        name,
+        schedule: args.schedule.clone(),
+        links: args.links.clone(),
+    };
+    let bars = Bars::new(args.json);
+    bars.phase("reading IFC", args.models.len() as u64);
+    let (scene, report) =
+        import(&args.models, &options, &|_| bars.advance(1)).context("cannot import the models")?;
+    bars.finish();
+    format::save(&scene, &args.out)
+        .with_context(|| format!("cannot write the scene {}", args.out.display()))?;
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        print_report(&report, &args.out.display().to_string());
+    }
+    for w in &report.warnings {
+        eprintln!("warning: {w}");
+    }
+    Ok(())
+}
+
+fn print_report(r: &Report, out: &str) {
+    println!(
+        "{:<44} {:>8} {:>10} {:>8} {:>7}",
+        "file", "elements", "triangles", "skipped", "s"
+    );
+    for f in &r.files {
+        println!(
+            "{:<44} {:>8} {:>10} {:>8} {:>7.2}",
+            f.file, f.elements, f.triangles, f.skipped, f.seconds
+        );
+    }
+    println!(
+        "{:<44} {:>8} {:>10}",
+        format!("total ({} files)", r.files.len()),
+        r.elements,
+        r.triangles
+    );
+    if !r.skipped.is_empty() {
+        println!("\nskipped entities:");
+        for (class, reasons) in &r.skipped {
+            for (reason, n) in reasons {
+                println!("  {class:<32} {n:>6}  {reason}");
+            }
+        }
+    }
+    if !r.rules.is_empty() {
+        println!("\nrules (objects matched -> task):");
+        for rule in &r.rules {
+            println!(
+                "  {:>5}  {:<40} -> {} {:?} ({})",
+                rule.matched,
+                rule.name,
+                rule.task,
+                rule.task_name,
+                serde_json::to_value(rule.kind)
+                    .ok()
+                    .and_then(|v| v.as_str().map(str::to_string))
+                    .unwrap_or_default()
+            );
+        }
+    }
+    if r.tasks > 0 {
+        println!(
+            "\nschedule: {} tasks, {} acting on objects; {} objects scheduled, {} unmatched (shown throughout)",
+            r.tasks,
+            r.scene_tasks,
+            r.scheduled,
+            r.unmatched.len()
+        );
+        for id in r.unmatched.iter().take(10) {
+            println!("  unmatched: {id}");
+        }
+        if r.unmatched.len() > 10 {
+            println!(
+                "  ... and {} more (--json lists them all)",
+                r.unmatched.len() - 10
+            );
+        }
+    }
+    println!(
+        "\nscene {out}: {} to {}, {:.2} s",
+        r.time.start, r.time.end, r.seconds
+    );
+}
