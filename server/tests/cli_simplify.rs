@@ -2,37 +2,14 @@
 //! matches the schemas (schemas/simplify.schema.json,
 //! schemas/bench-simplify.schema.json), and bad input gets a clear error.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
-fn hdlod(args: &[&str]) -> std::process::Output {
-    Command::new(env!("CARGO_BIN_EXE_hdlod"))
-        .args(args)
-        .output()
-        .expect("run hdlod")
-}
+use std::path::PathBuf;
+
+use common::{assert_valid, gltf_reports, hdlod, schema, shared_data};
 
 fn fandisk() -> PathBuf {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository")
-    .join("fandisk.obj")
-}
-
-fn schema() -> jsonschema::Validator {
-    schema_named("simplify")
-}
-
-fn schema_named(name: &str) -> jsonschema::Validator {
-    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join(format!("../schemas/{name}.schema.json"));
-    let schema: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(path).unwrap()).unwrap();
-    jsonschema::validator_for(&schema).unwrap()
+    shared_data("meshes").join("fandisk.obj")
 }
 
 fn report(args: &[&str]) -> serde_json::Value {
@@ -43,9 +20,7 @@ fn report(args: &[&str]) -> serde_json::Value {
         String::from_utf8_lossy(&out.stderr)
     );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    if let Err(e) = schema().validate(&json) {
-        panic!("{e}: {json}");
-    }
+    assert_valid(&schema("simplify.schema.json"), &json, "simplify --json");
     json
 }
 
@@ -106,6 +81,26 @@ fn glb_out_and_back_in() {
         "--json",
     ]);
     assert_eq!(first["triangles_out"], second["triangles_in"]);
+}
+
+/// horse.ply's normals are not unit length; glTF requires them to be.
+#[test]
+fn glb_output_passes_the_gltf_validator() {
+    let dir = tempfile::tempdir().unwrap();
+    let glb = dir.path().join("horse.glb");
+    let horse = shared_data("meshes").join("horse.ply");
+    report(&[
+        "simplify",
+        horse.to_str().unwrap(),
+        glb.to_str().unwrap(),
+        "--method",
+        "clustering",
+        "--ratio",
+        "0.1",
+        "--json",
+    ]);
+    let report = &gltf_reports(&[glb])[0];
+    assert_eq!(report["issues"]["numErrors"], 0, "{report}");
 }
 
 #[test]
@@ -184,9 +179,11 @@ fn bench_simplify_rows_match_the_schema() {
         String::from_utf8_lossy(&out.stderr)
     );
     let json: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    if let Err(e) = schema_named("bench-simplify").validate(&json) {
-        panic!("{e}: {json}");
-    }
+    assert_valid(
+        &schema("bench-simplify.schema.json"),
+        &json,
+        "bench simplify --json",
+    );
     let rows = json.as_array().unwrap();
     assert_eq!(rows.len(), 3, "one row per method");
     for r in rows {

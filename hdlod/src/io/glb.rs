@@ -41,11 +41,12 @@ pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
     glb.finish(nodes)
 }
 
-/// Writes [`mesh_to_glb`] to `path`, after checking the mesh.
+/// Writes [`mesh_to_glb`] to `path`, after checking the mesh; normals read
+/// from other files are made unit length first.
 pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
     mesh.validate()
         .map_err(|m| Error::invalid(path, "mesh", m))?;
-    std::fs::write(path, mesh_to_glb(mesh)).map_err(|e| Error::io(path, e))
+    std::fs::write(path, mesh_to_glb(&unit_normals(mesh))).map_err(|e| Error::io(path, e))
 }
 
 /// A discrete LOD chain as one GLB, after the MSFT_lod extension
@@ -102,8 +103,10 @@ pub fn write_lod(levels: &[Mesh], coverage: &[f32], path: &Path) -> Result<()> {
             })
             .map_err(|m| Error::invalid(path, format!("level {i}"), m))?;
     }
-    let levels: Vec<std::borrow::Cow<Mesh>> = levels.iter().map(unit_normals).collect();
-    let levels: Vec<Mesh> = levels.into_iter().map(|m| m.into_owned()).collect();
+    let levels: Vec<Mesh> = levels
+        .iter()
+        .map(|m| unit_normals(m).into_owned())
+        .collect();
     std::fs::write(path, lod_to_glb(&levels, coverage)).map_err(|e| Error::io(path, e))
 }
 
