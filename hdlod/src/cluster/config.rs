@@ -47,7 +47,7 @@ impl Default for BuildConfig {
             max_children: 8,
             max_steps: 32,
             hausdorff_fraction: 0.1,
-            dynamic_budgets: vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2],
+            dynamic_budgets: vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
             min_reduction: 0.8,
             schedule: None,
         }
