@@ -289,3 +289,29 @@ fn written_files_match_the_schemas() {
         common::assert_matches_schema(&doc, schema);
     }
 }
+
+/// Coarser versions that stand alone above one cluster (a dynamic model's
+/// LOD chain, the parent of a cluster with no neighbours) exist only where
+/// they pay: each keeps at most `min_reduction` of the triangles below it.
+#[test]
+fn single_child_parents_reduce_their_child() {
+    let t = &built().tree;
+    let config = BuildConfig::default();
+    let mut found = [0usize; 2];
+    for c in t.clusters.iter().filter(|c| c.children.len() == 1) {
+        let child = &t.clusters[c.children[0] as usize];
+        assert!(
+            c.triangles as f64 <= child.triangles as f64 * config.min_reduction,
+            "cluster {} keeps {} of {} triangles",
+            c.id,
+            c.triangles,
+            child.triangles
+        );
+        assert_eq!(c.visibility, child.visibility, "cluster {}", c.id);
+        found[usize::from(c.class == ClusterClass::Dynamic)] += 1;
+    }
+    assert!(
+        found[0] > 0 && found[1] > 0,
+        "single-child parents (static or pseudo-dynamic, dynamic): {found:?}"
+    );
+}

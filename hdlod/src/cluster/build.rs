@@ -480,10 +480,59 @@ fn cluster_class(
                 mesh,
             });
         }
-        for (a, t) in active.into_iter().zip(taken) {
-            if !t {
-                next.push(a);
+        let alone: Vec<usize> = (0..active.len()).filter(|&i| !taken[i]).collect();
+        let singles: Vec<Option<(Mesh, f64)>> = alone
+            .par_iter()
+            .map(|&i| single_parent(ctx, &active[i], &th))
+            .collect();
+        let mut singles = alone.into_iter().zip(singles).peekable();
+        for (i, (a, t)) in active.into_iter().zip(taken).enumerate() {
+            if t {
+                continue;
             }
+            let single = singles.next_if(|(j, _)| *j == i).and_then(|(_, s)| s);
+            let Some((mesh, eps)) = single else {
+                next.push(a);
+                continue;
+            };
+            let id = clusters.len() as u32;
+            let child = &mut clusters[a.id as usize];
+            child.parent = Some(id);
+            let gamma = child.gamma;
+            stats.children_triangles += child.triangles;
+            stats.clusters += 1;
+            stats.triangles += mesh.triangle_count() as u64;
+            stats.max_eps = stats.max_eps.max(eps);
+            stats.max_gamma = stats.max_gamma.max(gamma);
+            let (lo, hi) = mesh
+                .bounds()
+                .map_or((a.lo, a.hi), |(lo, hi)| (lo.min(a.lo), hi.max(a.hi)));
+            let w = f64::from((hi - lo).length());
+            clusters.push(Cluster {
+                id,
+                parent: None,
+                children: vec![a.id],
+                level,
+                class: kind,
+                bounds: Aabb::from_f32(lo, hi),
+                w,
+                eps,
+                gamma,
+                visibility: a.steps.to_tree(),
+                motion: None,
+                geometry: Some(ctx.sink.put(&mesh)?),
+                triangles: mesh.triangle_count() as u64,
+                objects: Vec::new(),
+            });
+            next.push(Active {
+                id,
+                lo,
+                hi,
+                w,
+                eps,
+                mesh,
+                ..a
+            });
         }
         next.extend(made);
         active = next;
@@ -623,15 +672,8 @@ fn group(
 
 /// Merges the children's geometry, simplifies it within the level's budget
 /// and measures the spatial error: `eps_c = D_H(g_c, union g_c') + max
-/// eps_c'`, with `D_H` a computed upper bound. The candidates: part by part
-/// (`geometry::reduce_parts`: per-part boxes or simplifications and a
-/// greedy cover) at half and all of the budget, the latter also followed
-/// by meshoptimizer on what is left of the budget, and, where those keep
-/// more than half, meshoptimizer on the whole union. The cut draws a cluster once its error
-/// is small enough on screen, so a smaller error is worth some triangles:
-/// of the candidates within `EPS_PREFERENCE` times the fewest triangles,
-/// the one with the least error wins. When none removes triangles, the
-/// parent is the union (`D_H = 0`).
+/// eps_c'`, with `D_H` a computed upper bound (see `reduce_within`). When
+/// nothing removes triangles, the parent is the union (`D_H = 0`).
 fn make_parent(
     ctx: &Context,
     active: &[Active],
@@ -651,45 +693,81 @@ fn make_parent(
     let union = geometry::merge(&parts, 0.0);
     let budget = (th.eps - child_eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
+    let (mesh, h) = reduce_within(&union, budget, tolerance).unwrap_or((union, 0.0));
+    let eps = f64::from(h) + child_eps;
+    let hash = ctx.sink.put(&mesh)?;
+    Ok((mesh, eps, hash))
+}
+
+/// The paper's loop moves a cluster with no neighbours up unchanged; an
+/// element longer than `w(l)` then stays a leaf until a level whose error
+/// may be more than one pixel where the cut reaches it, so the cut draws
+/// the leaf. Instead it gets a parent of its own: its geometry reduced
+/// within `eps(l)`, when that keeps at most `min_reduction` of its
+/// triangles. Answers the parent's geometry and error.
+fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh, f64)> {
+    let triangles = child.mesh.triangle_count();
+    if (triangles as f64) * ctx.config.min_reduction < BOX_TRIANGLES {
+        return None;
+    }
+    let budget = (th.eps - child.eps) as f32;
+    let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
+    let (mesh, h) = reduce_within(&child.mesh, budget, tolerance)?;
+    (mesh.triangle_count() as f64 <= triangles as f64 * ctx.config.min_reduction)
+        .then(|| (mesh, f64::from(h) + child.eps))
+}
+
+/// A box's triangles: a cluster with fewer left after the reduction gains
+/// nothing from a parent of its own.
+const BOX_TRIANGLES: f64 = 12.0;
+
+/// `mesh` reduced within `budget` (scene units) and the measured bound of
+/// its Hausdorff distance to `mesh`, if some candidate removes triangles.
+/// The candidates: part by part (`geometry::reduce_parts`: per-part boxes
+/// or simplifications and a greedy cover) at half and all of the budget,
+/// the latter also followed by meshoptimizer on what is left of the
+/// budget, and, where those keep more than half, meshoptimizer on the
+/// whole. The cut draws a cluster once its error is small enough on
+/// screen, so a smaller error is worth some triangles: of the candidates
+/// within `EPS_PREFERENCE` times the fewest triangles, the one with the
+/// least error wins.
+pub(super) fn reduce_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+    if budget <= 0.0 {
+        return None;
+    }
     let mut candidates: Vec<(Mesh, f32)> = Vec::new();
-    if budget > 0.0 {
-        for share in [0.5, 1.0] {
-            let r = geometry::reduce_parts(&union, budget * share, tolerance * share);
-            if share == 1.0
-                && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance)
-            {
-                candidates.push((m, h + r.bound));
-            }
-            candidates.push((r.mesh, r.bound));
-        }
-        // Worth its cost only where the parts gave little.
-        if candidates
-            .iter()
-            .all(|(m, _)| m.triangle_count() * 2 > union.triangle_count())
+    for share in [0.5, 1.0] {
+        let r = geometry::reduce_parts(mesh, budget * share, tolerance * share);
+        if share == 1.0
+            && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance)
         {
-            candidates.extend(simplified_within(&union, budget, tolerance));
+            candidates.push((m, h + r.bound));
         }
+        candidates.push((r.mesh, r.bound));
+    }
+    // Worth its cost only where the parts gave little.
+    if candidates
+        .iter()
+        .all(|(m, _)| m.triangle_count() * 2 > mesh.triangle_count())
+    {
+        candidates.extend(simplified_within(mesh, budget, tolerance));
     }
     let fewest = candidates
         .iter()
         .map(|(m, _)| m.triangle_count())
         .min()
         .unwrap_or(usize::MAX);
-    let chosen = candidates
+    candidates
         .into_iter()
         .filter(|(m, h)| {
             *h <= budget
-                && m.triangle_count() < union.triangle_count()
+                && m.triangle_count() < mesh.triangle_count()
                 && m.triangle_count() as f64 <= EPS_PREFERENCE * fewest as f64
         })
         .min_by(|a, b| {
             a.1.total_cmp(&b.1)
                 .then(a.0.triangle_count().cmp(&b.0.triangle_count()))
-        });
-    let (mesh, h) = chosen.unwrap_or((union, 0.0));
-    let eps = f64::from(h) + child_eps;
-    let hash = ctx.sink.put(&mesh)?;
-    Ok((mesh, eps, hash))
+        })
 }
 
 /// How many times the fewest triangles a candidate parent may keep and

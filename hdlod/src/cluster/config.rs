@@ -26,9 +26,12 @@ pub struct BuildConfig {
     /// The Hausdorff bound is refined until its gap is below this fraction
     /// of the level's budget.
     pub hausdorff_fraction: f64,
-    /// Triangle ratios of the discrete LOD chain above each dynamic model.
-    pub dynamic_lods: Vec<f64>,
-    /// A chain stops when a step keeps more than this share of triangles.
+    /// Error budgets of the discrete LOD chain above each dynamic model, as
+    /// shares of the model's size (its box diagonal), finest first.
+    pub dynamic_budgets: Vec<f64>,
+    /// A coarser version (a dynamic chain's step, the single-child parent
+    /// of a cluster with no neighbours) is kept only when it has at most
+    /// this share of the triangles below it.
     pub min_reduction: f64,
     /// When constructed and demolished objects count as present; `None`
     /// keeps the scene file's own `schedule_options`.
@@ -44,7 +47,7 @@ impl Default for BuildConfig {
             max_children: 8,
             max_steps: 32,
             hausdorff_fraction: 0.1,
-            dynamic_lods: vec![0.5, 0.25, 0.1],
+            dynamic_budgets: vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
             min_reduction: 0.8,
             schedule: None,
         }
@@ -76,8 +79,12 @@ impl BuildConfig {
         {
             return bad("hausdorff_fraction", "must be in (0, 1]");
         }
-        if let Some(r) = self.dynamic_lods.iter().find(|r| !(**r > 0.0 && **r < 1.0)) {
-            return bad("dynamic_lods", &format!("ratio {r} is not in (0, 1)"));
+        if let Some(r) = self
+            .dynamic_budgets
+            .iter()
+            .find(|r| !(**r > 0.0 && **r <= 1.0))
+        {
+            return bad("dynamic_budgets", &format!("budget {r} is not in (0, 1]"));
         }
         if !(self.min_reduction > 0.0 && self.min_reduction <= 1.0) {
             return bad("min_reduction", "must be in (0, 1]");

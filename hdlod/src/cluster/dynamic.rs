@@ -9,16 +9,13 @@ use std::collections::HashMap;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
-use super::build::Context;
+use super::build::{Context, reduce_within};
 use super::steps::Steps;
 use super::{LevelStats, Progress};
 use crate::Result;
-use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions};
+use crate::geometry::{self, Mesh, Part};
 use crate::scene::{Scene, Visibility};
 use crate::tree::{Aabb, Cluster, ClusterClass};
-
-/// The largest error of a coarser version, as a share of the model's size.
-const MAX_LOD_ERROR: f64 = 0.25;
 
 /// One version of a model: its stored geometry and what the tree records.
 #[derive(Clone)]
@@ -29,8 +26,13 @@ struct Version {
     bounds: (Vec3, Vec3),
 }
 
-/// Builds the chain of one model (finest first): the original, then each
-/// configured ratio, stopping when a step no longer reduces enough.
+/// Builds the chain of one model (finest first): the original, then one
+/// version per configured budget (a share of the model's size), each the
+/// model reduced within that budget (`build::reduce_within`: boxes per
+/// member of a lattice crane, meshoptimizer on solid parts) and kept only
+/// when it has at most `min_reduction` of the triangles of the version
+/// below. The cut takes a coarser version once its error is small enough
+/// on screen, so the chain is made by error, not by triangle count.
 fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
     let bounds = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let mut out = vec![Version {
@@ -39,49 +41,28 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
         eps: 0.0,
         bounds,
     }];
-    let size = (bounds.1 - bounds.0).length();
-    let original = mesh.triangle_count();
-    for &ratio in &ctx.config.dynamic_lods {
+    let size = f64::from((bounds.1 - bounds.0).length());
+    for &share in &ctx.config.dynamic_budgets {
         let previous = out.last().expect("chain starts with the original");
-        let target = (original as f64 * ratio).round() as usize;
-        if target == 0 || target as f64 > previous.triangles as f64 * ctx.config.min_reduction {
+        let budget = share * size;
+        if budget <= previous.eps {
             continue;
         }
-        let s = geometry::simplify(
-            mesh,
-            &SimplifyOptions {
-                max_error: size,
-                target_triangles: Some(target),
-                prune: true,
-            },
-        );
-        if s.triangles == 0
-            || s.triangles as f64 > previous.triangles as f64 * ctx.config.min_reduction
-        {
-            break;
-        }
+        let tolerance = (budget * ctx.config.hausdorff_fraction) as f32;
         // Measured against the original model directly: a tighter bound
-        // than the recursive sum, and still a bound. Kept monotone.
-        let h = geometry::hausdorff(
-            &s.mesh,
-            mesh,
-            &HausdorffOptions {
-                tolerance: (f64::from(size) * ctx.config.k_eps * ctx.config.hausdorff_fraction)
-                    as f32,
-                seed: 0,
-            },
-        );
-        let eps = f64::from(h.bound).max(previous.eps);
-        // A version off by a large part of the model is no level of detail
-        // of it: the chain ends there.
-        if eps > MAX_LOD_ERROR * f64::from(size) {
-            break;
+        // than a recursive sum, and still a bound. Kept monotone.
+        let Some((reduced, h)) = reduce_within(mesh, budget as f32, tolerance) else {
+            continue;
+        };
+        if reduced.triangle_count() as f64 > previous.triangles as f64 * ctx.config.min_reduction {
+            continue;
         }
+        let eps = f64::from(h).max(previous.eps);
         // Contains the finer versions' boxes, as a parent's box must.
-        let (lo, hi) = s.mesh.bounds().unwrap_or(bounds);
+        let (lo, hi) = reduced.bounds().unwrap_or(bounds);
         out.push(Version {
-            hash: ctx.sink.put(&s.mesh)?,
-            triangles: s.triangles as u64,
+            hash: ctx.sink.put(&reduced)?,
+            triangles: reduced.triangle_count() as u64,
             eps,
             bounds: (lo.min(previous.bounds.0), hi.max(previous.bounds.1)),
         });
