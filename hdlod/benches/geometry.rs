@@ -6,6 +6,8 @@
 //! meshes the tree builder works on.
 //!
 //! `cargo bench -p hdlod --bench geometry` (`-- qem` to run a subset).
+//! Rayon's threads are the machine's cores unless `RAYON_NUM_THREADS` says
+//! otherwise (`RAYON_NUM_THREADS=1` gives the parallel path's serial cost).
 //! The `meshopt_*` cases call meshoptimizer directly on the horse as it was
 //! read (already indexed and welded), so that the wrapper's own share of the
 //! QEM time can be told from meshoptimizer's.
@@ -16,8 +18,8 @@ use std::time::Duration;
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
 use glam::{Mat4, Vec3};
 use hdlod::geometry::{
-    HausdorffOptions, Mesh, Part, SimplifyOptions, clustering, edge_collapse, hausdorff, merge,
-    simplify, vertex_removal,
+    HausdorffOptions, Mesh, Part, SimplifyOptions, clustering, edge_collapse,
+    edge_collapse_in_parts, hausdorff, merge, simplify, vertex_removal,
 };
 use meshopt::{SimplifyOptions as Flags, VertexDataAdapter, typed_to_bytes};
 
@@ -47,7 +49,12 @@ fn horse_simplifiers(c: &mut Criterion) {
     };
     let mut g = c.benchmark_group("horse_to_10pc");
     g.throughput(Throughput::Elements(n as u64));
+    // `qem` is the default path: horse's size takes four parts simplified
+    // in parallel; `qem_single_pass` the one pass over the whole mesh.
     g.bench_function("qem", |b| b.iter(|| edge_collapse(&mesh, &ten)));
+    g.bench_function("qem_single_pass", |b| {
+        b.iter(|| edge_collapse_in_parts(&mesh, &ten, 1))
+    });
     g.bench_function("qem_positions_only", |b| {
         b.iter(|| edge_collapse(&bare, &ten))
     });

@@ -4,11 +4,12 @@
 
 use glam::{Mat4, Vec3};
 use hdlod::geometry::{
-    HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy, clustering, edge_collapse, hausdorff,
-    merge, simplify,
+    HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy, clustering, edge_collapse,
+    edge_collapse_in_parts, hausdorff, merge, simplify,
 };
 use proptest::prelude::*;
 use proptest::strategy::Strategy as _;
+use std::collections::HashMap;
 
 /// `shared/data` beside the repository (a clone) or two levels up (a
 /// worktree).
@@ -62,25 +63,27 @@ fn an_error_budget_is_met_as_measured() {
     let mesh = bunny();
     let (lo, hi) = mesh.bounds().unwrap();
     let budget = 0.002 * (hi - lo).length();
-    let s = simplify(
-        &mesh,
-        &SimplifyOptions {
-            max_error: budget,
-            target_triangles: None,
-            prune: false,
-        },
-    );
+    let options = SimplifyOptions {
+        max_error: budget,
+        target_triangles: None,
+        prune: false,
+    };
+    let s = simplify(&mesh, &options);
     assert!(s.triangles < mesh.triangle_count() / 2, "{}", s.triangles);
-    let h = hausdorff(
-        &mesh,
-        &s.mesh,
-        &HausdorffOptions {
-            tolerance: budget * 0.05,
-            seed: 1,
-        },
-    );
-    // meshoptimizer's error is an estimate; the measured bound stays near it.
-    assert!(h.bound < 3.0 * budget, "{h:?} budget {budget}");
+    let sampling = HausdorffOptions {
+        tolerance: budget * 0.05,
+        seed: 1,
+    };
+    let h = hausdorff(&mesh, &s.mesh, &sampling);
+    // meshoptimizer's error is a quadric estimate, not a bound; the measured
+    // bound stays near it: 2.4 times the budget in one pass, 3.2 times in the
+    // two parts the bunny's size takes (the worst spot moves with the cut;
+    // the mean distance does not grow).
+    assert!(h.bound < 4.0 * budget, "{h:?} budget {budget}");
+    let one_pass = edge_collapse_in_parts(&mesh, &options, 1);
+    let h1 = hausdorff(&mesh, &one_pass, &sampling);
+    assert!(h1.bound < 3.0 * budget, "{h1:?} budget {budget}");
+    assert!(h.mean < 1.2 * h1.mean, "{h:?} against one pass {h1:?}");
 }
 
 /// Many small separate boxes: edge collapse cannot remove a closed box's
@@ -189,6 +192,160 @@ fn bad_input_gets_defined_results() {
     s.mesh.validate().unwrap();
 }
 
+/// A closed, bumpy UV sphere of `2 * slices * (stacks - 1)` triangles,
+/// welded (one vertex per pole), with normals so that the attribute path
+/// is the one exercised.
+fn bumpy_sphere(slices: u32, stacks: u32) -> Mesh {
+    let radius = |theta: f32, phi: f32| 1.0 + 0.05 * (5.0 * theta).sin() * (4.0 * phi).sin();
+    let point = |theta: f32, phi: f32| {
+        radius(theta, phi)
+            * Vec3::new(
+                theta.sin() * phi.cos(),
+                theta.sin() * phi.sin(),
+                theta.cos(),
+            )
+    };
+    let mut positions = vec![Vec3::Z * radius(0.0, 0.0)];
+    for i in 1..stacks {
+        let theta = std::f32::consts::PI * i as f32 / stacks as f32;
+        for j in 0..slices {
+            positions.push(point(
+                theta,
+                std::f32::consts::TAU * j as f32 / slices as f32,
+            ));
+        }
+    }
+    positions.push(-Vec3::Z * radius(std::f32::consts::PI, 0.0));
+    let south = positions.len() as u32 - 1;
+    let ring = |i: u32, j: u32| 1 + (i - 1) * slices + j % slices;
+    let mut indices = Vec::new();
+    for j in 0..slices {
+        indices.extend([0, ring(1, j), ring(1, j + 1)]);
+        indices.extend([south, ring(stacks - 1, j + 1), ring(stacks - 1, j)]);
+    }
+    for i in 1..stacks - 1 {
+        for j in 0..slices {
+            let (a, b, c, d) = (
+                ring(i, j),
+                ring(i, j + 1),
+                ring(i + 1, j),
+                ring(i + 1, j + 1),
+            );
+            indices.extend([a, c, b, b, c, d]);
+        }
+    }
+    Mesh {
+        normals: positions.iter().map(|p| p.normalize()).collect(),
+        positions,
+        indices,
+        ..Mesh::default()
+    }
+}
+
+/// Edges used by exactly one triangle, as (lower, higher) vertex pairs.
+fn border_edges(mesh: &Mesh) -> Vec<(u32, u32)> {
+    let mut uses: HashMap<(u32, u32), u32> = HashMap::new();
+    for t in mesh.indices.chunks_exact(3) {
+        for (a, b) in [(t[0], t[1]), (t[1], t[2]), (t[2], t[0])] {
+            *uses.entry((a.min(b), a.max(b))).or_default() += 1;
+        }
+    }
+    uses.into_iter()
+        .filter(|&(_, n)| n == 1)
+        .map(|(e, _)| e)
+        .collect()
+}
+
+#[test]
+fn parts_simplified_in_parallel_still_meet() {
+    let mesh = bumpy_sphere(200, 151);
+    let n = mesh.triangle_count();
+    assert_eq!(n, 60_000);
+    assert!(border_edges(&mesh).is_empty());
+    let target = n / 10;
+    let options = HausdorffOptions {
+        tolerance: 1e-3,
+        seed: 1,
+    };
+    let single = edge_collapse_in_parts(&mesh, &ratio(target), 1);
+    let single_h = hausdorff(&mesh, &single, &options);
+    for parts in [2, 3, 4, 8] {
+        let out = edge_collapse_in_parts(&mesh, &ratio(target), parts);
+        out.validate().unwrap();
+        assert!(
+            out.triangle_count() <= target && out.triangle_count() > target * 9 / 10,
+            "{parts} parts: {} triangles for {target}",
+            out.triangle_count()
+        );
+        // A crack at a cut would show as edges with one triangle.
+        assert_eq!(border_edges(&out), [], "{parts} parts");
+        let h = hausdorff(&mesh, &out, &options);
+        assert!(h.bound.is_finite() && h.mean.is_finite(), "{h:?}");
+        assert!(
+            h.bound < 2.0 * single_h.bound && h.mean < 1.5 * single_h.mean,
+            "{parts} parts: {h:?} against one pass {single_h:?}"
+        );
+    }
+    // The default path takes the parts for a mesh this size, and does not
+    // depend on timing or thread count.
+    let a = edge_collapse(&mesh, &ratio(target));
+    assert_ne!(a, single);
+    assert_eq!(a, edge_collapse(&mesh, &ratio(target)));
+}
+
+#[test]
+fn open_borders_stay_where_they_were() {
+    // A wavy height field, 2 * 180 * 180 triangles, open on four sides.
+    let side = 181u32;
+    let positions: Vec<Vec3> = (0..side * side)
+        .map(|k| {
+            let (x, y) = ((k % side) as f32 / 180.0, (k / side) as f32 / 180.0);
+            Vec3::new(x, y, 0.05 * (9.0 * x).sin() * (7.0 * y).cos())
+        })
+        .collect();
+    let mut indices = Vec::new();
+    for y in 0..side - 1 {
+        for x in 0..side - 1 {
+            let k = y * side + x;
+            indices.extend([k, k + 1, k + side, k + 1, k + side + 1, k + side]);
+        }
+    }
+    let mesh = Mesh {
+        positions,
+        indices,
+        ..Mesh::default()
+    };
+    let on_outline = |v: u32| {
+        let p = mesh.positions[v as usize];
+        p.x == 0.0 || p.x == 1.0 || p.y == 0.0 || p.y == 1.0
+    };
+    let target = mesh.triangle_count() / 20;
+    let out_of = |parts| {
+        let out = edge_collapse_in_parts(&mesh, &ratio(target), parts);
+        assert!(out.triangle_count() <= target, "{}", out.triangle_count());
+        out
+    };
+    for parts in [1, 4] {
+        let out = out_of(parts);
+        // `compact` renumbers; map back by position.
+        let index: HashMap<[u32; 3], u32> = mesh
+            .positions
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (p.to_array().map(f32::to_bits), i as u32))
+            .collect();
+        let original = |v: u32| index[&out.positions[v as usize].to_array().map(f32::to_bits)];
+        let borders = border_edges(&out);
+        assert!(!borders.is_empty());
+        for (a, b) in borders {
+            assert!(
+                on_outline(original(a)) && on_outline(original(b)),
+                "{parts} parts: a border edge inside the field"
+            );
+        }
+    }
+}
+
 fn soup() -> impl proptest::strategy::Strategy<Value = Mesh> {
     prop::collection::vec(
         prop::array::uniform3(prop::array::uniform3(-4.0f32..4.0)),
@@ -215,7 +372,8 @@ proptest! {
     #[test]
     fn random_soups_simplify_sanely(mesh in soup(), target in 0usize..100, error in 0.0f32..2.0, prune: bool) {
         let options = SimplifyOptions { max_error: error, target_triangles: Some(target), prune };
-        for out in [simplify(&mesh, &options).mesh, edge_collapse(&mesh, &options), clustering(&mesh, &options)] {
+        let parts = edge_collapse_in_parts(&mesh, &options, 1 + target % 4);
+        for out in [simplify(&mesh, &options).mesh, edge_collapse(&mesh, &options), clustering(&mesh, &options), parts] {
             prop_assert!(out.triangle_count() <= mesh.triangle_count());
             prop_assert!(out.triangle_count() > 0);
             prop_assert!(out.validate().is_ok());

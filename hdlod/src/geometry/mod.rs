@@ -6,6 +6,7 @@ mod hausdorff;
 pub mod measure;
 mod merge;
 mod mesh;
+mod parallel;
 mod proxy;
 mod reduce;
 mod simplify;
@@ -17,6 +18,7 @@ pub use merge::{Part, merge};
 pub use mesh::Mesh;
 pub use reduce::{Reduced, reduce_parts};
 pub use simplify::{
-    Method, Simplified, SimplifyOptions, Strategy, clustering, edge_collapse, simplify,
+    Method, Simplified, SimplifyOptions, Strategy, clustering, edge_collapse,
+    edge_collapse_in_parts, simplify,
 };
 pub use vertex_removal::{FEATURE_ANGLE_DEGREES, vertex_removal, vertex_removal_with_angle};

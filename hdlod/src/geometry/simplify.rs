@@ -6,12 +6,18 @@
 //! "sloppy" simplifier) for inputs made of many small parts, where edge
 //! collapse stalls on topology.
 //!
+//! Meshes of 40,000 triangles or more go through edge collapse in spatial
+//! parts on parallel threads (`parallel`: meshoptimizer's sparse
+//! simplification with the cut vertices locked, as Nanite simplifies its
+//! cluster groups); smaller ones, such as a tree builder's clusters, take
+//! one pass.
+//!
 //! meshoptimizer's own error figure is a quadric estimate, not a distance:
 //! the caller measures the result (`hausdorff`) and uses that.
 
 use meshopt::{SimplifyOptions as Flags, VertexDataAdapter, typed_to_bytes};
 
-use super::Mesh;
+use super::{Mesh, parallel};
 
 /// What to simplify to.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -112,10 +118,24 @@ pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
     }
 }
 
-/// Quadric edge collapse alone (with pruning if `options.prune`).
+/// Quadric edge collapse alone (with pruning if `options.prune`). Meshes
+/// of 40,000 triangles or more are simplified in parts in parallel (see
+/// [`edge_collapse_in_parts`]; the number of parts depends on the size
+/// only, so the result is the same on every machine).
 pub fn edge_collapse(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
     run_step(mesh, options, |m| {
         edge_collapse_indices(m, options, options.prune)
+    })
+}
+
+/// Quadric edge collapse split into `parts` spatial parts simplified in
+/// parallel, their shared vertices locked so that they still meet; each part
+/// goes to its share of `options.target_triangles`, rounded down, so the
+/// total never exceeds it. `parts` of 1 (or 0) is the single-thread pass
+/// over the whole mesh.
+pub fn edge_collapse_in_parts(mesh: &Mesh, options: &SimplifyOptions, parts: usize) -> Mesh {
+    run_step(mesh, options, |m| {
+        edge_collapse_indices_in(m, options, options.prune, parts)
     })
 }
 
@@ -208,7 +228,7 @@ pub(super) fn cleaned(mesh: &Mesh) -> Mesh {
     }
 }
 
-fn adapter(mesh: &Mesh) -> VertexDataAdapter<'_> {
+pub(super) fn adapter(mesh: &Mesh) -> VertexDataAdapter<'_> {
     VertexDataAdapter::new(typed_to_bytes(&mesh.positions), 12, 0)
         .expect("a Vec3 slice is a whole number of 12-byte vertices")
 }
@@ -224,8 +244,23 @@ fn relative_error(mesh: &Mesh, options: &SimplifyOptions) -> f32 {
 }
 
 fn edge_collapse_indices(mesh: &Mesh, options: &SimplifyOptions, prune: bool) -> Vec<u32> {
-    let target = options.target_triangles.unwrap_or(0) * 3;
-    let error = relative_error(mesh, options);
+    edge_collapse_indices_in(
+        mesh,
+        options,
+        prune,
+        parallel::part_count(mesh.triangle_count()),
+    )
+}
+
+/// Edge collapse in `parts` parts (see `parallel`); one part is the plain
+/// single-thread pass over the whole mesh.
+fn edge_collapse_indices_in(
+    mesh: &Mesh,
+    options: &SimplifyOptions,
+    prune: bool,
+    parts: usize,
+) -> Vec<u32> {
+    let target = options.target_triangles.unwrap_or(0);
     let flags = if prune { Flags::Prune } else { Flags::None };
     let vertices = adapter(mesh);
     let mut weights = Vec::new();
@@ -234,9 +269,6 @@ fn edge_collapse_indices(mesh: &Mesh, options: &SimplifyOptions, prune: bool) ->
     }
     if !mesh.colors.is_empty() {
         weights.extend([COLOR_WEIGHT; 4]);
-    }
-    if weights.is_empty() {
-        return meshopt::simplify(&mesh.indices, &vertices, target, error, flags, None);
     }
     let mut attributes = Vec::with_capacity(mesh.positions.len() * weights.len());
     for i in 0..mesh.positions.len() {
@@ -247,21 +279,53 @@ fn edge_collapse_indices(mesh: &Mesh, options: &SimplifyOptions, prune: bool) ->
             attributes.extend(c);
         }
     }
+    let collapse = |indices: &[u32], locks: &[bool], target: usize, error: f32, flags: Flags| {
+        let mut reached = 0.0;
+        let kept = if weights.is_empty() {
+            meshopt::simplify_with_locks(
+                indices,
+                &vertices,
+                locks,
+                target,
+                error,
+                flags,
+                Some(&mut reached),
+            )
+        } else {
+            meshopt::simplify_with_attributes_and_locks(
+                indices,
+                &vertices,
+                &attributes,
+                &weights,
+                weights.len() * 4,
+                locks,
+                target,
+                error,
+                flags,
+                Some(&mut reached),
+            )
+        };
+        (kept, reached)
+    };
+    if parts > 1 && mesh.triangle_count() >= 2 * parts {
+        let error = if options.max_error.is_finite() {
+            options.max_error.max(0.0)
+        } else {
+            f32::MAX
+        };
+        return parallel::collapse_in_parts(mesh, parts, target, error, flags, &collapse);
+    }
     // The wrapper passes the lock array's pointer on even when it is empty,
     // so it gets one (unlocked) entry per vertex.
     let locks = vec![false; mesh.positions.len()];
-    meshopt::simplify_with_attributes_and_locks(
+    collapse(
         &mesh.indices,
-        &vertices,
-        &attributes,
-        &weights,
-        weights.len() * 4,
         &locks,
-        target,
-        error,
+        3 * target,
+        relative_error(mesh, options),
         flags,
-        None,
     )
+    .0
 }
 
 fn clustering_indices(mesh: &Mesh, options: &SimplifyOptions) -> Vec<u32> {
