@@ -57,7 +57,7 @@ struct Row {
     triangles_in: usize,
     triangles_out: usize,
     seconds: f64,
-    /// Mean time this thread spent on a CPU per run (Linux), `None`
+    /// Mean time the process's threads spent on a CPU per run (Linux), `None`
     /// elsewhere: on a shared machine wall time also counts waits for a core.
     cpu_seconds: Option<f64>,
     hausdorff: f32,
@@ -189,14 +189,14 @@ fn case(model: &str, mesh: &Mesh, method: Method, ratio: f64, runs: usize) -> Ro
     // time is the total over all runs divided by their number.
     let mut times = Vec::with_capacity(runs);
     let mut out = Mesh::default();
-    let (total, cpu_start) = (Instant::now(), thread_cpu_ns());
+    let (total, cpu_start) = (Instant::now(), process_cpu_ns());
     while times.len() < runs || (total.elapsed().as_secs_f64() < 0.25 && times.len() < 1000) {
         let start = Instant::now();
         out = run.run(mesh, &options);
         times.push(start.elapsed().as_secs_f64());
     }
     let cpu_seconds = cpu_start
-        .zip(thread_cpu_ns())
+        .zip(process_cpu_ns())
         .map(|(a, b)| b.saturating_sub(a) as f64 * 1e-9 / times.len() as f64);
     times.sort_by(f64::total_cmp);
     let h = measured_distance(mesh, &out, 1);
@@ -223,10 +223,17 @@ fn case(model: &str, mesh: &Mesh, method: Method, ratio: f64, runs: usize) -> Ro
     }
 }
 
-/// Nanoseconds this thread has spent on a CPU (Linux's schedstat).
-fn thread_cpu_ns() -> Option<u64> {
-    let s = std::fs::read_to_string("/proc/thread-self/schedstat").ok()?;
-    s.split_whitespace().next()?.parse().ok()
+/// Nanoseconds the threads of this process have spent on a CPU (Linux's
+/// per-thread schedstat, summed): the simplifiers may run on rayon's pool,
+/// whose threads live as long as the process, so none is lost between two
+/// readings.
+fn process_cpu_ns() -> Option<u64> {
+    let mut total = 0;
+    for task in std::fs::read_dir("/proc/self/task").ok()? {
+        let s = std::fs::read_to_string(task.ok()?.path().join("schedstat")).ok()?;
+        total += s.split_whitespace().next()?.parse::<u64>().ok()?;
+    }
+    Some(total)
 }
 
 fn table(rows: &[Row]) -> String {
