@@ -3,39 +3,13 @@
 //! coarser levels from the root node in order, with one screen coverage per
 //! level.
 
-use std::path::{Path, PathBuf};
-use std::process::Command;
+mod common;
 
 use hdlod::geometry::{Mesh, Method, SimplifyOptions};
 use hdlod::io::glb;
 
 fn fandisk() -> Mesh {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository");
-    hdlod::io::obj::read_mesh(&dir.join("fandisk.obj")).unwrap()
-}
-
-fn validate(files: &[PathBuf]) -> Vec<serde_json::Value> {
-    let tools = Path::new(env!("CARGO_MANIFEST_DIR")).join("../tools");
-    assert!(
-        tools.join("node_modules/gltf-validator").is_dir(),
-        "the glTF validator is not installed in {}: run scripts/test (it runs `npm ci --prefix tools`)",
-        tools.display()
-    );
-    let out = Command::new("node")
-        .arg(tools.join("validate-gltf.js"))
-        .args(files)
-        .output()
-        .expect("node runs (scripts/test needs Node.js for the glTF validator)");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.code() != Some(2), "validator failed: {stderr}");
-    serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("report: {e}; {stderr}"))
+    common::shared_mesh("fandisk.obj")
 }
 
 fn chain(mesh: &Mesh, method: Method, ratios: &[f64]) -> Vec<Mesh> {
@@ -116,7 +90,7 @@ fn lod_chains_pass_the_validator() {
         assert_eq!(counts, expected);
         files.push(path);
     }
-    for (file, report) in files.iter().zip(validate(&files)) {
+    for (file, report) in files.iter().zip(common::gltf_reports(&files)) {
         let issues = &report["issues"];
         assert_eq!(
             issues["numErrors"],

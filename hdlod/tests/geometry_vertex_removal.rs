@@ -9,22 +9,8 @@ use hdlod::geometry::{
 };
 use proptest::prelude::*;
 
-fn shared_mesh(name: &str) -> Mesh {
-    let here = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository");
-    let path = dir.join(name);
-    match name.rsplit('.').next() {
-        Some("ply") => hdlod::io::ply::read_mesh(&path),
-        _ => hdlod::io::obj::read_mesh(&path),
-    }
-    .unwrap_or_else(|e| panic!("{e}"))
-}
+mod common;
+use common::shared_mesh;
 
 fn to(target: usize) -> SimplifyOptions {
     SimplifyOptions {

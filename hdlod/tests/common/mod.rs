@@ -177,6 +177,16 @@ pub fn shared_data(sub: &str) -> PathBuf {
         .unwrap_or_else(|| panic!("no shared/data/{sub} beside {}", repo.display()))
 }
 
+/// One of the classic meshes in `shared/data/meshes` (OBJ or PLY).
+pub fn shared_mesh(name: &str) -> Mesh {
+    let path = shared_data("meshes").join(name);
+    match name.rsplit('.').next() {
+        Some("ply") => hdlod::io::ply::read_mesh(&path),
+        _ => hdlod::io::obj::read_mesh(&path),
+    }
+    .unwrap_or_else(|e| panic!("{e}"))
+}
+
 /// The first errors of `value` against `v`, each with where it is.
 pub fn schema_errors(v: &jsonschema::Validator, value: &serde_json::Value) -> Vec<String> {
     v.iter_errors(value)
