@@ -5,7 +5,7 @@
 use glam::{Mat4, Vec3};
 use hdlod::geometry::{
     HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy, clustering, edge_collapse,
-    edge_collapse_in_parts, hausdorff, merge, simplify,
+    edge_collapse_in_parts, hausdorff, merge, simplify, vertex_removal,
 };
 use proptest::prelude::*;
 use proptest::strategy::Strategy as _;
@@ -380,5 +380,16 @@ proptest! {
             let h = hausdorff(&mesh, &out, &HausdorffOptions { tolerance: 0.05, seed: 3 });
             prop_assert!(h.bound.is_finite() && h.mean.is_finite());
         }
+    }
+
+    /// Vertex removal may leave nothing of a soup (its vertices are mostly
+    /// complex), but never more than it had, nor anything invalid.
+    #[test]
+    fn random_soups_decimate_sanely_by_vertex_removal(mesh in soup(), target in 0usize..100, error in 0.0f32..2.0) {
+        let options = SimplifyOptions { max_error: error, target_triangles: Some(target), prune: false };
+        let out = vertex_removal(&mesh, &options);
+        prop_assert!(out.triangle_count() <= mesh.triangle_count());
+        prop_assert!(out.validate().is_ok());
+        prop_assert!(out.positions.iter().all(|p| p.is_finite()));
     }
 }
