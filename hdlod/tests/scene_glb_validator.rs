@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{coloured_tetra, gltf_reports, saved_sample, unit_box};
+use common::{assert_no_gltf_errors, coloured_tetra, saved_sample, unit_box};
 use hdlod::io::glb;
 
 #[test]
@@ -16,17 +16,9 @@ fn written_glbs_have_zero_validator_errors() {
     glb::write_mesh(&coloured_tetra(), &coloured).unwrap();
     let scene_dir = saved_sample(dir.path());
     let files = [plain, coloured, scene_dir.join("sample.glb")];
-    let reports = gltf_reports(&files);
-    assert_eq!(reports.len(), files.len());
+    let reports = assert_no_gltf_errors(&files);
     for (file, report) in files.iter().zip(&reports) {
         let issues = &report["issues"];
-        assert_eq!(
-            issues["numErrors"],
-            0,
-            "{}: {}",
-            file.display(),
-            serde_json::to_string_pretty(&issues["messages"]).unwrap()
-        );
         assert_eq!(issues["numWarnings"], 0, "{}: {issues}", file.display());
         // Each file really was read: the validator saw its meshes.
         assert!(

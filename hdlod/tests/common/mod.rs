@@ -245,3 +245,21 @@ pub fn gltf_reports(files: &[PathBuf]) -> Vec<serde_json::Value> {
     assert!(out.status.code() != Some(2), "validator failed: {stderr}");
     serde_json::from_slice(&out.stdout).unwrap_or_else(|e| panic!("report: {e}; {stderr}"))
 }
+
+/// The validator's reports on `files`, in order, after asserting that each
+/// file was reported on and has no error.
+pub fn assert_no_gltf_errors(files: &[PathBuf]) -> Vec<serde_json::Value> {
+    let reports = gltf_reports(files);
+    assert_eq!(reports.len(), files.len());
+    for (file, report) in files.iter().zip(&reports) {
+        let issues = &report["issues"];
+        assert_eq!(
+            issues["numErrors"],
+            0,
+            "{}: {}",
+            file.display(),
+            serde_json::to_string_pretty(&issues["messages"]).unwrap()
+        );
+    }
+    reports
+}
