@@ -707,7 +707,7 @@ fn make_parent(
 /// triangles. Answers the parent's geometry and error.
 fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh, f64)> {
     let triangles = child.mesh.triangle_count();
-    if (triangles as f64) * ctx.config.min_reduction < BOX_TRIANGLES {
+    if (triangles as f64) * ctx.config.min_reduction < QUAD_TRIANGLES {
         return None;
     }
     let budget = (th.eps - child.eps) as f32;
@@ -717,9 +717,9 @@ fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh
         .then(|| (mesh, f64::from(h) + child.eps))
 }
 
-/// A box's triangles: a cluster with fewer left after the reduction gains
-/// nothing from a parent of its own.
-const BOX_TRIANGLES: f64 = 12.0;
+/// The fewest triangles a part is reduced to (a quad): a cluster with fewer
+/// left after the reduction gains nothing from a parent of its own.
+const QUAD_TRIANGLES: f64 = 2.0;
 
 /// `mesh` reduced within `budget` (scene units) and the measured bound of
 /// its Hausdorff distance to `mesh`, if some candidate removes triangles.

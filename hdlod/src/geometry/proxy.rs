@@ -1,8 +1,11 @@
-//! Connected parts of a mesh and box proxies for them: a part replaced by
-//! its axis-aligned box (12 triangles), the coarse representation BIM
-//! viewers fall back to, and one that works where edge collapse and vertex
-//! clustering fail: many small elements, each already near its minimum
-//! triangle count for its shape (round columns, tubes, frames).
+//! Connected parts of a mesh and proxies for them: a part replaced by its
+//! axis-aligned box (12 triangles), the coarse representation BIM viewers
+//! fall back to, or, when the part is thin across one axis, by that box
+//! squashed to its mid-plane (one quad, 2 triangles: a slab, a wall, a
+//! panel, a beam or a tube once the budget exceeds half its thickness).
+//! Both work where edge collapse and vertex clustering fail: many small
+//! elements, each already near its minimum triangle count for its shape
+//! (round columns, tubes, frames).
 //! `reduce::reduce_parts` decides part by part and measures the result.
 
 use std::collections::HashMap;
@@ -169,6 +172,35 @@ pub(super) fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
         out.indices
             .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
     }
+}
+
+/// The part's box squashed to its mid-plane across its thinnest axis: one
+/// quad, facing along that axis (the material is double-sided).
+pub(super) fn push_quad(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
+    let axis = (hi - lo).min_position();
+    let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
+    let mid = (lo[axis] + hi[axis]) / 2.0;
+    let corner = |a: f32, b: f32| {
+        let mut p = Vec3::ZERO;
+        p[axis] = mid;
+        p[u] = a;
+        p[v] = b;
+        p
+    };
+    let normal = Vec3::AXES[axis];
+    let base = out.positions.len() as u32;
+    for p in [
+        corner(lo[u], lo[v]),
+        corner(hi[u], lo[v]),
+        corner(hi[u], hi[v]),
+        corner(lo[u], hi[v]),
+    ] {
+        out.positions.push(p);
+        out.normals.push(normal);
+        out.colors.push(color);
+    }
+    out.indices
+        .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
 }
 
 #[cfg(test)]

@@ -5,9 +5,10 @@
 //!
 //! Each connected part is handled on its own, and every step keeps a
 //! measured bound:
-//! - a part becomes the smaller of its box (the box proxies of BIM viewers)
-//!   and its own simplification (`simplify`, on the part alone, where edge
-//!   collapse works well) among those within the budget of it;
+//! - a part becomes the first of its quad (its box squashed across its
+//!   thinnest axis), its box (the box proxies of BIM viewers) and its own
+//!   simplification (`simplify`, on the part alone, where edge collapse
+//!   works well) that is within the budget of it;
 //! - a part is dropped when all of it lies within the budget of the parts
 //!   kept so far, largest first (a greedy cover: a bracket next to a
 //!   column, the columns between two slabs once the budget exceeds half a
@@ -28,11 +29,13 @@ use glam::Vec3;
 use super::Mesh;
 use super::closest::TriangleSet;
 use super::hausdorff::{HausdorffOptions, hausdorff, one_sided_bound};
-use super::proxy::{part_bounds, part_color, parts, push_box, push_triangles};
+use super::proxy::{part_bounds, part_color, parts, push_box, push_quad, push_triangles};
 use super::simplify::{SimplifyOptions, Strategy, simplify};
 
-/// A box has 12 triangles: parts with fewer gain nothing from one.
+/// A box has 12 triangles and a quad 2: parts with no more gain nothing
+/// from one.
 const BOX_TRIANGLES: usize = 12;
+const QUAD_TRIANGLES: usize = 2;
 
 /// The result of `reduce_parts`.
 #[derive(Debug, Clone)]
@@ -70,9 +73,25 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
                 error: 0.0,
                 size,
             };
-            if triangles.len() > BOX_TRIANGLES && budget > 0.0 {
+            if budget <= 0.0 {
+                return piece;
+            }
+            let color = part_color(mesh, &triangles);
+            // Half the thickness is how far the quad's plane is from the
+            // part's outer faces: no quad fits a budget below it.
+            if triangles.len() > QUAD_TRIANGLES && (hi - lo).min_element() / 2.0 <= budget {
                 let mut proxy = Mesh::default();
-                push_box(&mut proxy, lo, hi, part_color(mesh, &triangles));
+                push_quad(&mut proxy, lo, hi, color);
+                let error = hausdorff(&proxy, &piece.input, &options).bound;
+                if error <= budget {
+                    piece.output = proxy;
+                    piece.error = error;
+                    return piece;
+                }
+            }
+            if triangles.len() > BOX_TRIANGLES {
+                let mut proxy = Mesh::default();
+                push_box(&mut proxy, lo, hi, color);
                 let error = hausdorff(&proxy, &piece.input, &options).bound;
                 if error <= budget {
                     piece.output = proxy;
@@ -262,11 +281,12 @@ mod tests {
 
     #[test]
     fn boxes_thin_parts_and_drops_covered_ones() {
-        // A thick tube and, 0.2 away, a thin one: with a budget of 0.5 the
-        // thin one is covered by the thick one's box.
-        let m = joined(&[tube(16, 0.3, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 0.5, 0.0)]);
+        // A thick tube and, 0.1 away, a thin one: with a budget of 0.5 the
+        // thick one becomes its quad (0.3 from its axis) and the thin one
+        // is covered by it.
+        let m = joined(&[tube(16, 0.3, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 0.4, 0.0)]);
         let r = reduce_parts(&m, 0.5, 1e-3);
-        assert_eq!(r.mesh.triangle_count(), 12, "{r:?}");
+        assert_eq!(r.mesh.triangle_count(), 2, "{r:?}");
         let truth = measured(&r.mesh, &m);
         assert!(truth <= r.bound + 1e-3, "{truth} > {}", r.bound);
         assert!(r.bound <= 0.5);
@@ -274,11 +294,16 @@ mod tests {
 
     #[test]
     fn keeps_what_the_budget_does_not_allow() {
-        // Two thin tubes 3 apart, budget 0.05: each becomes its box (within
-        // its radius), neither covers the other.
+        // Two thin tubes 3 apart, budget 0.05: each becomes its quad
+        // (within its radius), neither covers the other.
         let m = joined(&[tube(16, 0.02, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 3.0, 0.0)]);
         let r = reduce_parts(&m, 0.05, 1e-3);
-        assert_eq!(r.mesh.triangle_count(), 24);
+        assert_eq!(r.mesh.triangle_count(), 4);
+        // Below half their thickness no quad fits (nor a box: its caps'
+        // centres are 0.02 from the open tube): each keeps a coarser tube.
+        let r = reduce_parts(&m, 0.019, 1e-4);
+        assert!(r.mesh.triangle_count() > 4, "{r:?}");
+        assert!(r.bound <= 0.019 && measured(&r.mesh, &m) <= r.bound + 1e-4);
         assert!(measured(&r.mesh, &m) <= r.bound + 1e-3);
         // With no budget at all nothing changes.
         let r = reduce_parts(&m, 0.0, 1e-3);

@@ -26,8 +26,12 @@ use crate::geometry::Mesh;
 compile_error!("the GLB writer copies memory as little-endian bytes");
 
 /// One mesh as a GLB: positions, normals and `COLOR_0` when the mesh has
-/// them, and indices; one node, no material (the glTF default). The bytes
-/// depend only on the mesh, so they can be hashed for content addressing.
+/// them, and indices; one node and one white, non-metallic, double-sided
+/// material (vertex colours tint it). Double-sided because a coarse cluster
+/// stands a thin element in by one flat quad (`geometry::reduce_parts`),
+/// which must show from both sides, and because BIM triangle soup does not
+/// wind its faces consistently. The bytes depend only on the mesh, so they
+/// can be hashed for content addressing.
 /// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
 /// an empty scene.
 pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
@@ -35,7 +39,8 @@ pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
     let mut nodes = Vec::new();
     if !mesh.is_empty() {
         let accessors = glb.add_mesh(mesh);
-        let m = glb.add_primitive(&accessors, None);
+        let material = glb.double_sided_material();
+        let m = glb.add_primitive(&accessors, Some(material));
         nodes.push(glb.add_node(m, &Mat4::IDENTITY, None));
     }
     glb.finish(nodes)
@@ -302,6 +307,18 @@ impl GlbBuilder {
         let m = self.root.push(material);
         self.materials.insert(key, m);
         m
+    }
+
+    /// A white, non-metallic material seen from both sides.
+    fn double_sided_material(&mut self) -> json::Index<json::Material> {
+        self.root.push(json::Material {
+            double_sided: true,
+            pbr_metallic_roughness: json::material::PbrMetallicRoughness {
+                metallic_factor: json::material::StrengthFactor(0.0),
+                ..Default::default()
+            },
+            ..Default::default()
+        })
     }
 
     /// A node placing `mesh` by `transform`, with `extras: {"id": id}`.
