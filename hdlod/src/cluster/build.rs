@@ -291,6 +291,7 @@ pub fn build(
         config: serde_json::to_value(config).expect("the config serialises"),
         stats: serde_json::to_value(&stats).expect("the statistics serialise"),
         clusters,
+        presence: Default::default(),
     };
     Ok((tree, stats))
 }

@@ -8,6 +8,7 @@ pub mod camera;
 pub mod cut;
 pub mod format;
 pub mod paper;
+pub mod presence;
 pub mod sample;
 pub mod store;
 
@@ -147,6 +148,29 @@ pub struct Tree {
     pub config: serde_json::Value,
     pub stats: serde_json::Value,
     pub clusters: Vec<Cluster>,
+    /// The root's children by time, made on the first cut (the clusters
+    /// must not change after it).
+    pub(crate) presence: Derived<presence::Presence>,
+}
+
+/// Data derived from a tree's clusters on first use: not part of what the
+/// tree is, so any two compare equal.
+#[derive(Debug, Clone, Default)]
+pub(crate) struct Derived<T>(std::sync::OnceLock<T>);
+
+impl<T> PartialEq for Derived<T> {
+    fn eq(&self, _: &Self) -> bool {
+        true
+    }
+}
+
+impl Tree {
+    /// See [`presence`].
+    pub fn presence(&self) -> &presence::Presence {
+        self.presence
+            .0
+            .get_or_init(|| presence::Presence::new(self))
+    }
 }
 
 /// Counts of a tree for listings and `inspect`.
@@ -493,6 +517,7 @@ impl Tree {
             config: manifest.config,
             stats: manifest.stats,
             clusters: out,
+            presence: Derived::default(),
         };
         tree.validate(&cfile)?;
         Ok(tree)

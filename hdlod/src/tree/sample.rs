@@ -357,6 +357,7 @@ pub fn write_sample_tree(dir: &Path, seed: u64, floors: usize) -> Result<Tree> {
         config: serde_json::json!({"generator": "sample", "seed": seed, "floors": floors}),
         stats: serde_json::json!({"clusters": b.clusters.len()}),
         clusters: b.clusters,
+        presence: Default::default(),
     };
     writer.finish(&tree)?;
     Ok(tree)
