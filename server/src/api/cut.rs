@@ -299,6 +299,27 @@ impl Fragments {
         }
         Fragments { text, spans }
     }
+
+    /// The JSON of `cluster_out(tree, item)`, byte for byte.
+    pub fn write_cluster(&self, item: &hdlod::tree::CutItem, out: &mut Vec<u8>) {
+        let (start, middle, end) = self.spans[item.id as usize];
+        let text = self.text.as_bytes();
+        out.extend_from_slice(&text[start as usize..middle as usize]);
+        write_transform(out, item.transform.map(|m| m.to_cols_array()).as_ref());
+        out.extend_from_slice(&text[middle as usize..end as usize]);
+        write_number(out, &item.error);
+        out.extend_from_slice(b",\"visibility\":");
+        write_number(out, &item.visibility);
+        out.push(b'}');
+    }
+}
+
+/// A transform as serde_json writes `Option<[f32; 16]>`.
+pub fn write_transform(out: &mut Vec<u8>, transform: Option<&[f32; 16]>) {
+    match transform {
+        Some(m) => serde_json::to_writer(&mut *out, m).expect("numbers"),
+        None => out.extend_from_slice(b"null"),
+    }
 }
 
 /// Writes the JSON of `response(tree, baseline, t, cut, micros)` into `out`, from the
@@ -321,18 +342,7 @@ pub fn write_response(
         if k > 0 {
             out.push(b',');
         }
-        let (start, middle, end) = fragments.spans[item.id as usize];
-        let text = fragments.text.as_bytes();
-        out.extend_from_slice(&text[start as usize..middle as usize]);
-        match item.transform {
-            Some(m) => serde_json::to_writer(&mut *out, &m.to_cols_array()).expect("numbers"),
-            None => out.extend_from_slice(b"null"),
-        }
-        out.extend_from_slice(&text[middle as usize..end as usize]);
-        write_number(out, &item.error);
-        out.extend_from_slice(b",\"visibility\":");
-        write_number(out, &item.visibility);
-        out.push(b'}');
+        fragments.write_cluster(item, out);
     }
     out.extend_from_slice(b"],\"stats\":");
     serde_json::to_writer(&mut *out, &stats_out(cut, micros, baseline, t))
@@ -341,11 +351,11 @@ pub fn write_response(
 }
 
 /// A number as serde_json writes it (non-finite as null).
-fn write_number(out: &mut Vec<u8>, x: &impl Serialize) {
+pub fn write_number(out: &mut Vec<u8>, x: &impl Serialize) {
     serde_json::to_writer(out, x).expect("a number serialises");
 }
 
-fn stats_out(cut: &Cut, micros: f64, baseline: &Baseline, t: f64) -> StatsOut {
+pub fn stats_out(cut: &Cut, micros: f64, baseline: &Baseline, t: f64) -> StatsOut {
     let (baseline_triangles, baseline_objects) = baseline.at(t);
     StatsOut {
         clusters: cut.stats.clusters,

@@ -6,16 +6,15 @@
 //! between, ids may mean other clusters, so the answer has `reset: true`
 //! and removes everything the client held.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 
 use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
 use axum::extract::{Path, State};
 use axum::response::Response;
 use hdlod::tree::Cut;
-use serde::Serialize;
+use rustc_hash::FxHashMap;
 
-use super::cut::{self, ClusterOut, StatsOut, cluster_out};
+use super::cut::{self, stats_out, write_number, write_transform};
 use super::error::ApiError;
 use super::handlers::find;
 use super::{AppState, LoadedScene};
@@ -31,35 +30,26 @@ pub async fn stream(
         .on_upgrade(move |socket| serve(state, name, socket)))
 }
 
-/// Typed rather than `serde_json::Value` so that transforms keep their
-/// shortest `f32` text, exactly as `POST .../cut` writes them.
-#[derive(Serialize)]
-struct Update<'a> {
-    seq: u64,
-    reset: bool,
-    time: f64,
-    add: Vec<ClusterOut<'a>>,
-    remove: Vec<u32>,
-    update: Vec<Moved>,
-    stats: StatsOut,
-}
+/// Cluster id -> its transform in an answer. Ids are small integers from
+/// our own tree, so a fast non-keyed hash is safe and halves the diff's cost.
+type Held = FxHashMap<u32, Option<[f32; 16]>>;
 
-#[derive(Serialize)]
-struct Moved {
-    id: u32,
-    transform: Option<[f32; 16]>,
-}
-
+#[derive(Default)]
 struct Session {
     scene: Option<Arc<LoadedScene>>,
-    /// Cluster id -> its transform in the last answer.
-    held: HashMap<u32, Option<[f32; 16]>>,
+    /// What the last answer left the client holding.
+    held: Held,
+    /// Reused for the next answer's, then swapped with `held`.
+    next: Held,
     cut: Cut,
     stack: Vec<u32>,
     seq: u64,
 }
 
 impl Session {
+    /// The answer to one request: `{"seq", "reset", "time", "add", "remove",
+    /// "update", "stats"}`, written from the tree's JSON fragments (the
+    /// added clusters exactly as `POST .../cut` writes them).
     fn update(&mut self, state: &AppState, name: &str, text: &str) -> Result<String, ApiError> {
         let scene = find(state, name)?;
         let request = cut::parse_json(text.as_bytes())?;
@@ -76,43 +66,57 @@ impl Session {
             remove.extend(self.held.keys());
             self.held.clear();
         }
-        let (mut add, mut update) = (Vec::new(), Vec::new());
-        let mut next = HashMap::with_capacity(self.cut.items.len());
+        let mut out = Vec::with_capacity(256);
+        out.extend_from_slice(b"{\"seq\":");
+        write_number(&mut out, &(self.seq + 1));
+        out.extend_from_slice(if reset {
+            b",\"reset\":true,\"time\":"
+        } else {
+            b",\"reset\":false,\"time\":"
+        });
+        write_number(&mut out, &t);
+        out.extend_from_slice(b",\"add\":[");
+        let mut moved: Vec<(u32, Option<[f32; 16]>)> = Vec::new();
+        self.next.clear();
+        let mut first = true;
         for item in &self.cut.items {
             let transform = item.transform.map(|m| m.to_cols_array());
             match self.held.remove(&item.id) {
-                None => add.push(cluster_out(tree, item)),
-                Some(old) if old != transform => update.push(Moved {
-                    id: item.id,
-                    transform,
-                }),
+                None => {
+                    if !first {
+                        out.push(b',');
+                    }
+                    first = false;
+                    scene.fragments.write_cluster(item, &mut out);
+                }
+                Some(old) if old != transform => moved.push((item.id, transform)),
                 Some(_) => {}
             }
-            next.insert(item.id, transform);
+            self.next.insert(item.id, transform);
         }
         remove.extend(self.held.keys());
         remove.sort_unstable();
-        self.held = next;
+        std::mem::swap(&mut self.held, &mut self.next);
+        out.extend_from_slice(b"],\"remove\":");
+        serde_json::to_writer(&mut out, &remove).expect("numbers serialise");
+        out.extend_from_slice(b",\"update\":[");
+        for (k, (id, transform)) in moved.iter().enumerate() {
+            if k > 0 {
+                out.push(b',');
+            }
+            out.extend_from_slice(b"{\"id\":");
+            write_number(&mut out, id);
+            out.extend_from_slice(b",\"transform\":");
+            write_transform(&mut out, transform.as_ref());
+            out.push(b'}');
+        }
+        out.extend_from_slice(b"],\"stats\":");
+        serde_json::to_writer(&mut out, &stats_out(&self.cut, micros, &scene.baseline, t))
+            .expect("plain data serialises");
+        out.push(b'}');
         self.scene = Some(scene.clone());
         self.seq += 1;
-        let (baseline_triangles, baseline_objects) = scene.baseline.at(t);
-        let message = Update {
-            seq: self.seq,
-            reset,
-            time: t,
-            add,
-            remove,
-            update,
-            stats: StatsOut {
-                clusters: self.cut.stats.clusters,
-                triangles: self.cut.stats.triangles,
-                visited: self.cut.stats.visited,
-                micros,
-                baseline_triangles,
-                baseline_objects,
-            },
-        };
-        Ok(serde_json::to_string(&message).expect("plain data serialises"))
+        Ok(String::from_utf8(out).expect("JSON text is UTF-8"))
     }
 }
 
@@ -121,13 +125,7 @@ async fn serve(state: Arc<AppState>, name: String, mut socket: WebSocket) {
         .metrics
         .ws_connections
         .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
-    let mut session = Session {
-        scene: None,
-        held: HashMap::new(),
-        cut: Cut::default(),
-        stack: Vec::new(),
-        seq: 0,
-    };
+    let mut session = Session::default();
     while let Some(Ok(message)) = socket.recv().await {
         let reply = match message {
             Message::Text(text) => match session.update(&state, &name, text.as_str()) {
@@ -143,11 +141,7 @@ async fn serve(state: Arc<AppState>, name: String, mut socket: WebSocket) {
             Message::Close(_) => break,
             Message::Ping(_) | Message::Pong(_) => continue,
         };
-        if socket
-            .send(Message::Text(reply.to_string().into()))
-            .await
-            .is_err()
-        {
+        if socket.send(Message::Text(reply.into())).await.is_err() {
             break;
         }
     }
