@@ -14,8 +14,9 @@ pub struct BuildConfig {
     /// `w(1)` is about the median object size (at least 1, at most 24).
     pub levels: Option<u32>,
     /// Spatial error budget of a level as a fraction of its size:
-    /// `eps(l) = k_eps w(l)`. With the default 0.05 a cluster is drawn once
-    /// it covers about 20 pixels of error budget.
+    /// `eps(l) = k_eps w(l)`. With the default 0.035 a cluster is drawn
+    /// once it covers about 30 pixels of error budget (docs/benchmarks.md
+    /// compares 0.0125 to 0.05 on the paper scene).
     pub k_eps: f64,
     /// Temporal error budget of the top level: `gamma(l) = gamma_max l / L`.
     pub gamma_max: f64,
@@ -42,7 +43,7 @@ impl Default for BuildConfig {
     fn default() -> Self {
         BuildConfig {
             levels: None,
-            k_eps: 0.05,
+            k_eps: 0.035,
             gamma_max: 0.05,
             max_children: 8,
             max_steps: 32,
