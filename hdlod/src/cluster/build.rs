@@ -292,6 +292,7 @@ pub fn build(
         stats: serde_json::to_value(&stats).expect("the statistics serialise"),
         clusters,
         presence: Default::default(),
+        nodes: Default::default(),
     };
     Ok((tree, stats))
 }

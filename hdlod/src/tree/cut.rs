@@ -14,7 +14,8 @@
 //! unless its visibility is fractional; and the root has no geometry, so it
 //! is always refined. The root's children are taken from its presence
 //! index (`presence`): those that may be present at `t`, in order, rather
-//! than every one of them. The traversal is iterative with one reused stack;
+//! than every one of them. The traversal reads the tree's compact copy
+//! (`nodes`), is iterative with one reused stack;
 //! children are pushed in reverse so that clusters come out in the order of
 //! the recursive definition.
 
@@ -85,39 +86,51 @@ pub fn cut(tree: &Tree, view: &View, t: f64) -> Cut {
     out
 }
 
-/// [`cut`] into reused buffers: no allocation once they have grown.
+/// [`cut`] into reused buffers: no allocation once they have grown. The
+/// stack holds node indices of the tree's compact copy (`nodes`).
 pub fn cut_into(tree: &Tree, view: &View, t: f64, out: &mut Cut, stack: &mut Vec<u32>) {
     out.items.clear();
     out.stats = CutStats::default();
     stack.clear();
-    stack.push(tree.root);
+    let nodes = tree.nodes();
+    stack.push(0);
     let r = view.r();
     while let Some(i) = stack.pop() {
         out.stats.visited += 1;
-        let c = &tree.clusters[i as usize];
-        let v = c.visibility.at(t);
+        let c = &nodes.nodes[i as usize];
+        let v = nodes.visibility(c, t);
         if v <= 0.0 {
             continue;
         }
-        let (bounds, transform) = match &c.motion {
-            Some(m) => {
-                let mat = m.at(t);
-                (moved_box(&c.bounds, &mat.as_dmat4()), Some(mat))
-            }
-            None => (c.bounds, None),
+        let (bounds, transform) = if c.dynamic {
+            let motion = tree.clusters[c.id as usize]
+                .motion
+                .as_ref()
+                .expect("a dynamic node's cluster has a motion");
+            let mat = motion.at(t);
+            (moved_box(&c.bounds(), &mat.as_dmat4()), Some(mat))
+        } else {
+            (c.bounds(), None)
         };
         if view.outside(&bounds) {
             continue;
         }
         let delta = c.delta(v);
-        let refine = !c.is_leaf() && (c.geometry.is_none() || delta >= r * view.distance(&bounds));
-        if refine && i == tree.root {
-            stack.extend(tree.presence().candidates(t).iter().rev());
+        let leaf = c.child_count == 0;
+        let refine = !leaf && (!c.has_geometry || delta >= r * view.distance(&bounds));
+        if refine && i == 0 {
+            let candidates = tree.presence().candidates(t);
+            stack.extend(
+                candidates
+                    .iter()
+                    .rev()
+                    .map(|&id| nodes.node_of[id as usize]),
+            );
         } else if refine {
-            stack.extend(c.children.iter().rev());
-        } else if v >= 0.5 && c.geometry.is_some() {
+            stack.extend((c.first_child..c.first_child + c.child_count).rev());
+        } else if v >= 0.5 && c.has_geometry {
             out.stats.clusters += 1;
-            out.stats.triangles += c.triangles;
+            out.stats.triangles += tree.clusters[c.id as usize].triangles;
             out.items.push(CutItem {
                 id: c.id,
                 transform,

@@ -7,6 +7,7 @@ pub mod baseline;
 pub mod camera;
 pub mod cut;
 pub mod format;
+mod nodes;
 pub mod paper;
 pub mod presence;
 pub mod sample;
@@ -151,6 +152,8 @@ pub struct Tree {
     /// The root's children by time, made on the first cut (the clusters
     /// must not change after it).
     pub(crate) presence: Derived<presence::Presence>,
+    /// The cut's compact copy of the clusters, made on the first cut.
+    pub(crate) nodes: Derived<nodes::Nodes>,
 }
 
 /// Data derived from a tree's clusters on first use: not part of what the
@@ -170,6 +173,10 @@ impl Tree {
         self.presence
             .0
             .get_or_init(|| presence::Presence::new(self))
+    }
+
+    pub(crate) fn nodes(&self) -> &nodes::Nodes {
+        self.nodes.0.get_or_init(|| nodes::Nodes::new(self))
     }
 }
 
@@ -518,6 +525,7 @@ impl Tree {
             stats: manifest.stats,
             clusters: out,
             presence: Derived::default(),
+            nodes: Derived::default(),
         };
         tree.validate(&cfile)?;
         Ok(tree)

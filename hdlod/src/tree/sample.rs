@@ -358,6 +358,7 @@ pub fn write_sample_tree(dir: &Path, seed: u64, floors: usize) -> Result<Tree> {
         stats: serde_json::json!({"clusters": b.clusters.len()}),
         clusters: b.clusters,
         presence: Default::default(),
+        nodes: Default::default(),
     };
     writer.finish(&tree)?;
     Ok(tree)

@@ -161,7 +161,7 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 
 /// Loads and validates a tree directory: the manifest, the cluster table and
 /// the presence of every geometry file (one directory listing, no reads);
-/// makes the root's presence index.
+/// makes the root's presence index and the cut's compact copy.
 pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
     let dir = dir.as_ref();
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
@@ -187,8 +187,9 @@ pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
             ));
         }
     }
-    // Made now so that no cut, the first one included, pays for it.
+    // Made now so that no cut, the first one included, pays for them.
     tree.presence();
+    tree.nodes();
     Ok(tree)
 }
 
