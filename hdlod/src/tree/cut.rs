@@ -95,6 +95,7 @@ pub fn cut_into(tree: &Tree, view: &View, t: f64, out: &mut Cut, stack: &mut Vec
     let nodes = tree.nodes();
     stack.push(0);
     let r = view.r();
+    let mut sampled = (u32::MAX, Mat4::IDENTITY);
     while let Some(i) = stack.pop() {
         out.stats.visited += 1;
         let c = &nodes.nodes[i as usize];
@@ -102,13 +103,19 @@ pub fn cut_into(tree: &Tree, view: &View, t: f64, out: &mut Cut, stack: &mut Vec
         if v <= 0.0 {
             continue;
         }
-        let (bounds, transform) = if c.dynamic {
-            let motion = tree.clusters[c.id as usize]
-                .motion
-                .as_ref()
-                .expect("a dynamic node's cluster has a motion");
-            let mat = motion.at(t);
-            (moved_box(&c.bounds(), &mat.as_dmat4()), Some(mat))
+        let (bounds, transform) = if c.motion != u32::MAX {
+            // The levels of a chain come one after another and share it.
+            if sampled.0 != c.motion {
+                let motion = tree.clusters[c.motion as usize]
+                    .motion
+                    .as_ref()
+                    .expect("a motion source has a motion");
+                sampled = (c.motion, motion.at(t));
+            }
+            (
+                moved_box(&c.bounds(), &sampled.1.as_dmat4()),
+                Some(sampled.1),
+            )
         } else {
             (c.bounds(), None)
         };

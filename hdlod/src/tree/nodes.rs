@@ -25,7 +25,10 @@ pub(crate) struct Node {
     pub first_step: u32,
     pub step_count: u32,
     pub has_geometry: bool,
-    pub dynamic: bool,
+    /// For a dynamic cluster, the id of the cluster whose motion it uses:
+    /// the top of its LOD chain, whose levels all share one motion, so that
+    /// the cut samples it once per chain. `u32::MAX` for the others.
+    pub motion: u32,
 }
 
 impl Node {
@@ -85,7 +88,7 @@ impl Nodes {
                     first_step,
                     step_count: c.visibility.steps().len() as u32,
                     has_geometry: c.geometry.is_some(),
-                    dynamic: c.motion.is_some(),
+                    motion: motion_source(tree, id),
                 }
             })
             .collect();
@@ -104,4 +107,19 @@ impl Nodes {
         let i = steps.partition_point(|s| s.0 <= t);
         if i == 0 { 0.0 } else { steps[i - 1].1 }
     }
+}
+
+/// The highest ancestor of `id` (itself included) with the same motion as
+/// `id`, or `u32::MAX` when `id` has none.
+fn motion_source(tree: &Tree, id: u32) -> u32 {
+    let Some(motion) = &tree.clusters[id as usize].motion else {
+        return u32::MAX;
+    };
+    let mut source = id;
+    while let Some(parent) = tree.clusters[source as usize].parent
+        && tree.clusters[parent as usize].motion.as_ref() == Some(motion)
+    {
+        source = parent;
+    }
+    source
 }

@@ -44,6 +44,8 @@ struct Session {
     cut: Cut,
     stack: Vec<u32>,
     seq: u64,
+    /// The last answer's length: the next one's buffer starts that big.
+    last_len: usize,
 }
 
 impl Session {
@@ -66,7 +68,7 @@ impl Session {
             remove.extend(self.held.keys());
             self.held.clear();
         }
-        let mut out = Vec::with_capacity(256);
+        let mut out = Vec::with_capacity(self.last_len.max(256));
         out.extend_from_slice(b"{\"seq\":");
         write_number(&mut out, &(self.seq + 1));
         out.extend_from_slice(if reset {
@@ -116,6 +118,7 @@ impl Session {
         out.push(b'}');
         self.scene = Some(scene.clone());
         self.seq += 1;
+        self.last_len = out.len();
         Ok(String::from_utf8(out).expect("JSON text is UTF-8"))
     }
 }
