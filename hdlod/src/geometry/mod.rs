@@ -19,6 +19,6 @@ pub use mesh::Mesh;
 pub use reduce::{Reduced, reduce_parts};
 pub use simplify::{
     Method, Simplified, SimplifyOptions, Strategy, clustering, edge_collapse,
-    edge_collapse_in_parts, simplify,
+    edge_collapse_in_parts, edge_collapse_placed, simplify,
 };
 pub use vertex_removal::{FEATURE_ANGLE_DEGREES, vertex_removal, vertex_removal_with_angle};
