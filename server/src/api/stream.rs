@@ -30,17 +30,25 @@ pub async fn stream(
         .on_upgrade(move |socket| serve(state, name, socket)))
 }
 
-/// Cluster id -> its transform in an answer. Ids are small integers from
-/// our own tree, so a fast non-keyed hash is safe and halves the diff's cost.
-type Held = FxHashMap<u32, Option<[f32; 16]>>;
+/// What the client holds after the last answer. `stamp[id]` is the answer
+/// (counted from 1) that last held cluster `id`: one `u32` per cluster of
+/// the tree, so the diff indexes an array where a map would hash each
+/// cluster twice, in less memory than a map of a large cut.
+#[derive(Default)]
+struct Held {
+    stamp: Vec<u32>,
+    answer: u32,
+    /// The clusters of the last answer.
+    ids: Vec<u32>,
+    /// The transforms of the moving ones among them. Ids are small integers
+    /// from our own tree, so a fast non-keyed hash is safe.
+    transforms: FxHashMap<u32, [f32; 16]>,
+}
 
 #[derive(Default)]
 struct Session {
     scene: Option<Arc<LoadedScene>>,
-    /// What the last answer left the client holding.
     held: Held,
-    /// Reused for the next answer's, then swapped with `held`.
-    next: Held,
     cut: Cut,
     stack: Vec<u32>,
     seq: u64,
@@ -62,11 +70,18 @@ impl Session {
             .metrics
             .cut(self.cut.stats.clusters, self.cut.stats.triangles);
 
-        let reset = !self.scene.as_ref().is_some_and(|s| Arc::ptr_eq(s, &scene));
+        // A reloaded tree's ids may mean other clusters; the stamps start
+        // over then, and when they would wrap (after 4 billion answers).
+        let held = &mut self.held;
+        let reset =
+            !self.scene.as_ref().is_some_and(|s| Arc::ptr_eq(s, &scene)) || held.answer == u32::MAX;
         let mut remove: Vec<u32> = Vec::new();
         if reset {
-            remove.extend(self.held.keys());
-            self.held.clear();
+            remove.append(&mut held.ids);
+            held.stamp.clear();
+            held.stamp.resize(tree.clusters.len(), 0);
+            held.answer = 0;
+            held.transforms.clear();
         }
         let mut out = Vec::with_capacity(self.last_len.max(256));
         out.extend_from_slice(b"{\"seq\":");
@@ -78,27 +93,39 @@ impl Session {
         });
         write_number(&mut out, &t);
         out.extend_from_slice(b",\"add\":[");
-        let mut moved: Vec<(u32, Option<[f32; 16]>)> = Vec::new();
-        self.next.clear();
+        let (before, now) = (held.answer, held.answer + 1);
+        held.answer = now;
+        let mut moved: Vec<(u32, [f32; 16])> = Vec::new();
         let mut first = true;
         for item in &self.cut.items {
+            let stamp = &mut held.stamp[item.id as usize];
+            let kept = before != 0 && *stamp == before;
+            *stamp = now;
             let transform = item.transform.map(|m| m.to_cols_array());
-            match self.held.remove(&item.id) {
-                None => {
-                    if !first {
-                        out.push(b',');
-                    }
-                    first = false;
-                    scene.fragments.write_cluster(item, &mut out);
+            if !kept {
+                if !first {
+                    out.push(b',');
                 }
-                Some(old) if old != transform => moved.push((item.id, transform)),
-                Some(_) => {}
+                first = false;
+                scene.fragments.write_cluster(item, &mut out);
+            } else if let Some(m) = transform
+                && held.transforms.get(&item.id) != Some(&m)
+            {
+                moved.push((item.id, m));
             }
-            self.next.insert(item.id, transform);
+            if let Some(m) = transform {
+                held.transforms.insert(item.id, m);
+            }
         }
-        remove.extend(self.held.keys());
+        for &id in &held.ids {
+            if held.stamp[id as usize] != now {
+                remove.push(id);
+                held.transforms.remove(&id);
+            }
+        }
+        held.ids.clear();
+        held.ids.extend(self.cut.items.iter().map(|i| i.id));
         remove.sort_unstable();
-        std::mem::swap(&mut self.held, &mut self.next);
         out.extend_from_slice(b"],\"remove\":");
         serde_json::to_writer(&mut out, &remove).expect("numbers serialise");
         out.extend_from_slice(b",\"update\":[");
@@ -109,7 +136,7 @@ impl Session {
             out.extend_from_slice(b"{\"id\":");
             write_number(&mut out, id);
             out.extend_from_slice(b",\"transform\":");
-            write_transform(&mut out, transform.as_ref());
+            write_transform(&mut out, Some(transform));
             out.push(b'}');
         }
         out.extend_from_slice(b"],\"stats\":");
