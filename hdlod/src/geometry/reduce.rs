@@ -68,43 +68,32 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
             push_triangles(&mut input, mesh, &triangles);
             let (lo, hi) = part_bounds(mesh, &triangles);
             let size = (hi - lo).length();
-            let mut piece = Piece {
-                output: input.clone(),
-                input,
-                error: 0.0,
-                size,
-            };
-            if budget <= 0.0 {
-                return piece;
-            }
             let color = part_color(mesh, &triangles);
+            let proxy = |push: fn(&mut Mesh, Vec3, Vec3, [f32; 4])| {
+                let mut proxy = Mesh::default();
+                push(&mut proxy, lo, hi, color);
+                let error = hausdorff(&proxy, &input, &options).bound;
+                (error <= budget).then_some((proxy, error))
+            };
             // Half the thickness is how far the quad's plane is from the
             // part's outer faces: no quad fits a budget below it.
-            if triangles.len() > QUAD_TRIANGLES && (hi - lo).min_element() / 2.0 <= budget {
-                let mut proxy = Mesh::default();
-                push_quad(&mut proxy, lo, hi, color);
-                let error = hausdorff(&proxy, &piece.input, &options).bound;
-                if error <= budget {
-                    piece.output = proxy;
-                    piece.error = error;
-                    return piece;
-                }
+            let quad = budget > 0.0
+                && triangles.len() > QUAD_TRIANGLES
+                && (hi - lo).min_element() / 2.0 <= budget;
+            let reduced = quad.then(|| proxy(push_quad)).flatten().or_else(|| {
+                (budget > 0.0 && triangles.len() > BOX_TRIANGLES)
+                    .then(|| {
+                        proxy(push_box).or_else(|| simplified_within(&input, budget, &options))
+                    })
+                    .flatten()
+            });
+            let (output, error) = reduced.unwrap_or_else(|| (input.clone(), 0.0));
+            Piece {
+                input,
+                output,
+                error,
+                size,
             }
-            if triangles.len() > BOX_TRIANGLES {
-                let mut proxy = Mesh::default();
-                push_box(&mut proxy, lo, hi, color);
-                let error = hausdorff(&proxy, &piece.input, &options).bound;
-                if error <= budget {
-                    piece.output = proxy;
-                    piece.error = error;
-                } else if let Some((output, error)) =
-                    simplified_within(&piece.input, budget, &options)
-                {
-                    piece.output = output;
-                    piece.error = error;
-                }
-            }
-            piece
         })
         .collect();
     pieces.sort_by(|a, b| b.size.total_cmp(&a.size));
