@@ -7,6 +7,7 @@
 
 use std::collections::HashMap;
 use std::path::Path;
+use std::sync::Arc;
 use std::time::Instant;
 
 use glam::{DVec3, Mat4, Vec3};
@@ -38,8 +39,11 @@ struct Active {
     /// share one, so this stays short.
     vis: Vec<u32>,
     /// Dropped once the cluster has a parent: memory stays bounded by one
-    /// level's geometry.
-    mesh: Mesh,
+    /// level's geometry (and the originals below kept for `direct_eps`).
+    mesh: Arc<Mesh>,
+    /// The original objects' geometry below, while it has at most
+    /// `DIRECT_MAX_TRIANGLES` triangles: see `direct_eps`.
+    originals: Option<Vec<Arc<Mesh>>>,
 }
 
 pub(super) struct Context<'a> {
@@ -160,6 +164,7 @@ pub fn build(
             triangles: mesh.triangle_count() as u64,
             objects: vec![o.id.clone()],
         });
+        let mesh = Arc::new(mesh);
         leaves[tree].push(Active {
             id,
             lo,
@@ -168,6 +173,7 @@ pub fn build(
             eps: 0.0,
             steps,
             vis: vec![vis],
+            originals: (mesh.triangle_count() <= DIRECT_MAX_TRIANGLES).then(|| vec![mesh.clone()]),
             mesh,
         });
     }
@@ -479,7 +485,8 @@ fn cluster_class(
                 eps,
                 steps,
                 vis,
-                mesh,
+                originals: originals_of(&children),
+                mesh: Arc::new(mesh),
             });
         }
         let alone: Vec<usize> = (0..active.len()).filter(|&i| !taken[i]).collect();
@@ -532,7 +539,7 @@ fn cluster_class(
                 hi,
                 w,
                 eps,
-                mesh,
+                mesh: Arc::new(mesh),
                 ..a
             });
         }
@@ -696,9 +703,53 @@ fn make_parent(
     let budget = (th.eps - child_eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
     let (mesh, h) = reduce_within(&union, budget, tolerance).unwrap_or((union, 0.0));
-    let eps = f64::from(h) + child_eps;
+    let recursive = f64::from(h) + child_eps;
+    let eps = direct_eps(&mesh, originals_of(&children).as_deref(), tolerance)
+        .map_or(recursive, |d| d.min(recursive).max(child_eps));
     let hash = ctx.sink.put(&mesh)?;
     Ok((mesh, eps, hash))
+}
+
+/// Clusters whose original objects have at most this many triangles in all
+/// get `direct_eps`: the measure costs what a parent's own does, and on the
+/// paper scene this covers the static surroundings and the lower levels.
+const DIRECT_MAX_TRIANGLES: usize = 20_000;
+
+/// The originals below `children`, if all of them kept theirs and there
+/// are few enough.
+fn originals_of(children: &[&Active]) -> Option<Vec<Arc<Mesh>>> {
+    let mut out = Vec::new();
+    let mut triangles = 0;
+    for c in children {
+        for m in c.originals.as_ref()? {
+            triangles += m.triangle_count();
+            out.push(m.clone());
+        }
+    }
+    (triangles <= DIRECT_MAX_TRIANGLES).then_some(out)
+}
+
+/// A bound of `D_H(g_c, union of the original objects of c)` measured
+/// directly. The recursive `eps_c` of DESIGN.md section 2 bounds the same
+/// distance through the triangle inequality, adding each level's bound to
+/// the one below, and the measured distance is often half of it; the
+/// smaller of the two is stored (both are bounds), and never below a
+/// child's, so errors still grow upwards. A smaller `eps_c` lets the cut
+/// stop higher in the tree.
+fn direct_eps(mesh: &Mesh, originals: Option<&[Arc<Mesh>]>, tolerance: f32) -> Option<f64> {
+    let originals = originals?;
+    let parts: Vec<Part> = originals
+        .iter()
+        .map(|m| Part {
+            mesh: m,
+            transform: Mat4::IDENTITY,
+            color: [1.0; 4],
+        })
+        .collect();
+    let union = geometry::merge(&parts, 0.0);
+    Some(f64::from(
+        geometry::hausdorff(mesh, &union, &HausdorffOptions { tolerance, seed: 0 }).bound,
+    ))
 }
 
 /// The paper's loop moves a cluster with no neighbours up unchanged; an
@@ -715,8 +766,13 @@ fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh
     let budget = (th.eps - child.eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
     let (mesh, h) = reduce_within(&child.mesh, budget, tolerance)?;
-    (mesh.triangle_count() as f64 <= triangles as f64 * ctx.config.min_reduction)
-        .then(|| (mesh, f64::from(h) + child.eps))
+    if mesh.triangle_count() as f64 > triangles as f64 * ctx.config.min_reduction {
+        return None;
+    }
+    let recursive = f64::from(h) + child.eps;
+    let eps = direct_eps(&mesh, child.originals.as_deref(), tolerance)
+        .map_or(recursive, |d| d.min(recursive).max(child.eps));
+    Some((mesh, eps))
 }
 
 /// The fewest triangles a part is reduced to (a quad): a cluster with fewer
