@@ -422,7 +422,7 @@ fn cluster_class(
             }
         );
         progress.phase(&name, groups.len() as u64);
-        let parents: Vec<Result<(Mesh, f64, String)>> = groups
+        let parents: Vec<Result<Parent>> = groups
             .par_iter()
             .map(|g| {
                 let made = make_parent(ctx, &active, g, &th);
@@ -439,7 +439,12 @@ fn cluster_class(
         let mut next: Vec<Active> = Vec::with_capacity(active.len());
         let mut made: Vec<Active> = Vec::with_capacity(groups.len());
         for (g, parent) in groups.iter().zip(parents) {
-            let (mesh, eps, hash) = parent?;
+            let Parent {
+                mesh,
+                eps,
+                hash,
+                originals,
+            } = parent?;
             let children: Vec<&Active> = g.iter().map(|&i| &active[i]).collect();
             let (steps, vis, gamma) = temporal(ctx, &children);
             let lo = children
@@ -485,7 +490,7 @@ fn cluster_class(
                 eps,
                 steps,
                 vis,
-                originals: originals_of(&children),
+                originals,
                 mesh: Arc::new(mesh),
             });
         }
@@ -679,6 +684,15 @@ fn group(
     groups
 }
 
+/// A parent made by `make_parent`: its geometry, `eps_c`, geometry hash and
+/// the originals below it (if kept).
+struct Parent {
+    mesh: Mesh,
+    eps: f64,
+    hash: String,
+    originals: Option<Vec<Arc<Mesh>>>,
+}
+
 /// Merges the children's geometry, simplifies it within the level's budget
 /// and measures the spatial error: `eps_c = D_H(g_c, union g_c') + max
 /// eps_c'`, with `D_H` a computed upper bound (see `reduce_within`). When
@@ -688,7 +702,7 @@ fn make_parent(
     active: &[Active],
     group: &[usize],
     th: &Thresholds,
-) -> Result<(Mesh, f64, String)> {
+) -> Result<Parent> {
     let children: Vec<&Active> = group.iter().map(|&i| &active[i]).collect();
     let child_eps = children.iter().map(|c| c.eps).fold(0.0, f64::max);
     let parts: Vec<Part> = children
@@ -703,11 +717,15 @@ fn make_parent(
     let budget = (th.eps - child_eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
     let (mesh, h) = reduce_within(&union, budget, tolerance).unwrap_or((union, 0.0));
-    let recursive = f64::from(h) + child_eps;
-    let eps = direct_eps(&mesh, originals_of(&children).as_deref(), tolerance)
-        .map_or(recursive, |d| d.min(recursive).max(child_eps));
+    let originals = originals_of(&children);
+    let eps = stored_eps(&mesh, h, child_eps, originals.as_deref(), tolerance);
     let hash = ctx.sink.put(&mesh)?;
-    Ok((mesh, eps, hash))
+    Ok(Parent {
+        mesh,
+        eps,
+        hash,
+        originals,
+    })
 }
 
 /// Clusters whose original objects have at most this many triangles in all
@@ -729,15 +747,30 @@ fn originals_of(children: &[&Active]) -> Option<Vec<Arc<Mesh>>> {
     (triangles <= DIRECT_MAX_TRIANGLES).then_some(out)
 }
 
-/// A bound of `D_H(g_c, union of the original objects of c)` measured
-/// directly. The recursive `eps_c` of DESIGN.md section 2 bounds the same
-/// distance through the triangle inequality, adding each level's bound to
-/// the one below, and the measured distance is often half of it; the
-/// smaller of the two is stored (both are bounds), and never below a
-/// child's, so errors still grow upwards. A smaller `eps_c` lets the cut
-/// stop higher in the tree.
-fn direct_eps(mesh: &Mesh, originals: Option<&[Arc<Mesh>]>, tolerance: f32) -> Option<f64> {
-    let originals = originals?;
+/// The `eps_c` stored for geometry `mesh` made within the measured bound
+/// `h` of children whose largest error is `child_eps`. The recursive
+/// `h + child_eps` of DESIGN.md section 2 bounds `D_H(g_c, union of the
+/// original objects of c)` through the triangle inequality, adding each
+/// level's bound to the one below; where the `originals` were kept, that
+/// distance is also measured directly, often half the sum, and the
+/// smaller of the two is stored (both are bounds), never below a child's,
+/// so errors still grow upwards. A smaller `eps_c` lets the cut stop
+/// higher in the tree.
+fn stored_eps(
+    mesh: &Mesh,
+    h: f32,
+    child_eps: f64,
+    originals: Option<&[Arc<Mesh>]>,
+    tolerance: f32,
+) -> f64 {
+    let recursive = f64::from(h) + child_eps;
+    originals.map_or(recursive, |o| {
+        direct_eps(mesh, o, tolerance).min(recursive).max(child_eps)
+    })
+}
+
+/// A bound of `D_H(mesh, union of originals)`, measured.
+fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32) -> f64 {
     let parts: Vec<Part> = originals
         .iter()
         .map(|m| Part {
@@ -747,9 +780,7 @@ fn direct_eps(mesh: &Mesh, originals: Option<&[Arc<Mesh>]>, tolerance: f32) -> O
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);
-    Some(f64::from(
-        geometry::hausdorff(mesh, &union, &HausdorffOptions { tolerance, seed: 0 }).bound,
-    ))
+    f64::from(geometry::hausdorff(mesh, &union, &HausdorffOptions { tolerance, seed: 0 }).bound)
 }
 
 /// The paper's loop moves a cluster with no neighbours up unchanged; an
@@ -769,9 +800,7 @@ fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh
     if mesh.triangle_count() as f64 > triangles as f64 * ctx.config.min_reduction {
         return None;
     }
-    let recursive = f64::from(h) + child.eps;
-    let eps = direct_eps(&mesh, child.originals.as_deref(), tolerance)
-        .map_or(recursive, |d| d.min(recursive).max(child.eps));
+    let eps = stored_eps(&mesh, h, child.eps, child.originals.as_deref(), tolerance);
     Some((mesh, eps))
 }
 

@@ -96,9 +96,20 @@ impl Steps {
     }
 
     pub fn at(&self, t: f64) -> f32 {
-        let i = self.steps.partition_point(|s| s.0 <= t);
-        if i == 0 { 0.0 } else { self.steps[i - 1].1 }
+        step_at(&self.steps, t)
     }
+}
+
+/// The value of sorted steps `(t_i, v_i)` at `t`: 0 before the first.
+pub(crate) fn step_at(steps: &[(f64, f32)], t: f64) -> f32 {
+    let i = steps.partition_point(|s| s.0 <= t);
+    if i == 0 { 0.0 } else { steps[i - 1].1 }
+}
+
+/// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (DESIGN.md section 2).
+pub(crate) fn delta(eps: f64, w: f64, v: f32) -> f64 {
+    let v = f64::from(v);
+    eps + 2.0 * w * v.min(1.0 - v)
 }
 
 /// One cluster `c = (g_c, v_c, p_c, b_c, w_c, eps_c, gamma_c)` of DESIGN.md
@@ -132,8 +143,7 @@ impl Cluster {
 
     /// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (DESIGN.md section 2).
     pub fn delta(&self, v: f32) -> f64 {
-        let v = f64::from(v);
-        self.eps + 2.0 * self.w * v.min(1.0 - v)
+        delta(self.eps, self.w, v)
     }
 }
 

@@ -8,7 +8,7 @@
 
 use glam::DVec3;
 
-use super::{Aabb, Tree};
+use super::{Aabb, Tree, delta, step_at};
 
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Node {
@@ -39,10 +39,9 @@ impl Node {
         }
     }
 
-    /// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)`, as `Cluster::delta`.
+    /// As `Cluster::delta`.
     pub fn delta(&self, v: f32) -> f64 {
-        let v = f64::from(v);
-        self.eps + 2.0 * self.w * v.min(1.0 - v)
+        delta(self.eps, self.w, v)
     }
 }
 
@@ -102,10 +101,10 @@ impl Nodes {
     /// `v_c(t)`, as `Steps::at`.
     #[inline]
     pub fn visibility(&self, node: &Node, t: f64) -> f32 {
-        let steps =
-            &self.steps[node.first_step as usize..(node.first_step + node.step_count) as usize];
-        let i = steps.partition_point(|s| s.0 <= t);
-        if i == 0 { 0.0 } else { steps[i - 1].1 }
+        step_at(
+            &self.steps[node.first_step as usize..(node.first_step + node.step_count) as usize],
+            t,
+        )
     }
 }
 
