@@ -60,6 +60,30 @@ fn every_method_reports_valid_json() {
 }
 
 #[test]
+fn positions_only_drops_the_normals_and_says_so() {
+    let dir = tempfile::tempdir().unwrap();
+    let horse = shared_data("meshes").join("horse.ply");
+    assert!(!hdlod::io::ply::read_mesh(&horse).unwrap().normals.is_empty());
+    for (flag, weighed) in [(None, true), (Some("--positions-only"), false)] {
+        let out = dir.path().join("out.glb");
+        let mut args = vec![
+            "simplify",
+            horse.to_str().unwrap(),
+            out.to_str().unwrap(),
+            "--ratio",
+            "0.1",
+            "--json",
+        ];
+        args.extend(flag);
+        let json = report(&args);
+        assert_eq!(json["positions_only"], !weighed, "{json}");
+        let written = hdlod::io::gltf::read_mesh(&out).unwrap();
+        assert_eq!(!written.normals.is_empty(), weighed);
+        assert!(json["triangles_out"].as_u64().unwrap() <= 9_697, "{json}");
+    }
+}
+
+#[test]
 fn glb_out_and_back_in() {
     let dir = tempfile::tempdir().unwrap();
     let (glb, again) = (dir.path().join("o.glb"), dir.path().join("again.obj"));

@@ -15,6 +15,8 @@
 //! meshoptimizer's own error figure is a quadric estimate, not a distance:
 //! the caller measures the result (`hausdorff`) and uses that.
 
+use std::borrow::Cow;
+
 use meshopt::{SimplifyOptions as Flags, VertexDataAdapter, typed_to_bytes};
 
 use super::{Mesh, parallel};
@@ -73,7 +75,7 @@ pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
     let n = mesh.triangle_count();
     let target = options.target_triangles.unwrap_or(0);
     if n == 0 || target >= n {
-        return unchanged(mesh);
+        return unchanged(mesh.into_owned());
     }
     let stalled = |t: usize| t > target && t as f32 > STALL_RATIO * n as f32;
 
@@ -108,7 +110,7 @@ pub fn simplify(mesh: &Mesh, options: &SimplifyOptions) -> Simplified {
         );
     }
     let Some((indices, strategy)) = best else {
-        return unchanged(mesh);
+        return unchanged(mesh.into_owned());
     };
     let mesh = compact(&mesh, &indices);
     Simplified {
@@ -149,7 +151,7 @@ pub fn edge_collapse_in_parts(mesh: &Mesh, options: &SimplifyOptions, parts: usi
 pub fn edge_collapse_placed(mesh: &Mesh, target_triangles: usize) -> Mesh {
     let mesh = cleaned(mesh);
     if mesh.is_empty() || target_triangles >= mesh.triangle_count() {
-        return mesh;
+        return mesh.into_owned();
     }
     let mut indices = mesh.indices.clone();
     let mut positions: Vec<[f32; 3]> = mesh.positions.iter().map(|p| p.to_array()).collect();
@@ -220,11 +222,11 @@ pub fn clustering(mesh: &Mesh, options: &SimplifyOptions) -> Mesh {
 fn run_step(mesh: &Mesh, options: &SimplifyOptions, step: impl Fn(&Mesh) -> Vec<u32>) -> Mesh {
     let mesh = cleaned(mesh);
     if mesh.is_empty() || options.target_triangles.unwrap_or(0) >= mesh.triangle_count() {
-        return mesh;
+        return mesh.into_owned();
     }
     let indices = step(&mesh);
     if indices.is_empty() {
-        return mesh;
+        return mesh.into_owned();
     }
     compact(&mesh, &indices)
 }
@@ -239,10 +241,20 @@ fn unchanged(mesh: Mesh) -> Simplified {
 
 /// The mesh without the triangles meshoptimizer must not see: out-of-range
 /// indices (undefined behaviour in C) and non-finite corners. Attribute
-/// arrays of the wrong length are dropped rather than trusted.
-pub(super) fn cleaned(mesh: &Mesh) -> Mesh {
+/// arrays of the wrong length are dropped rather than trusted. A mesh with
+/// nothing to drop is borrowed: copying a large one costs a share of the
+/// simplification itself.
+pub(super) fn cleaned(mesh: &Mesh) -> Cow<'_, Mesh> {
     let n = mesh.positions.len();
     let ok = |i: u32| (i as usize) < n && mesh.positions[i as usize].is_finite();
+    let fits = |len: usize| len == 0 || len == n;
+    if mesh.indices.len().is_multiple_of(3)
+        && fits(mesh.normals.len())
+        && fits(mesh.colors.len())
+        && mesh.indices.iter().all(|&i| ok(i))
+    {
+        return Cow::Borrowed(mesh);
+    }
     let indices = mesh
         .indices
         .chunks_exact(3)
@@ -250,7 +262,7 @@ pub(super) fn cleaned(mesh: &Mesh) -> Mesh {
         .flatten()
         .copied()
         .collect();
-    Mesh {
+    Cow::Owned(Mesh {
         positions: mesh.positions.clone(),
         normals: if mesh.normals.len() == n {
             mesh.normals.clone()
@@ -263,7 +275,7 @@ pub(super) fn cleaned(mesh: &Mesh) -> Mesh {
             Vec::new()
         },
         indices,
-    }
+    })
 }
 
 pub(super) fn adapter(mesh: &Mesh) -> VertexDataAdapter<'_> {

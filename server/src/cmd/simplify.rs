@@ -1,4 +1,4 @@
-//! `hdlod simplify IN OUT --method qem|clustering|vertex-removal (--ratio R | --error E) [--json]`:
+//! `hdlod simplify IN OUT --method qem|clustering|vertex-removal (--ratio R | --error E) [--positions-only] [--json]`:
 //! simplifies one mesh file and measures the result against the input (the
 //! Hausdorff bound, mean and RMS distance, volume and area ratios).
 //! The JSON output is described by `schemas/simplify.schema.json`.
@@ -46,6 +46,13 @@ pub struct Args {
     /// Simplify as far as this absolute error budget (scene units) allows.
     #[arg(long)]
     error: Option<f32>,
+    /// Weigh positions alone, as Garland and Heckbert's quadrics (and the
+    /// decimation theses' QEM) do: the input's normals and colours are
+    /// dropped first, so the output has positions only. Edge collapse is
+    /// then faster and its shape error lower, and the shading follows the
+    /// input's normals less closely (docs/benchmarks.md).
+    #[arg(long)]
+    positions_only: bool,
     /// Seed of the surface sample behind the mean and RMS distances.
     #[arg(long, default_value_t = 1)]
     seed: u64,
@@ -57,6 +64,7 @@ pub struct Args {
 #[derive(Serialize)]
 struct Report {
     method: Method,
+    positions_only: bool,
     triangles_in: usize,
     triangles_out: usize,
     seconds: f64,
@@ -70,7 +78,11 @@ struct Report {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mesh = read(&args.input)?;
+    let mut mesh = read(&args.input)?;
+    if args.positions_only {
+        mesh.normals.clear();
+        mesh.colors.clear();
+    }
     let n = mesh.triangle_count();
     if n == 0 {
         bail!("{}: the mesh has no triangles", args.input.display());
@@ -108,6 +120,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let ratio = |a: f64, b: f64| (b != 0.0).then(|| a / b);
     let report = Report {
         method: args.method,
+        positions_only: args.positions_only,
         triangles_in: n,
         triangles_out: out.triangle_count(),
         seconds,
