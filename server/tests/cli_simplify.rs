@@ -63,7 +63,12 @@ fn every_method_reports_valid_json() {
 fn positions_only_drops_the_normals_and_says_so() {
     let dir = tempfile::tempdir().unwrap();
     let horse = shared_data("meshes").join("horse.ply");
-    assert!(!hdlod::io::ply::read_mesh(&horse).unwrap().normals.is_empty());
+    assert!(
+        !hdlod::io::ply::read_mesh(&horse)
+            .unwrap()
+            .normals
+            .is_empty()
+    );
     for (flag, weighed) in [(None, true), (Some("--positions-only"), false)] {
         let out = dir.path().join("out.glb");
         let mut args = vec![

@@ -87,89 +87,79 @@ pub(super) fn collapse_in_parts(
     flags: Flags,
     collapse: &Collapse<'_>,
 ) -> Vec<u32> {
+    let n = mesh.indices.len() / 3;
     // meshoptimizer treats coincident vertices (an attribute seam) as one,
     // so a cut locks all of them together.
-    let same_position = meshopt::generate_position_remap(&adapter(mesh));
-    let n = mesh.indices.len() / 3;
-    let first = round(
+    let (same_position, first_cut) = rayon::join(
+        || meshopt::generate_position_remap(&adapter(mesh)),
+        || Partition::new(&mesh.positions, &mesh.indices, parts, None),
+    );
+    let (first, reached) = round(
         mesh,
         &same_position,
         &mesh.indices,
-        parts,
-        None,
+        &first_cut,
         |part| ((part as f64 * target_triangles as f64 / n as f64 * PART_SLACK) as usize).min(part),
         max_error,
         flags,
         collapse,
     );
-    if first.indices.len() <= 3 * target_triangles {
-        return first.indices;
+    if first.len() <= 3 * target_triangles {
+        return first;
     }
-    let m = first.indices.len() / 3;
+    let m = first.len() / 3;
+    let second_cut = Partition::new(
+        &mesh.positions,
+        &first,
+        SECOND_ROUND_PARTS,
+        Some(first_cut.axis),
+    );
     round(
         mesh,
         &same_position,
-        &first.indices,
-        SECOND_ROUND_PARTS,
-        Some(first.axis),
+        &first,
+        &second_cut,
         |part| (part as f64 * target_triangles as f64 / m as f64) as usize,
         // The second round starts from the first's result, so its error
         // adds to the first's: it gets what is left of the budget.
-        (max_error - first.reached).max(0.0),
+        (max_error - reached).max(0.0),
         flags,
         collapse,
     )
-    .indices
+    .0
 }
 
-/// What one round of parts produced.
-struct Round {
-    /// The parts' results, concatenated.
-    indices: Vec<u32>,
-    /// The largest error meshoptimizer reached in a part.
-    reached: f32,
-    /// The axis of the round's first cut.
-    axis: usize,
-}
-
-/// Simplifies the triangles `indices` (into `mesh`'s vertices) in `parts`
-/// parts on parallel threads, each to `share(its triangle count)`
-/// triangles, with the vertices two parts share locked. The first cut runs
-/// across the longest axis other than `avoid`.
+/// Simplifies the triangles `indices` (into `mesh`'s vertices), split as
+/// `cut` says, on parallel threads, each part to `share(its triangle
+/// count)` triangles, with the vertices two parts share locked. Returns the
+/// parts' results concatenated and the largest error meshoptimizer reached.
 #[allow(clippy::too_many_arguments)]
 fn round(
     mesh: &Mesh,
     same_position: &[u32],
     indices: &[u32],
-    parts: usize,
-    avoid: Option<usize>,
+    cut: &Partition,
     share: impl Fn(usize) -> usize + Sync,
     max_error: f32,
     flags: Flags,
     collapse: &Collapse<'_>,
-) -> Round {
-    let positions = &mesh.positions;
-    let centroids: Vec<Vec3> = indices
-        .chunks_exact(3)
-        .map(|t| {
-            (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize]) / 3.0
-        })
-        .collect();
-    let mut order: Vec<u32> = (0..centroids.len() as u32).collect();
-    let mut slices = Vec::with_capacity(parts);
-    let axis = split(&mut order, &centroids, parts, avoid, &mut slices);
-
+) -> (Vec<u32>, f32) {
+    let mut part_of = vec![0u32; indices.len() / 3];
+    for (p, part) in cut.parts().enumerate() {
+        for &t in part {
+            part_of[t as usize] = p as u32;
+        }
+    }
+    // In triangle order, so that the index buffer is read in sequence.
     const SHARED: u32 = u32::MAX - 1;
-    let mut owner = vec![u32::MAX; positions.len()];
-    for (p, slice) in slices.iter().enumerate() {
-        for &t in *slice {
-            for &v in &indices[3 * t as usize..3 * t as usize + 3] {
-                let o = &mut owner[same_position[v as usize] as usize];
-                if *o == u32::MAX {
-                    *o = p as u32;
-                } else if *o != p as u32 {
-                    *o = SHARED;
-                }
+    let mut owner = vec![u32::MAX; mesh.positions.len()];
+    for (t, &p) in indices.chunks_exact(3).zip(&part_of) {
+        for &v in t {
+            let o = &mut owner[same_position[v as usize] as usize];
+            if *o == u32::MAX {
+                *o = p;
+            } else if *o != p {
+                *o = SHARED;
             }
         }
     }
@@ -178,38 +168,73 @@ fn round(
         .map(|&r| owner[r as usize] == SHARED)
         .collect();
 
-    let results: Vec<(Vec<u32>, f32)> = slices
-        .par_iter()
-        .map(|slice| {
-            let part: Vec<u32> = slice
+    let results: Vec<(Vec<u32>, f32)> = cut
+        .parts()
+        .collect::<Vec<_>>()
+        .into_par_iter()
+        .map(|part| {
+            let triangles: Vec<u32> = part
                 .iter()
                 .flat_map(|&t| indices[3 * t as usize..3 * t as usize + 3].iter().copied())
                 .collect();
             collapse(
-                &part,
+                &triangles,
                 &locks,
-                3 * share(slice.len()),
+                3 * share(part.len()),
                 max_error,
                 flags | Flags::Sparse | Flags::ErrorAbsolute,
             )
         })
         .collect();
-    Round {
-        reached: results.iter().map(|r| r.1).fold(0.0, f32::max),
-        indices: results.into_iter().flat_map(|r| r.0).collect(),
-        axis,
+    let reached = results.iter().map(|r| r.1).fold(0.0, f32::max);
+    (results.into_iter().flat_map(|r| r.0).collect(), reached)
+}
+
+/// Triangles split into parts of near equal size at centroid medians along
+/// the longest axis of each part's centroids (a kd-tree's leaves).
+struct Partition {
+    /// Triangle ids, part after part.
+    order: Vec<u32>,
+    /// Where each part ends in `order`.
+    ends: Vec<usize>,
+    /// The axis of the first cut.
+    axis: usize,
+}
+
+impl Partition {
+    /// `parts` parts of the triangles `indices`; the first cut runs across
+    /// the longest axis other than `avoid`.
+    fn new(positions: &[Vec3], indices: &[u32], parts: usize, avoid: Option<usize>) -> Self {
+        let centroids: Vec<Vec3> = indices
+            .chunks_exact(3)
+            .map(|t| {
+                (positions[t[0] as usize] + positions[t[1] as usize] + positions[t[2] as usize])
+                    / 3.0
+            })
+            .collect();
+        let mut order: Vec<u32> = (0..centroids.len() as u32).collect();
+        let mut ends = Vec::with_capacity(parts);
+        let axis = split(&mut order, 0, &centroids, parts, avoid, &mut ends);
+        Partition { order, ends, axis }
+    }
+
+    fn parts(&self) -> impl Iterator<Item = &[u32]> {
+        let starts = std::iter::once(0).chain(self.ends.iter().copied());
+        starts.zip(&self.ends).map(|(a, &b)| &self.order[a..b])
     }
 }
 
-/// Splits `order` (triangle ids) into `parts` slices of near equal size at
-/// centroid medians along the longest axis of each slice's centroids (at
-/// the top, the longest other than `avoid`). Returns the top cut's axis.
-fn split<'a>(
-    order: &'a mut [u32],
+/// Splits `order` (triangle ids, starting at `offset` in the whole order)
+/// into `parts` slices of near equal size, pushing where each ends. The
+/// cut at the top runs across the longest axis other than `avoid`; that
+/// axis is returned.
+fn split(
+    order: &mut [u32],
+    offset: usize,
     centroids: &[Vec3],
     parts: usize,
     avoid: Option<usize>,
-    out: &mut Vec<&'a [u32]>,
+    ends: &mut Vec<usize>,
 ) -> usize {
     let (lo, hi) = order.iter().fold(
         (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
@@ -221,16 +246,36 @@ fn split<'a>(
     }
     let axis = extent.max_position();
     if parts <= 1 || order.len() < 2 {
-        out.push(order);
+        ends.push(offset + order.len());
         return axis;
     }
     let left_parts = parts / 2;
     let mid = order.len() * left_parts / parts;
-    order.select_nth_unstable_by(mid, |&a, &b| {
-        centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
-    });
+    // The coordinate and the id in one integer: selecting among these
+    // reads no centroid, and ties fall to the id, the same on every run.
+    let mut keyed: Vec<u64> = order
+        .iter()
+        .map(|&t| (u64::from(ordered_bits(centroids[t as usize][axis])) << 32) | u64::from(t))
+        .collect();
+    keyed.select_nth_unstable(mid);
+    for (o, k) in order.iter_mut().zip(&keyed) {
+        *o = *k as u32;
+    }
     let (left, right) = order.split_at_mut(mid);
-    split(left, centroids, left_parts, None, out);
-    split(right, centroids, parts - left_parts, None, out);
+    split(left, offset, centroids, left_parts, None, ends);
+    split(
+        right,
+        offset + mid,
+        centroids,
+        parts - left_parts,
+        None,
+        ends,
+    );
     axis
+}
+
+/// The bits of a finite float as an integer of the same order.
+fn ordered_bits(x: f32) -> u32 {
+    let b = x.to_bits();
+    if b >> 31 == 1 { !b } else { b | 1 << 31 }
 }
