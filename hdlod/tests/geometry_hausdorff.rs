@@ -1,8 +1,9 @@
 //! The Hausdorff bound: known distances, bad input, and (proptest) that it
-//! bounds every brute-force distance of random surface points.
+//! bounds every brute-force distance of random surface points; the same for
+//! the budgeted bound alone (`bound_within`).
 
 use glam::{Vec3, Vec3A};
-use hdlod::geometry::{HausdorffOptions, Mesh, closest_point_on_triangle, hausdorff};
+use hdlod::geometry::{HausdorffOptions, Mesh, bound_within, closest_point_on_triangle, hausdorff};
 use proptest::prelude::*;
 
 fn quad(z: f32, size: f32) -> Mesh {
@@ -31,6 +32,23 @@ fn parallel_planes_are_their_offset_apart() {
         (h.mean - 0.25).abs() < 1e-5 && (h.rms - 0.25).abs() < 1e-5,
         "{h:?}"
     );
+}
+
+#[test]
+fn a_budget_keeps_the_bound_or_refuses_it() {
+    let (a, b) = (quad(0.0, 1.0), quad(0.25, 1.0));
+    let within = bound_within(&a, &b, 1e-4, 0.3).expect("0.25 apart fits 0.3");
+    assert!((0.25..0.25 + 1e-3).contains(&within), "{within}");
+    assert_eq!(bound_within(&a, &b, 1e-4, 0.2), None);
+    // Far in one direction only: the small square is near the big one,
+    // not the other way round.
+    assert_eq!(
+        bound_within(&quad(0.0, 1.0), &quad(0.0, 0.1), 1e-3, 1.0),
+        None
+    );
+    let empty = Mesh::default();
+    assert_eq!(bound_within(&empty, &empty, 1e-3, 0.0), Some(0.0));
+    assert_eq!(bound_within(&a, &empty, 1e-3, 1e9), None);
 }
 
 #[test]
@@ -166,6 +184,30 @@ proptest! {
         for p in points_on(&b, &picks) {
             let d = brute_distance(p, &a);
             prop_assert!(d <= h.ba, "a point of B is {d} from A, bound {h:?}");
+        }
+    }
+
+    #[test]
+    fn a_budgeted_bound_is_a_bound_and_refuses_only_what_exceeds(
+        a in soup(40),
+        b in soup(40),
+        picks in prop::collection::vec((0usize..1000, 0.0f32..1.0, 0.0f32..1.0), 32),
+        tolerance in 0.0f32..0.5,
+        budget in 0.0f32..8.0,
+    ) {
+        let full = hausdorff(&a, &b, &opts(tolerance)).bound;
+        let gap = tolerance.max(1e-4) + 1e-3;
+        match bound_within(&a, &b, tolerance, budget) {
+            Some(bound) => {
+                prop_assert!(bound <= budget && (bound - full).abs() <= gap, "{bound} against {full}");
+                for p in points_on(&a, &picks) {
+                    prop_assert!(brute_distance(p, &b) <= bound);
+                }
+                for p in points_on(&b, &picks) {
+                    prop_assert!(brute_distance(p, &a) <= bound);
+                }
+            }
+            None => prop_assert!(full > budget - gap, "refused {budget} with a bound of {full}"),
         }
     }
 }

@@ -20,7 +20,7 @@ use super::dynamic::dynamic_chains;
 use super::hilbert::hilbert_key;
 use super::steps::Steps;
 use super::{BuildStats, GeometrySink, LevelStats, Progress};
-use crate::geometry::{self, HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy};
+use crate::geometry::{self, Mesh, Part, SimplifyOptions, Strategy};
 use crate::scene::{Class, Scene, Visibility, VisibilityType};
 use crate::tree::cut::moved_box;
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
@@ -765,12 +765,15 @@ fn stored_eps(
 ) -> f64 {
     let recursive = f64::from(h) + child_eps;
     originals.map_or(recursive, |o| {
-        direct_eps(mesh, o, tolerance).min(recursive).max(child_eps)
+        direct_eps(mesh, o, tolerance, recursive)
+            .map_or(recursive, |direct| direct.min(recursive))
+            .max(child_eps)
     })
 }
 
-/// A bound of `D_H(mesh, union of originals)`, measured.
-fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32) -> f64 {
+/// A bound of `D_H(mesh, union of originals)`, measured, if it is at most
+/// `budget`.
+fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32, budget: f64) -> Option<f64> {
     let parts: Vec<Part> = originals
         .iter()
         .map(|m| Part {
@@ -780,7 +783,7 @@ fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32) -> f64 {
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);
-    f64::from(geometry::hausdorff(mesh, &union, &HausdorffOptions { tolerance, seed: 0 }).bound)
+    geometry::bound_within(mesh, &union, tolerance, budget as f32).map(f64::from)
 }
 
 /// The paper's loop moves a cluster with no neighbours up unchanged; an
@@ -878,6 +881,5 @@ fn simplified_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, 
     if s.strategy == Strategy::Unchanged || s.triangles >= mesh.triangle_count() {
         return None;
     }
-    let h = geometry::hausdorff(&s.mesh, mesh, &HausdorffOptions { tolerance, seed: 0 }).bound;
-    (h <= budget).then_some((s.mesh, h))
+    geometry::bound_within(&s.mesh, mesh, tolerance, budget).map(|h| (s.mesh, h))
 }

@@ -125,13 +125,12 @@ pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
 
     let set_a = TriangleSet::new(tris_a.iter().copied());
     let set_b = TriangleSet::new(tris_b.iter().copied());
-    let ab = one_way(&tris_a, &set_b, tolerance, Some(options.seed));
-    let ba = one_way(
-        &tris_b,
-        &set_a,
-        tolerance,
-        Some(options.seed ^ 0x9e37_79b9_7f4a_7c15),
-    );
+    let full = |a, b, seed| {
+        one_way(a, b, tolerance, Some(seed), f32::INFINITY)
+            .expect("no distance exceeds an infinite budget")
+    };
+    let ab = full(&tris_a, &set_b, options.seed);
+    let ba = full(&tris_b, &set_a, options.seed ^ 0x9e37_79b9_7f4a_7c15);
     let n = (ab.samples + ba.samples).max(1) as f64;
     Hausdorff {
         bound: ab.upper.max(ba.upper) + slack,
@@ -164,7 +163,68 @@ pub fn one_sided_bound(a: &Mesh, b: &TriangleSet, tolerance: f32) -> f32 {
     // rounding scale.
     let max_coordinate = lo.abs().max(hi.abs()).max_element();
     let tolerance = tolerance.max(MIN_RELATIVE_TOLERANCE * (hi - lo).length());
-    one_way(&tris, b, tolerance, None).upper + ROUNDING_SLACK * max_coordinate
+    one_way(&tris, b, tolerance, None, f32::INFINITY)
+        .expect("no distance exceeds an infinite budget")
+        .upper
+        + ROUNDING_SLACK * max_coordinate
+}
+
+/// A conservative bound of the symmetric Hausdorff distance between `a`
+/// and `b`, within `tolerance` of it as [`hausdorff`]'s `bound` is, if the
+/// bound is at most `budget`; `None` if it is not. Without the mean and RMS sample,
+/// and the search stops at the first measured distance over the budget:
+/// a tree build measures many candidates against budgets and keeps the
+/// bound only of those that fit, so most of a failing candidate's queries
+/// and every candidate's sample would be spent for nothing.
+pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f32> {
+    let tris_a = finite_triangles(a);
+    let tris_b = finite_triangles(b);
+    if tris_a.is_empty() || tris_b.is_empty() {
+        let bound = if tris_a.is_empty() && tris_b.is_empty() {
+            0.0
+        } else {
+            f32::INFINITY
+        };
+        return (bound <= budget).then_some(bound);
+    }
+    let (lo, hi) = tris_a
+        .iter()
+        .chain(&tris_b)
+        .flatten()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    let slack = ROUNDING_SLACK * lo.abs().max(hi.abs()).max_element();
+    let tolerance = if tolerance.is_finite() {
+        tolerance
+    } else {
+        0.0
+    }
+    .max(MIN_RELATIVE_TOLERANCE * (hi - lo).length());
+    let within = budget - slack;
+    // The smaller mesh's search structure first: it is the cheaper to
+    // build, and a failing candidate may never need the other.
+    let (first, second) = if tris_a.len() <= tris_b.len() {
+        (&tris_a, &tris_b)
+    } else {
+        (&tris_b, &tris_a)
+    };
+    let one = one_way(
+        second,
+        &TriangleSet::new(first.iter().copied()),
+        tolerance,
+        None,
+        within,
+    )?;
+    let other = one_way(
+        first,
+        &TriangleSet::new(second.iter().copied()),
+        tolerance,
+        None,
+        within,
+    )?;
+    let bound = one.upper.max(other.upper) + slack;
+    (bound <= budget).then_some(bound)
 }
 
 fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
@@ -290,8 +350,14 @@ fn single_triangle_bound(
 
 /// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the
 /// non-empty set `b`, and, given a seed, samples A's surface for the mean
-/// and RMS.
-fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: Option<u64>) -> OneWay {
+/// and RMS. `None` as soon as a measured distance exceeds `budget`.
+fn one_way(
+    a: &[[Vec3; 3]],
+    b: &TriangleSet,
+    tolerance: f32,
+    seed: Option<u64>,
+    budget: f32,
+) -> Option<OneWay> {
     let mut hint = None;
     let mut distance = |p: Vec3, h: Option<u32>| -> (f32, u32) {
         // `b` is not empty, so a nearest triangle always exists.
@@ -317,6 +383,9 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: Option<u64>) 
             (d[k], near[k]) = *known.entry(key).or_insert_with(|| distance(*p, None));
         }
         lower = lower.max(d[0]).max(d[1]).max(d[2]);
+        if lower > budget {
+            return None;
+        }
         corners.push((d, near));
     }
 
@@ -364,6 +433,9 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: Option<u64>) 
     let mut settled = 0.0f32;
     let mut open = BinaryHeap::new();
     for (t, (d, near)) in a.iter().zip(&corners) {
+        if lower > budget {
+            return None;
+        }
         let mut upper = triangle_upper(b, t, d, near);
         if upper > lower + tolerance {
             upper = centroid_bound(&mut distance, b, t, d, near, upper, &mut lower);
@@ -381,6 +453,9 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: Option<u64>) 
         }
     }
     while let Some(t) = open.pop() {
+        if lower > budget {
+            return None;
+        }
         if t.upper <= lower + tolerance || t.depth >= MAX_DEPTH || open.len() >= MAX_OPEN {
             // The largest open bound: nothing left open can exceed it.
             settled = settled.max(t.upper);
@@ -418,11 +493,12 @@ fn one_way(a: &[[Vec3; 3]], b: &TriangleSet, tolerance: f32, seed: Option<u64>) 
             }
         }
     }
-    OneWay {
+    Some(OneWay {
         upper: settled.max(lower),
         lower,
         sum,
         sum_squares,
         samples,
-    }
+    })
+    .filter(|w| w.upper <= budget)
 }

@@ -13,7 +13,7 @@ mod simplify;
 mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
-pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff, one_sided_bound};
+pub use hausdorff::{Hausdorff, HausdorffOptions, bound_within, hausdorff, one_sided_bound};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;
 pub use reduce::{Reduced, reduce_parts};

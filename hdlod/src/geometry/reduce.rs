@@ -29,7 +29,7 @@ use glam::Vec3;
 
 use super::Mesh;
 use super::closest::TriangleSet;
-use super::hausdorff::{HausdorffOptions, hausdorff, one_sided_bound};
+use super::hausdorff::{bound_within, one_sided_bound};
 use super::proxy::{part_bounds, part_color, parts, push_box, push_quad, push_triangles};
 use super::simplify::{SimplifyOptions, Strategy, edge_collapse_placed, simplify};
 
@@ -60,7 +60,6 @@ struct Piece {
 /// is the gap allowed between the measured bounds and the true distances.
 /// Never returns more triangles than it was given.
 pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
-    let options = HausdorffOptions { tolerance, seed: 0 };
     let mut pieces: Vec<Piece> = parts(mesh)
         .into_iter()
         .map(|triangles| {
@@ -72,8 +71,7 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
             let proxy = |push: fn(&mut Mesh, Vec3, Vec3, [f32; 4])| {
                 let mut proxy = Mesh::default();
                 push(&mut proxy, lo, hi, color);
-                let error = hausdorff(&proxy, &input, &options).bound;
-                (error <= budget).then_some((proxy, error))
+                bound_within(&proxy, &input, tolerance, budget).map(|error| (proxy, error))
             };
             // Half the thickness is how far the quad's plane is from the
             // part's outer faces: no quad fits a budget below it.
@@ -83,7 +81,7 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
             let reduced = quad.then(|| proxy(push_quad)).flatten().or_else(|| {
                 (budget > 0.0 && triangles.len() > BOX_TRIANGLES)
                     .then(|| {
-                        proxy(push_box).or_else(|| simplified_within(&input, budget, &options))
+                        proxy(push_box).or_else(|| simplified_within(&input, budget, tolerance))
                     })
                     .flatten()
             });
@@ -172,7 +170,7 @@ const PLACED_STEPS: usize = 4;
 /// bound: the fewer triangles of vertex selection at the first request
 /// within `budget` and of vertex placement at the fewest triangles within
 /// it.
-fn simplified_within(input: &Mesh, budget: f32, options: &HausdorffOptions) -> Option<(Mesh, f32)> {
+fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
     let welded = welded(input);
     let n = input.triangle_count();
     let mut best: Option<(Mesh, f32)> = None;
@@ -188,8 +186,7 @@ fn simplified_within(input: &Mesh, budget: f32, options: &HausdorffOptions) -> O
         if s.strategy == Strategy::Unchanged || s.triangles >= n {
             break;
         }
-        let error = hausdorff(&s.mesh, input, options).bound;
-        if error <= budget {
+        if let Some(error) = bound_within(&s.mesh, input, tolerance, budget) {
             best = Some((s.mesh, error));
             break;
         }
@@ -201,10 +198,8 @@ fn simplified_within(input: &Mesh, budget: f32, options: &HausdorffOptions) -> O
         let placed = (target > 0 && fewer)
             .then(|| edge_collapse_placed(&welded, target))
             .filter(|m| !m.is_empty() && m.triangle_count() < n);
-        let fits = placed.and_then(|m| {
-            let error = hausdorff(&m, input, options).bound;
-            (error <= budget).then_some((m, error))
-        });
+        let fits =
+            placed.and_then(|m| bound_within(&m, input, tolerance, budget).map(|error| (m, error)));
         // Fewer triangles when this fits (or was not worth trying, being
         // no fewer than the best), more when it does not.
         match fits {
@@ -263,6 +258,7 @@ fn flat_shaded(mesh: &Mesh) -> Mesh {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::geometry::{HausdorffOptions, hausdorff};
 
     /// An open tube along y at `(x, z)`.
     fn tube(segments: usize, radius: f32, length: f32, x: f32, z: f32) -> Mesh {
