@@ -68,6 +68,48 @@ fn the_bound_is_tight_where_the_maximum_is_inside_a_triangle() {
 }
 
 #[test]
+fn a_rectangle_over_one_split_the_other_way_is_settled_at_its_corners() {
+    // Each triangle of the upper rectangle crosses the lower one's
+    // diagonal: no single lower triangle is nearest to all its corners, but
+    // the two halves together are a flat convex quadrilateral.
+    let lower = quad(0.0, 1.0);
+    let mut upper = quad(0.3, 1.0);
+    upper.indices = vec![0, 1, 3, 1, 2, 3];
+    let h = hausdorff(&upper, &lower, &opts(1e-4));
+    assert!(h.ab >= 0.3 && h.ab <= 0.3 + 1e-3, "{h:?}");
+}
+
+#[test]
+fn a_notch_between_two_triangles_is_not_taken_for_a_convex_pair() {
+    // Two triangles sharing the edge (0,0)-(1,0) make an arrowhead with a
+    // notch at (1,0). A triangle over it has every corner on one of them,
+    // but the middle of its far edge is over the notch, 0.318 away.
+    let b = Mesh {
+        positions: vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(1.0, 0.0, 0.0),
+            Vec3::new(1.5, 0.5, 0.0),
+            Vec3::new(1.5, -0.5, 0.0),
+        ],
+        indices: vec![0, 1, 2, 0, 3, 1],
+        ..Mesh::default()
+    };
+    let a = Mesh {
+        positions: vec![
+            Vec3::new(1.45, 0.47, 0.0),
+            Vec3::new(1.45, -0.47, 0.0),
+            Vec3::new(0.5, 0.0, 0.0),
+        ],
+        indices: vec![0, 1, 2],
+        ..Mesh::default()
+    };
+    let notch = brute_distance(Vec3::new(1.45, 0.0, 0.0), &b);
+    assert!(notch > 0.3, "{notch}");
+    let h = hausdorff(&a, &b, &opts(1e-4));
+    assert!(h.ab >= notch && h.ab <= notch + 1e-3, "{h:?}");
+}
+
+#[test]
 fn identical_meshes_are_zero_apart() {
     // Coincident surfaces are the worst case of the corner bound: every
     // triangle must shrink to the tolerance before it is settled.
@@ -135,6 +177,63 @@ fn soup(max_triangles: usize) -> impl Strategy<Value = Mesh> {
         indices: (0..tris.len() as u32 * 3).collect(),
         ..Mesh::default()
     })
+}
+
+/// A height field over the unit square, `n` by `n` cells, each split
+/// along the diagonal its flag picks: neighbouring triangles share edges,
+/// and with small heights they are nearly flat pairs.
+fn height_field(n: usize, heights: &[f32], flips: &[bool]) -> Mesh {
+    let side = n + 1;
+    let positions = (0..side * side)
+        .map(|k| {
+            let (x, y) = (k % side, k / side);
+            Vec3::new(
+                x as f32 / n as f32,
+                y as f32 / n as f32,
+                heights[k % heights.len()],
+            )
+        })
+        .collect();
+    let mut indices = Vec::new();
+    for y in 0..n {
+        for x in 0..n {
+            let k = (y * side + x) as u32;
+            let (a, b, c, d) = (k, k + 1, k + side as u32 + 1, k + side as u32);
+            if flips[(y * n + x) % flips.len()] {
+                indices.extend([a, b, c, a, c, d]);
+            } else {
+                indices.extend([a, b, d, b, c, d]);
+            }
+        }
+    }
+    Mesh {
+        positions,
+        indices,
+        ..Mesh::default()
+    }
+}
+
+/// A fan around the middle of the unit square: consecutive triangles share
+/// an edge, and with uneven radii many such pairs are not convex.
+fn fan(radii: &[f32], heights: &[f32]) -> Mesh {
+    let k = radii.len();
+    let mut positions = vec![Vec3::new(0.5, 0.5, 0.0)];
+    positions.extend((0..k).map(|i| {
+        let angle = i as f32 / k as f32 * std::f32::consts::TAU;
+        Vec3::new(
+            0.5 + radii[i] * angle.cos(),
+            0.5 + radii[i] * angle.sin(),
+            heights[i % heights.len()],
+        )
+    }));
+    let indices = (0..k as u32)
+        .flat_map(|i| [0, 1 + i, 1 + (i + 1) % k as u32])
+        .collect();
+    Mesh {
+        positions,
+        indices,
+        ..Mesh::default()
+    }
 }
 
 fn brute_distance(p: Vec3, m: &Mesh) -> f32 {
@@ -208,6 +307,39 @@ proptest! {
                 }
             }
             None => prop_assert!(full > budget - gap, "refused {budget} with a bound of {full}"),
+        }
+    }
+
+    #[test]
+    fn the_bound_holds_over_nearly_flat_pairs_convex_or_not(
+        n in 1usize..5,
+        heights in prop::collection::vec(-0.05f32..0.05, 1..36),
+        flat in any::<bool>(),
+        flips in prop::collection::vec(any::<bool>(), 1..25),
+        radii in prop::collection::vec(0.05f32..0.5, 3..12),
+        use_fan in any::<bool>(),
+        a in soup(12),
+        picks in prop::collection::vec((0usize..1000, 0.0f32..1.0, 0.0f32..1.0), 64),
+    ) {
+        let heights = if flat { vec![0.0] } else { heights };
+        let b = if use_fan { fan(&radii, &heights) } else { height_field(n, &heights, &flips) };
+        // A near B: the soup squeezed into a slab just above the field.
+        let a = Mesh {
+            positions: a
+                .positions
+                .iter()
+                .map(|p| Vec3::new(p.x / 8.0 + 0.5, p.y / 8.0 + 0.5, p.z / 40.0 + 0.15))
+                .collect(),
+            ..a
+        };
+        let h = hausdorff(&a, &b, &opts(1e-4));
+        for p in points_on(&a, &picks) {
+            let d = brute_distance(p, &b);
+            prop_assert!(d <= h.ab, "a point of A is {d} from B, bound {h:?}");
+        }
+        for p in points_on(&b, &picks) {
+            let d = brute_distance(p, &a);
+            prop_assert!(d <= h.ba, "a point of B is {d} from A, bound {h:?}");
         }
     }
 }

@@ -174,6 +174,12 @@ impl TriangleSet {
         closest_point_on_triangle(p, t.a, t.b, t.c).distance(p)
     }
 
+    /// The corners of `triangle` (a handle from `nearest`).
+    pub fn corners(&self, triangle: u32) -> [Vec3; 3] {
+        let t = &self.tris[triangle as usize];
+        [t.a.into(), t.b.into(), t.c.into()]
+    }
+
     /// The nearest triangle to `p`. `hint`, a triangle from an earlier query
     /// on a nearby point, seeds the search radius. `None` for an empty set.
     pub fn nearest(&self, p: Vec3, hint: Option<u32>) -> Option<Nearest> {

@@ -299,14 +299,21 @@ impl Ord for Open {
     }
 }
 
-/// An upper bound of `d(p, B)` over triangle `c`, the least of two:
+/// An upper bound of `d(p, B)` over triangle `c`, the least of three:
 /// - Lipschitz: `min_i (d_i + max_j |c_j - c_i|)`;
 /// - convexity: for any one triangle `t` of B, `p -> d(p, t)` is convex, so
 ///   its maximum over `c` is at a corner, and `d(p, B) <= d(p, t)`; the
 ///   triangles nearest to the corners are the candidates for `t`. This one
 ///   is exact where a triangle of A lies over a single triangle of B (above
 ///   all, coincident surfaces, where the first would need splitting down to
-///   the tolerance).
+///   the tolerance);
+/// - the same for two of those triangles that share an edge and make a
+///   convex quadrilateral, flat within `delta` (see `flat_pair`): the
+///   distance to their union is then at most `2 delta` above a convex
+///   function's, so its maximum over `c` is at most the corners' largest
+///   plus `2 delta`. A rectangle's two halves (every face of a box, a wall,
+///   a slab) are such a pair; without this bound a triangle of A lying
+///   across their diagonal is split along it down to the tolerance.
 fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 3]) -> f32 {
     let lipschitz = (0..3)
         .map(|i| {
@@ -322,7 +329,75 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
             best = single_triangle_bound(b, c, d, nearest, t, best);
         }
     }
+    let mut pairs = [(0u32, 0u32); 3];
+    let mut count = 0;
+    for (i, j) in [(0, 1), (1, 2), (0, 2)] {
+        let pair = (nearest[i].min(nearest[j]), nearest[i].max(nearest[j]));
+        if pair.0 != pair.1 && !pairs[..count].contains(&pair) {
+            pairs[count] = pair;
+            count += 1;
+        }
+    }
+    for &(t, u) in &pairs[..count] {
+        if let Some(delta) = flat_pair(b, t, u) {
+            best = best.min(pair_bound(b, c, d, nearest, [t, u], best - 2.0 * delta) + 2.0 * delta);
+        }
+    }
     best
+}
+
+/// If triangles `t` and `u` of B share an edge and, with `u` projected onto
+/// `t`'s plane, make a convex quadrilateral, how far `u`'s far corner is
+/// from that plane. Let `Q` be that quadrilateral: every point of `u` is
+/// within `delta` of `Q` and the other way round, so for any point `p`,
+/// `d(p, t u u) <= d(p, Q) + delta`, and `d(., Q)` is convex (`Q` is a
+/// convex set), so over a triangle it is at most its largest value at a
+/// corner, which is at most `d(corner, t u u) + delta`. In double
+/// precision: the side tests decide whether the argument holds.
+fn flat_pair(b: &TriangleSet, t: u32, u: u32) -> Option<f32> {
+    let tc = b.corners(t).map(|p| p.as_dvec3());
+    let uc = b.corners(u).map(|p| p.as_dvec3());
+    // The shared edge `p q`, `t`'s apex `r`, `u`'s apex `s`.
+    let mut shared = (0..3).filter(|&k| uc.contains(&tc[k]));
+    let (Some(k0), Some(k1), None) = (shared.next(), shared.next(), shared.next()) else {
+        return None;
+    };
+    let (p, q, r) = (tc[k0], tc[k1], tc[3 - k0 - k1]);
+    let s = *uc.iter().find(|x| **x != p && **x != q)?;
+    let n = (q - p).cross(r - p).try_normalize()?;
+    let height = (s - p).dot(n);
+    let s = s - n * height;
+    let side =
+        |x: glam::DVec3, from: glam::DVec3, to: glam::DVec3| (to - from).cross(x - from).dot(n);
+    // `r` is on the positive side of `p q` by the choice of `n`; `s` must
+    // be on the other, and `p`, `q` on either side of `r s`.
+    let convex = side(s, p, q) <= 0.0 && side(p, r, s) * side(q, r, s) <= 0.0;
+    convex.then_some(height.abs() as f32)
+}
+
+/// `min(best, max_i d(c_i, t u u))` for the pair `[t, u]`, stopping early
+/// once it cannot beat `best`.
+fn pair_bound(
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    pair: [u32; 2],
+    best: f32,
+) -> f32 {
+    let mut worst = 0.0f32;
+    for i in 0..3 {
+        worst = worst.max(if pair.contains(&nearest[i]) {
+            d[i]
+        } else {
+            b.distance_to(c[i], pair[0])
+                .min(b.distance_to(c[i], pair[1]))
+        });
+        if worst >= best {
+            return best;
+        }
+    }
+    worst
 }
 
 /// `min(best, max_i d(c_i, t))`, stopping early once it cannot beat `best`.
