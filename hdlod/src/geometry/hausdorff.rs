@@ -106,23 +106,7 @@ pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
             };
         }
     }
-    let (lo, hi) = tris_a
-        .iter()
-        .chain(&tris_b)
-        .flatten()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        });
-    let diagonal = (hi - lo).length();
-    let max_coordinate = lo.abs().max(hi.abs()).max_element();
-    let tolerance = if options.tolerance.is_finite() {
-        options.tolerance
-    } else {
-        0.0
-    }
-    .max(MIN_RELATIVE_TOLERANCE * diagonal);
-    let slack = ROUNDING_SLACK * max_coordinate;
-
+    let (tolerance, slack) = search_scale(&tris_a, &tris_b, options.tolerance);
     let set_a = TriangleSet::new(tris_a.iter().copied());
     let set_b = TriangleSet::new(tris_b.iter().copied());
     let full = |a, b, seed| {
@@ -187,20 +171,7 @@ pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f
         };
         return (bound <= budget).then_some(bound);
     }
-    let (lo, hi) = tris_a
-        .iter()
-        .chain(&tris_b)
-        .flatten()
-        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
-            (lo.min(*p), hi.max(*p))
-        });
-    let slack = ROUNDING_SLACK * lo.abs().max(hi.abs()).max_element();
-    let tolerance = if tolerance.is_finite() {
-        tolerance
-    } else {
-        0.0
-    }
-    .max(MIN_RELATIVE_TOLERANCE * (hi - lo).length());
+    let (tolerance, slack) = search_scale(&tris_a, &tris_b, tolerance);
     let within = budget - slack;
     // The smaller mesh's search structure first: it is the cheaper to
     // build, and a failing candidate may never need the other.
@@ -225,6 +196,29 @@ pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f
     )?;
     let bound = one.upper.max(other.upper) + slack;
     (bound <= budget).then_some(bound)
+}
+
+/// The tolerance the search works to (the one asked for, raised to what
+/// float precision can resolve at the meshes' size) and the rounding
+/// slack added to its bound.
+fn search_scale(a: &[[Vec3; 3]], b: &[[Vec3; 3]], tolerance: f32) -> (f32, f32) {
+    let (lo, hi) = a
+        .iter()
+        .chain(b)
+        .flatten()
+        .fold((Vec3::INFINITY, Vec3::NEG_INFINITY), |(lo, hi), p| {
+            (lo.min(*p), hi.max(*p))
+        });
+    let tolerance = if tolerance.is_finite() {
+        tolerance
+    } else {
+        0.0
+    }
+    .max(MIN_RELATIVE_TOLERANCE * (hi - lo).length());
+    (
+        tolerance,
+        ROUNDING_SLACK * lo.abs().max(hi.abs()).max_element(),
+    )
 }
 
 fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
@@ -261,7 +255,7 @@ fn centroid_bound(
     if nearest.contains(&tc) {
         return upper;
     }
-    single_triangle_bound(b, c, d, nearest, tc, upper)
+    union_bound(b, c, d, nearest, &[tc], upper)
 }
 
 struct OneWay {
@@ -326,7 +320,7 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
     let mut best = lipschitz;
     for (k, &t) in nearest.iter().enumerate() {
         if !nearest[..k].contains(&t) {
-            best = single_triangle_bound(b, c, d, nearest, t, best);
+            best = union_bound(b, c, d, nearest, &[t], best);
         }
     }
     let mut pairs = [(0u32, 0u32); 3];
@@ -340,7 +334,8 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
     }
     for &(t, u) in &pairs[..count] {
         if let Some(delta) = flat_pair(b, t, u) {
-            best = best.min(pair_bound(b, c, d, nearest, [t, u], best - 2.0 * delta) + 2.0 * delta);
+            best =
+                best.min(union_bound(b, c, d, nearest, &[t, u], best - 2.0 * delta) + 2.0 * delta);
         }
     }
     best
@@ -348,11 +343,12 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
 
 /// If triangles `t` and `u` of B share an edge and, with `u` projected onto
 /// `t`'s plane, make a convex quadrilateral, how far `u`'s far corner is
-/// from that plane. Let `Q` be that quadrilateral: every point of `u` is
-/// within `delta` of `Q` and the other way round, so for any point `p`,
-/// `d(p, t u u) <= d(p, Q) + delta`, and `d(., Q)` is convex (`Q` is a
-/// convex set), so over a triangle it is at most its largest value at a
-/// corner, which is at most `d(corner, t u u) + delta`. In double
+/// from that plane (`delta`). Let `Q` be that quadrilateral and `T` the
+/// union of `t` and `u`: every point of `u` is within `delta` of `Q` and
+/// the other way round, so for any point `p`, `d(p, T) <= d(p, Q) + delta`,
+/// and `d(., Q)` is convex (`Q` is a convex set), so over a triangle it is
+/// at most its largest value at a corner, which is at most
+/// `d(corner, T) + delta`. In double
 /// precision: the side tests decide whether the argument holds.
 fn flat_pair(b: &TriangleSet, t: u32, u: u32) -> Option<f32> {
     let tc = b.corners(t).map(|p| p.as_dvec3());
@@ -375,46 +371,24 @@ fn flat_pair(b: &TriangleSet, t: u32, u: u32) -> Option<f32> {
     convex.then_some(height.abs() as f32)
 }
 
-/// `min(best, max_i d(c_i, t u u))` for the pair `[t, u]`, stopping early
-/// once it cannot beat `best`.
-fn pair_bound(
+/// `min(best, max_i d(c_i, T))` for `T` the union of the triangles `ts`,
+/// stopping early once it cannot beat `best`.
+fn union_bound(
     b: &TriangleSet,
     c: &[Vec3; 3],
     d: &[f32; 3],
     nearest: &[u32; 3],
-    pair: [u32; 2],
+    ts: &[u32],
     best: f32,
 ) -> f32 {
     let mut worst = 0.0f32;
     for i in 0..3 {
-        worst = worst.max(if pair.contains(&nearest[i]) {
+        worst = worst.max(if ts.contains(&nearest[i]) {
             d[i]
         } else {
-            b.distance_to(c[i], pair[0])
-                .min(b.distance_to(c[i], pair[1]))
-        });
-        if worst >= best {
-            return best;
-        }
-    }
-    worst
-}
-
-/// `min(best, max_i d(c_i, t))`, stopping early once it cannot beat `best`.
-fn single_triangle_bound(
-    b: &TriangleSet,
-    c: &[Vec3; 3],
-    d: &[f32; 3],
-    nearest: &[u32; 3],
-    t: u32,
-    best: f32,
-) -> f32 {
-    let mut worst = 0.0f32;
-    for i in 0..3 {
-        worst = worst.max(if nearest[i] == t {
-            d[i]
-        } else {
-            b.distance_to(c[i], t)
+            ts.iter()
+                .map(|&t| b.distance_to(c[i], t))
+                .fold(f32::INFINITY, f32::min)
         });
         if worst >= best {
             return best;
