@@ -110,6 +110,40 @@ fn a_notch_between_two_triangles_is_not_taken_for_a_convex_pair() {
 }
 
 #[test]
+fn a_valley_between_two_triangles_counts_their_fold() {
+    // Two faces rising at a slope of 0.5 away from their shared edge (the
+    // y axis): a triangle 0.5 above has its corners over the faces, 0.27
+    // from them, but the middle of its first edge is over the fold, 0.45
+    // away. Seen from above the pair is convex but not flat: the fold
+    // must count.
+    let b = Mesh {
+        positions: vec![
+            Vec3::new(0.0, 0.0, 0.0),
+            Vec3::new(0.0, 1.0, 0.0),
+            Vec3::new(-1.0, 0.5, 0.5),
+            Vec3::new(1.0, 0.5, 0.5),
+        ],
+        indices: vec![0, 1, 2, 0, 3, 1],
+        ..Mesh::default()
+    };
+    let a = Mesh {
+        positions: vec![
+            Vec3::new(-0.4, 0.3, 0.5),
+            Vec3::new(0.4, 0.3, 0.5),
+            Vec3::new(-0.4, 0.7, 0.5),
+        ],
+        indices: vec![0, 1, 2],
+        ..Mesh::default()
+    };
+    let fold = brute_distance(Vec3::new(0.0, 0.3, 0.5), &b);
+    let corners = a.positions.iter().map(|p| brute_distance(*p, &b));
+    let corner = corners.fold(0.0f32, f32::max);
+    assert!(fold > 0.44 && corner < 0.28, "{fold} {corner}");
+    let h = hausdorff(&a, &b, &opts(1e-4));
+    assert!(h.ab >= fold && h.ab <= fold + 1e-3, "{h:?}");
+}
+
+#[test]
 fn identical_meshes_are_zero_apart() {
     // Coincident surfaces are the worst case of the corner bound: every
     // triangle must shrink to the tolerance before it is settled.
@@ -262,6 +296,26 @@ fn points_on(m: &Mesh, picks: &[(usize, f32, f32)]) -> Vec<Vec3> {
         .collect()
 }
 
+/// Every picked point of `a` is within `ab` of `b`, and of `b` within `ba`
+/// of `a`, by brute force.
+fn points_within(
+    a: &Mesh,
+    b: &Mesh,
+    picks: &[(usize, f32, f32)],
+    ab: f32,
+    ba: f32,
+) -> Result<(), TestCaseError> {
+    for p in points_on(a, picks) {
+        let d = brute_distance(p, b);
+        prop_assert!(d <= ab, "a point of A is {d} from B, bound {ab}");
+    }
+    for p in points_on(b, picks) {
+        let d = brute_distance(p, a);
+        prop_assert!(d <= ba, "a point of B is {d} from A, bound {ba}");
+    }
+    Ok(())
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
@@ -276,14 +330,7 @@ proptest! {
         prop_assert!(h.bound.is_finite() && h.lower.is_finite() && h.mean.is_finite() && h.rms.is_finite());
         prop_assert!(h.lower <= h.bound && h.mean <= h.rms + 1e-4 && h.rms <= h.bound);
         prop_assert!(h.bound - h.lower <= tolerance.max(1e-4) + 1e-3, "{h:?}");
-        for p in points_on(&a, &picks) {
-            let d = brute_distance(p, &b);
-            prop_assert!(d <= h.ab, "a point of A is {d} from B, bound {h:?}");
-        }
-        for p in points_on(&b, &picks) {
-            let d = brute_distance(p, &a);
-            prop_assert!(d <= h.ba, "a point of B is {d} from A, bound {h:?}");
-        }
+        points_within(&a, &b, &picks, h.ab, h.ba)?;
     }
 
     #[test]
@@ -299,12 +346,7 @@ proptest! {
         match bound_within(&a, &b, tolerance, budget) {
             Some(bound) => {
                 prop_assert!(bound <= budget && (bound - full).abs() <= gap, "{bound} against {full}");
-                for p in points_on(&a, &picks) {
-                    prop_assert!(brute_distance(p, &b) <= bound);
-                }
-                for p in points_on(&b, &picks) {
-                    prop_assert!(brute_distance(p, &a) <= bound);
-                }
+                points_within(&a, &b, &picks, bound, bound)?;
             }
             None => prop_assert!(full > budget - gap, "refused {budget} with a bound of {full}"),
         }
@@ -333,13 +375,6 @@ proptest! {
             ..a
         };
         let h = hausdorff(&a, &b, &opts(1e-4));
-        for p in points_on(&a, &picks) {
-            let d = brute_distance(p, &b);
-            prop_assert!(d <= h.ab, "a point of A is {d} from B, bound {h:?}");
-        }
-        for p in points_on(&b, &picks) {
-            let d = brute_distance(p, &a);
-            prop_assert!(d <= h.ba, "a point of B is {d} from A, bound {h:?}");
-        }
+        points_within(&a, &b, &picks, h.ab, h.ba)?;
     }
 }

@@ -180,21 +180,12 @@ pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f
     } else {
         (&tris_b, &tris_a)
     };
-    let one = one_way(
-        second,
-        &TriangleSet::new(first.iter().copied()),
-        tolerance,
-        None,
-        within,
-    )?;
-    let other = one_way(
-        first,
-        &TriangleSet::new(second.iter().copied()),
-        tolerance,
-        None,
-        within,
-    )?;
-    let bound = one.upper.max(other.upper) + slack;
+    let mut bound = 0.0f32;
+    for (from, to) in [(second, first), (first, second)] {
+        let set = TriangleSet::new(to.iter().copied());
+        bound = bound.max(one_way(from, &set, tolerance, None, within)?.upper);
+    }
+    let bound = bound + slack;
     (bound <= budget).then_some(bound)
 }
 
