@@ -7,14 +7,22 @@ use hdlod::geometry::{HausdorffOptions, Mesh, bound_within, closest_point_on_tri
 use proptest::prelude::*;
 
 fn quad(z: f32, size: f32) -> Mesh {
-    Mesh {
-        positions: vec![
-            Vec3::new(0.0, 0.0, z),
-            Vec3::new(size, 0.0, z),
-            Vec3::new(size, size, z),
-            Vec3::new(0.0, size, z),
+    mesh(
+        &[
+            [0.0, 0.0, z],
+            [size, 0.0, z],
+            [size, size, z],
+            [0.0, size, z],
         ],
-        indices: vec![0, 1, 2, 0, 2, 3],
+        &[0, 1, 2, 0, 2, 3],
+    )
+}
+
+/// A mesh from corner coordinates and triangle indices.
+fn mesh(positions: &[[f32; 3]], indices: &[u32]) -> Mesh {
+    Mesh {
+        positions: positions.iter().map(|p| Vec3::from_array(*p)).collect(),
+        indices: indices.to_vec(),
         ..Mesh::default()
     }
 }
@@ -84,25 +92,19 @@ fn a_notch_between_two_triangles_is_not_taken_for_a_convex_pair() {
     // Two triangles sharing the edge (0,0)-(1,0) make an arrowhead with a
     // notch at (1,0). A triangle over it has every corner on one of them,
     // but the middle of its far edge is over the notch, 0.318 away.
-    let b = Mesh {
-        positions: vec![
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(1.0, 0.0, 0.0),
-            Vec3::new(1.5, 0.5, 0.0),
-            Vec3::new(1.5, -0.5, 0.0),
+    let b = mesh(
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.5, 0.5, 0.0],
+            [1.5, -0.5, 0.0],
         ],
-        indices: vec![0, 1, 2, 0, 3, 1],
-        ..Mesh::default()
-    };
-    let a = Mesh {
-        positions: vec![
-            Vec3::new(1.45, 0.47, 0.0),
-            Vec3::new(1.45, -0.47, 0.0),
-            Vec3::new(0.5, 0.0, 0.0),
-        ],
-        indices: vec![0, 1, 2],
-        ..Mesh::default()
-    };
+        &[0, 1, 2, 0, 3, 1],
+    );
+    let a = mesh(
+        &[[1.45, 0.47, 0.0], [1.45, -0.47, 0.0], [0.5, 0.0, 0.0]],
+        &[0, 1, 2],
+    );
     let notch = brute_distance(Vec3::new(1.45, 0.0, 0.0), &b);
     assert!(notch > 0.3, "{notch}");
     let h = hausdorff(&a, &b, &opts(1e-4));
@@ -116,25 +118,19 @@ fn a_valley_between_two_triangles_counts_their_fold() {
     // from them, but the middle of its first edge is over the fold, 0.45
     // away. Seen from above the pair is convex but not flat: the fold
     // must count.
-    let b = Mesh {
-        positions: vec![
-            Vec3::new(0.0, 0.0, 0.0),
-            Vec3::new(0.0, 1.0, 0.0),
-            Vec3::new(-1.0, 0.5, 0.5),
-            Vec3::new(1.0, 0.5, 0.5),
+    let b = mesh(
+        &[
+            [0.0, 0.0, 0.0],
+            [0.0, 1.0, 0.0],
+            [-1.0, 0.5, 0.5],
+            [1.0, 0.5, 0.5],
         ],
-        indices: vec![0, 1, 2, 0, 3, 1],
-        ..Mesh::default()
-    };
-    let a = Mesh {
-        positions: vec![
-            Vec3::new(-0.4, 0.3, 0.5),
-            Vec3::new(0.4, 0.3, 0.5),
-            Vec3::new(-0.4, 0.7, 0.5),
-        ],
-        indices: vec![0, 1, 2],
-        ..Mesh::default()
-    };
+        &[0, 1, 2, 0, 3, 1],
+    );
+    let a = mesh(
+        &[[-0.4, 0.3, 0.5], [0.4, 0.3, 0.5], [-0.4, 0.7, 0.5]],
+        &[0, 1, 2],
+    );
     let fold = brute_distance(Vec3::new(0.0, 0.3, 0.5), &b);
     let corners = a.positions.iter().map(|p| brute_distance(*p, &b));
     let corner = corners.fold(0.0f32, f32::max);
