@@ -2,11 +2,11 @@
 //!
 //! Data flows one way through the modules:
 //! [`scene`] (model, schedule, `hdlod-scene/1` files) -> [`geometry`] (merge,
-//! simplify, Hausdorff) -> cluster (the tree builder) -> [`tree`] (the
+//! simplify, Hausdorff) -> [`build`] (the tree builder) -> [`tree`] (the
 //! `hdlod-tree/1` format and the cut) -> [`tiles`] (time slices as 3D Tiles). [`io`] reads and writes mesh files and
 //! [`fixture`] generates test scenes. See `docs/ARCHITECTURE.md` for the map.
 
-pub mod cluster;
+pub mod build;
 pub mod error;
 pub mod fixture;
 pub mod geometry;

@@ -7,7 +7,7 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
-use hdlod::cluster::{BuildConfig, Silent, Steps, build_to};
+use hdlod::build::{BuildConfig, Silent, StepFunction, build_to};
 use hdlod::geometry::{HausdorffOptions, Part, hausdorff, merge};
 use hdlod::io::gltf::read_mesh;
 use hdlod::scene::{Class, Scene, format};
@@ -45,7 +45,7 @@ fn built() -> &'static Built {
 fn the_leaves_of_an_object_partition_its_visibility() {
     let b = built();
     let span = b.tree.time.seconds;
-    let mut leaves: HashMap<&str, Vec<Steps>> = HashMap::new();
+    let mut leaves: HashMap<&str, Vec<StepFunction>> = HashMap::new();
     for c in &b.tree.clusters {
         assert!(
             c.objects.is_empty() || c.is_leaf(),
@@ -56,7 +56,7 @@ fn the_leaves_of_an_object_partition_its_visibility() {
             leaves
                 .entry(o.as_str())
                 .or_default()
-                .push(Steps::from_tree(&c.visibility));
+                .push(StepFunction::from_tree(&c.visibility));
         }
     }
     let mut split = 0;
@@ -72,11 +72,11 @@ fn the_leaves_of_an_object_partition_its_visibility() {
         };
         let n = parts.len() as f64;
         split += usize::from(parts.len() > 1);
-        let whole = Steps::of_visibility(&o.visibility, span);
-        let zero = Steps::constant(0.0);
+        let whole = StepFunction::of_visibility(&o.visibility, span);
+        let zero = StepFunction::constant(0.0);
         // The mean of the parts is whole / n exactly when they partition it.
-        let mean = Steps::weighted_mean(&parts.iter().map(|p| (1.0, p)).collect::<Vec<_>>());
-        let expected = Steps::weighted_mean(&[(1.0, &whole), (n - 1.0, &zero)]);
+        let mean = StepFunction::weighted_mean(&parts.iter().map(|p| (1.0, p)).collect::<Vec<_>>());
+        let expected = StepFunction::weighted_mean(&[(1.0, &whole), (n - 1.0, &zero)]);
         assert!(
             mean.l1_distance(&expected, span) <= 1e-9 * span,
             "object {}",
@@ -124,22 +124,22 @@ fn fractional_visibility_is_the_size_weighted_mean() {
     let k = BuildConfig::default().max_steps;
     let mut exact = 0;
     for c in t.clusters.iter().filter(|c| !c.is_leaf()) {
-        let v = Steps::from_tree(&c.visibility);
+        let v = StepFunction::from_tree(&c.visibility);
         assert!(
             v.points().iter().all(|p| (0.0..=1.0).contains(&p.1)),
             "cluster {}",
             c.id
         );
-        let children: Vec<(f64, Steps)> = c
+        let children: Vec<(f64, StepFunction)> = c
             .children
             .iter()
             .map(|&i| {
                 let ch = &t.clusters[i as usize];
-                (ch.w.max(1e-9), Steps::from_tree(&ch.visibility))
+                (ch.w.max(1e-9), StepFunction::from_tree(&ch.visibility))
             })
             .collect();
-        let parts: Vec<(f64, &Steps)> = children.iter().map(|(w, s)| (*w, s)).collect();
-        let mean = Steps::weighted_mean(&parts);
+        let parts: Vec<(f64, &StepFunction)> = children.iter().map(|(w, s)| (*w, s)).collect();
+        let mean = StepFunction::weighted_mean(&parts);
         if mean.points().len() <= k {
             // Unsimplified: equal up to the f32 the file stores.
             exact += 1;
@@ -150,7 +150,7 @@ fn fractional_visibility_is_the_size_weighted_mean() {
             );
         } else {
             // Simplified to K steps: the integral is kept.
-            let zero = Steps::constant(0.0);
+            let zero = StepFunction::constant(0.0);
             let (a, b) = (v.l1_distance(&zero, span), mean.l1_distance(&zero, span));
             assert!((a - b).abs() <= 1e-6 * span, "cluster {}: {a} vs {b}", c.id);
             assert!(v.points().len() <= k);
@@ -171,7 +171,7 @@ fn temporal_error_is_measured_against_the_objects() {
         .iter()
         .filter(|c| c.class == ClusterClass::PseudoDynamic)
     {
-        let v = Steps::from_tree(&c.visibility);
+        let v = StepFunction::from_tree(&c.visibility);
         // A leaf is an object, or the part of a moving object's life where
         // it stands still: its visibility is that part's.
         let worst = leaves_below(&b.tree, c.id)
@@ -179,11 +179,12 @@ fn temporal_error_is_measured_against_the_objects() {
             .map(|&l| {
                 let leaf = &b.tree.clusters[l as usize];
                 let object = objects[leaf.objects[0].as_str()];
-                let own = Steps::of_visibility(&object.visibility, span);
-                let part = Steps::from_tree(&leaf.visibility);
+                let own = StepFunction::of_visibility(&object.visibility, span);
+                let part = StepFunction::from_tree(&leaf.visibility);
                 // The leaf's part never shows the object where it is absent.
                 assert!(
-                    part.l1_distance(&own, span) <= own.l1_distance(&Steps::constant(0.0), span),
+                    part.l1_distance(&own, span)
+                        <= own.l1_distance(&StepFunction::constant(0.0), span),
                     "leaf {l}"
                 );
                 v.l1_distance(&part, span) / span

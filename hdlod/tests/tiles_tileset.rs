@@ -10,7 +10,7 @@ use std::sync::OnceLock;
 
 use common::{schema_errors, tileset_validator};
 use glam::{DMat4, DVec3};
-use hdlod::cluster::{BuildConfig, Silent, build_to};
+use hdlod::build::{BuildConfig, Silent, build_to};
 use hdlod::scene::{Up, format};
 use hdlod::tiles::{
     DEFAULT_MAX_BYTES, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform, time_slice,

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use hdlod::cluster::{BuildConfig, Silent, build_to};
+use hdlod::build::{BuildConfig, Silent, build_to};
 use hdlod::fixture::{Scale, skyscraper};
 use plotters::prelude::*;
 use serde::Serialize;

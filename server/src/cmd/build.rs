@@ -4,7 +4,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use hdlod::cluster::{BuildConfig, BuildStats, LevelStats, build_to};
+use hdlod::build::{BuildConfig, BuildStats, LevelStats, build_to};
 use hdlod::scene::format;
 use serde::Serialize;
 

@@ -6,7 +6,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use hdlod::cluster::{BuildConfig, build_to};
+use hdlod::build::{BuildConfig, build_to};
 use hdlod::fixture::{Scale, skyscraper};
 use hdlod::scene::format;
 

@@ -5,7 +5,7 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use hdlod::cluster::Progress;
+use hdlod::build::Progress;
 use hdlod::import::{Options, Report, import};
 use hdlod::scene::format;
 

@@ -55,7 +55,7 @@ impl Report {
     }
 }
 
-impl hdlod::cluster::Progress for Report {
+impl hdlod::build::Progress for Report {
     fn phase(&self, name: &str, total: u64) {
         if let Some(bar) = &self.bar {
             bar.set_message(name.to_string());

@@ -1,23 +1,11 @@
-//! The tree builder (DESIGN.md section 3, the paper's appendix 2): static and
-//! pseudo-dynamic objects are clustered bottom-up in Hilbert order level by
-//! level; each dynamic object gets its own cluster under a discrete LOD chain
-//! of its shared model; all roots hang under one virtual root.
-
-mod build;
-mod config;
-mod dynamic;
-mod hilbert;
-mod steps;
+//! Where a build's results go besides the tree: its geometry (a sink that
+//! stores each mesh and names it by content), its progress, and its
+//! statistics. The library prints nothing itself; the caller decides.
 
 use crate::Result;
 use crate::geometry::Mesh;
 use crate::io::glb::mesh_to_glb;
 use crate::tree::TreeWriter;
-
-pub use build::{build, build_to};
-pub use config::{BuildConfig, Thresholds, level_count, thresholds};
-pub use hilbert::hilbert_key;
-pub use steps::Steps;
 
 /// Where the builder puts cluster geometry; answers the content hash under
 /// which the mesh is stored. Called from several threads.
@@ -32,7 +20,7 @@ impl GeometrySink for TreeWriter {
 }
 
 /// Progress of a long build: a phase with a known amount of work, then
-/// steps of it. The library prints nothing itself.
+/// steps of it.
 pub trait Progress: Sync {
     fn phase(&self, name: &str, total: u64);
     fn advance(&self, n: u64);

@@ -1,4 +1,4 @@
-//! Fractional visibility `v_c(t)` as a step function (DESIGN.md section 2):
+//! Fractional visibility `v_c(t)` as a step function (docs/method.md section 2):
 //! `v_c = sum w_c' v_c' / sum w_c'` over the children, simplified to at most
 //! K steps, and the L1 distances from which the temporal error `gamma_c` is
 //! computed.
@@ -10,29 +10,31 @@ use crate::scene::Visibility;
 
 /// `v(t) = values[i]` for the last `times[i] <= t`; the first step is at
 /// `t = 0`, so the function is defined on the whole span `[0, T]`.
-/// Consecutive values differ (the representation is canonical).
+/// Consecutive values differ (the representation is canonical). The
+/// builder computes in `f64`; the tree stores the `f32` form
+/// ([`crate::tree::Steps`], made by [`StepFunction::to_tree`]).
 #[derive(Debug, Clone, PartialEq)]
-pub struct Steps {
+pub struct StepFunction {
     points: Vec<(f64, f64)>,
 }
 
-impl Steps {
-    pub fn constant(v: f64) -> Steps {
-        Steps {
+impl StepFunction {
+    pub fn constant(v: f64) -> StepFunction {
+        StepFunction {
             points: vec![(0.0, v)],
         }
     }
 
     /// The 0/1 function of an object over `[0, span]`.
-    pub fn of_visibility(visibility: &Visibility, span: f64) -> Steps {
+    pub fn of_visibility(visibility: &Visibility, span: f64) -> StepFunction {
         let mut raw = vec![(0.0, if visibility.at(0.0) { 1.0 } else { 0.0 })];
         for t in visibility.breakpoints(span) {
             raw.push((t, if visibility.at(t) { 1.0 } else { 0.0 }));
         }
-        Steps::canonical(raw)
+        StepFunction::canonical(raw)
     }
 
-    fn canonical(raw: Vec<(f64, f64)>) -> Steps {
+    fn canonical(raw: Vec<(f64, f64)>) -> StepFunction {
         let mut points: Vec<(f64, f64)> = Vec::with_capacity(raw.len());
         for (t, v) in raw {
             match points.last_mut() {
@@ -44,7 +46,7 @@ impl Steps {
         // A change that lands on the previous value (t equal) can leave two
         // equal neighbours; fold them.
         points.dedup_by(|b, a| a.1 == b.1);
-        Steps { points }
+        StepFunction { points }
     }
 
     pub fn points(&self) -> &[(f64, f64)] {
@@ -56,8 +58,8 @@ impl Steps {
         if i == 0 { 0.0 } else { self.points[i - 1].1 }
     }
 
-    pub fn from_tree(steps: &crate::tree::Steps) -> Steps {
-        Steps::canonical(
+    pub fn from_tree(steps: &crate::tree::Steps) -> StepFunction {
+        StepFunction::canonical(
             steps
                 .steps()
                 .iter()
@@ -73,10 +75,10 @@ impl Steps {
     }
 
     /// `sum w_i f_i / sum w_i`, exact (every breakpoint of every input kept).
-    pub fn weighted_mean(parts: &[(f64, &Steps)]) -> Steps {
+    pub fn weighted_mean(parts: &[(f64, &StepFunction)]) -> StepFunction {
         let total: f64 = parts.iter().map(|p| p.0).sum();
         if total <= 0.0 {
-            return Steps::constant(0.0);
+            return StepFunction::constant(0.0);
         }
         let mut events: Vec<(f64, f64)> = Vec::new();
         for &(w, f) in parts {
@@ -107,11 +109,11 @@ impl Steps {
                 p.1 = 1.0;
             }
         }
-        Steps::canonical(raw)
+        StepFunction::canonical(raw)
     }
 
     /// `integral_0^span |self - other| dt`.
-    pub fn l1_distance(&self, other: &Steps, span: f64) -> f64 {
+    pub fn l1_distance(&self, other: &StepFunction, span: f64) -> f64 {
         let (a, b) = (&self.points, &other.points);
         let (mut i, mut j) = (0, 0);
         let (mut va, mut vb) = (0.0f64, 0.0f64);
@@ -142,7 +144,7 @@ impl Steps {
     /// time-weighted mean, which minimises the L2 error and keeps the
     /// integral). The error this adds is measured by the caller as part of
     /// `gamma_c`, against the original objects.
-    pub fn simplified(&self, max_steps: usize, span: f64) -> Steps {
+    pub fn simplified(&self, max_steps: usize, span: f64) -> StepFunction {
         let n = self.points.len();
         if n <= max_steps.max(1) {
             return self.clone();
@@ -236,7 +238,7 @@ impl Steps {
             }
             alive -= 1;
         }
-        Steps::canonical(
+        StepFunction::canonical(
             segs.iter()
                 .filter(|s| s.alive)
                 .map(|s| (s.t, s.v))
@@ -249,20 +251,20 @@ impl Steps {
 mod tests {
     use super::*;
 
-    fn steps(p: &[(f64, f64)]) -> Steps {
-        Steps::canonical(p.to_vec())
+    fn steps(p: &[(f64, f64)]) -> StepFunction {
+        StepFunction::canonical(p.to_vec())
     }
 
     #[test]
     fn from_visibility() {
         let v = Visibility::from_intervals(vec![(2.0, 5.0), (7.0, f64::INFINITY)]);
-        let s = Steps::of_visibility(&v, 10.0);
+        let s = StepFunction::of_visibility(&v, 10.0);
         assert_eq!(
             s.points(),
             &[(0.0, 0.0), (2.0, 1.0), (5.0, 0.0), (7.0, 1.0)]
         );
         assert_eq!(
-            Steps::of_visibility(&Visibility::always(), 10.0).points(),
+            StepFunction::of_visibility(&Visibility::always(), 10.0).points(),
             &[(0.0, 1.0)]
         );
     }
@@ -271,7 +273,7 @@ mod tests {
     fn weighted_mean_and_distance() {
         let a = steps(&[(0.0, 0.0), (2.0, 1.0)]);
         let b = steps(&[(0.0, 1.0), (6.0, 0.0)]);
-        let m = Steps::weighted_mean(&[(1.0, &a), (3.0, &b)]);
+        let m = StepFunction::weighted_mean(&[(1.0, &a), (3.0, &b)]);
         assert_eq!(m.points(), &[(0.0, 0.75), (2.0, 1.0), (6.0, 0.25)]);
         // |m - a| = 0.75 on [0,2), 0 on [2,6), 0.75 on [6,10).
         assert!((m.l1_distance(&a, 10.0) - 4.5).abs() < 1e-12);
@@ -284,7 +286,7 @@ mod tests {
         let f = steps(&raw);
         let g = f.simplified(10, 100.0);
         assert!(g.points().len() <= 10);
-        let integral = |s: &Steps| s.l1_distance(&Steps::constant(0.0), 100.0);
+        let integral = |s: &StepFunction| s.l1_distance(&StepFunction::constant(0.0), 100.0);
         assert!((integral(&f) - integral(&g)).abs() < 1e-9);
         assert!(g.points().iter().all(|p| (0.0..=1.0).contains(&p.1)));
         assert_eq!(g.points()[0].0, 0.0);

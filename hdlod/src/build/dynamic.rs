@@ -9,13 +9,14 @@ use std::collections::HashMap;
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
-use super::build::{Context, reduce_within};
-use super::steps::Steps;
-use super::{LevelStats, Progress};
+use super::context::{Context, Node, add};
+use super::outputs::{LevelStats, Progress};
+use super::parent::reduce_within;
+use super::steps::StepFunction;
 use crate::Result;
 use crate::geometry::{self, Mesh, Part};
 use crate::scene::{Scene, Visibility};
-use crate::tree::{Aabb, Cluster, ClusterClass};
+use crate::tree::{Cluster, ClusterClass};
 
 /// One version of a model: its stored geometry and what the tree records.
 #[derive(Clone)]
@@ -28,7 +29,7 @@ struct Version {
 
 /// Builds the chain of one model (finest first): the original, then one
 /// version per configured budget (a share of the model's size), each the
-/// model reduced within that budget (`build::reduce_within`: boxes per
+/// model reduced within that budget (`parent::reduce_within`: boxes per
 /// member of a lattice crane, meshoptimizer on solid parts) and kept only
 /// when it has at most `min_reduction` of the triangles of the version
 /// below. The cut takes a coarser version once its error is small enough
@@ -113,35 +114,22 @@ pub(super) fn dynamic_chains(
         let i = *i;
         let o = &scene.objects[i];
         let versions = &by_model[&key(i)];
-        let visibility = Steps::of_visibility(visibility, ctx.span).to_tree();
+        let visibility = StepFunction::of_visibility(visibility, ctx.span);
         let mut below: Option<u32> = None;
         for (level, v) in versions.iter().enumerate() {
-            let id = clusters.len() as u32;
-            if let Some(child) = below {
-                clusters[child as usize].parent = Some(id);
-            }
-            let motion = o.motion.clone();
-            let w = f64::from((v.bounds.1 - v.bounds.0).length());
-            clusters.push(Cluster {
-                id,
-                parent: None,
-                children: below.into_iter().collect(),
-                level: level as u32,
-                class: ClusterClass::Dynamic,
-                bounds: Aabb::from_f32(v.bounds.0, v.bounds.1),
-                w,
+            let node = Node {
                 eps: v.eps,
-                gamma: 0.0,
-                visibility: visibility.clone(),
-                motion,
-                geometry: Some(v.hash.clone()),
-                triangles: v.triangles,
+                children: below.into_iter().collect(),
+                motion: o.motion.clone(),
+                geometry: Some((v.hash.clone(), v.triangles)),
                 objects: if level == 0 {
                     vec![o.id.clone()]
                 } else {
                     Vec::new()
                 },
-            });
+                ..Node::new(ClusterClass::Dynamic, level as u32, v.bounds, &visibility)
+            };
+            let id = add(clusters, node);
             if level > 0 {
                 if stats.len() < level {
                     stats.push(LevelStats {

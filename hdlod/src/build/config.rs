@@ -1,4 +1,4 @@
-//! Build configuration and the per-level thresholds of DESIGN.md section 3:
+//! Build configuration and the per-level thresholds of docs/method.md section 3:
 //! `w(l) = W 2^(l-L)`, `eps(l) = k_eps w(l)`, `gamma(l) = gamma_max l / L`.
 
 use serde::{Deserialize, Serialize};

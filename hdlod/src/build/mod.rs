@@ -1,0 +1,236 @@
+//! The tree builder (docs/method.md section 3; Semenov et al. 2020,
+//! appendix 2). Static and pseudo-dynamic objects are clustered bottom-up
+//! in Hilbert order, level by level; each dynamic object gets its own
+//! cluster under a discrete LOD chain of its shared model; all roots hang
+//! under one virtual root.
+//!
+//! One file per job: `leaves` (objects into leaf clusters, moving objects
+//! split where they stand still), `level` (grouping one level), `parent`
+//! (a parent's geometry and error), `dynamic` (LOD chains); this file
+//! orchestrates them. `context` holds what they share, and the one
+//! constructor of a cluster record.
+
+mod config;
+mod context;
+mod dynamic;
+mod hilbert;
+mod leaves;
+mod level;
+mod outputs;
+mod parent;
+mod steps;
+
+use std::path::Path;
+use std::time::Instant;
+
+use glam::{DVec3, Vec3};
+
+use crate::scene::{Class, Scene, Visibility};
+use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
+use crate::{Error, Result};
+use context::{Context, Node, add};
+
+pub use config::{BuildConfig, Thresholds, level_count, thresholds};
+pub use hilbert::hilbert_key;
+pub use outputs::{BuildStats, GeometrySink, LevelStats, Progress, Silent};
+pub use steps::StepFunction;
+
+/// Builds the HDLOD tree of `scene`. Geometry goes to `sink` as it is made.
+pub fn build(
+    scene: &Scene,
+    config: &BuildConfig,
+    sink: &dyn GeometrySink,
+    progress: &dyn Progress,
+) -> Result<(Tree, BuildStats)> {
+    config
+        .validate()
+        .map_err(|(field, message)| Error::argument(format!("config.{field}"), message))?;
+    let mut scene_owned;
+    let scene = match config.schedule {
+        Some(options) if options != scene.schedule_options => {
+            scene_owned = scene.clone();
+            scene_owned.schedule_options = options;
+            scene_owned.apply_schedule();
+            &scene_owned
+        }
+        _ => scene,
+    };
+    let span = scene.time.seconds;
+    let mut stats = BuildStats::default();
+    let mut clusters: Vec<Cluster> = Vec::new();
+    let mut ctx = Context {
+        config,
+        span,
+        leaf_steps: Vec::new(),
+        sink,
+    };
+
+    let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
+    stats.absent_objects = scene
+        .objects
+        .iter()
+        .zip(&classes)
+        .filter(|(_, c)| **c == Class::Absent)
+        .map(|(o, _)| o.id.clone())
+        .collect();
+
+    let pieces = leaves::split_at_rest(scene, &classes);
+    let clock = Instant::now();
+    let leaves = leaves::leaves(scene, &pieces, &mut ctx, &mut clusters, progress)?;
+    stats
+        .phases
+        .push(("leaves".into(), clock.elapsed().as_secs_f64()));
+
+    // Scene size W and the level count from every clustered object.
+    let (lo, hi) = leaves.iter().flatten().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), a| (lo.min(a.lo), hi.max(a.hi)),
+    );
+    let scene_w = if lo.x.is_finite() {
+        f64::from((hi - lo).length())
+    } else {
+        0.0
+    };
+    let mut sizes: Vec<f64> = leaves.iter().flatten().map(|a| a.w).collect();
+    sizes.sort_by(f64::total_cmp);
+    let median = sizes.get(sizes.len() / 2).copied().unwrap_or(0.0);
+    let levels = level_count(config, scene_w, median);
+    stats.levels = levels;
+    stats.scene_w = scene_w;
+
+    let [static_leaves, pd_leaves] = leaves;
+    let mut roots: Vec<u32> = Vec::new();
+    for (kind, active) in [
+        (ClusterClass::Static, static_leaves),
+        (ClusterClass::PseudoDynamic, pd_leaves),
+    ] {
+        let clock = Instant::now();
+        let (top, level_stats) = level::cluster_class(
+            &ctx,
+            &mut clusters,
+            kind,
+            active,
+            (lo, hi),
+            scene_w,
+            levels,
+            progress,
+        )?;
+        roots.extend(top);
+        let name = match kind {
+            ClusterClass::Static => {
+                stats.static_levels = level_stats;
+                "static"
+            }
+            _ => {
+                stats.pseudo_dynamic_levels = level_stats;
+                "pseudo_dynamic"
+            }
+        };
+        stats
+            .phases
+            .push((name.into(), clock.elapsed().as_secs_f64()));
+    }
+
+    let clock = Instant::now();
+    let dynamic: Vec<(usize, Visibility)> = pieces
+        .iter()
+        .filter(|p| p.class == Class::Dynamic)
+        .map(|p| (p.object, p.visibility.clone()))
+        .collect();
+    progress.phase("dynamic", dynamic.len() as u64);
+    let (tops, dyn_stats) =
+        dynamic::dynamic_chains(scene, &dynamic, &ctx, &mut clusters, progress)?;
+    roots.extend(tops);
+    stats.dynamic_levels = dyn_stats;
+    stats
+        .phases
+        .push(("dynamic".into(), clock.elapsed().as_secs_f64()));
+
+    let clock = Instant::now();
+    let root = virtual_root(&ctx, &mut clusters, roots);
+    stats
+        .phases
+        .push(("root".into(), clock.elapsed().as_secs_f64()));
+    let tree = Tree {
+        scene: scene.name.clone(),
+        time: scene.time,
+        bounds: clusters[root as usize].bounds,
+        up: scene.up,
+        root,
+        config: serde_json::to_value(config).expect("the config serialises"),
+        stats: serde_json::to_value(&stats).expect("the statistics serialise"),
+        clusters,
+        presence: Default::default(),
+        nodes: Default::default(),
+    };
+    Ok((tree, stats))
+}
+
+/// Builds the tree of `scene` into the directory `out`, atomically: a
+/// failed build leaves what was there before.
+pub fn build_to(
+    scene: &Scene,
+    config: &BuildConfig,
+    out: &Path,
+    progress: &dyn Progress,
+) -> Result<(Tree, BuildStats)> {
+    let writer = TreeWriter::create(out)?;
+    let (tree, stats) = build(scene, config, &writer, progress)?;
+    progress.phase("write", 1);
+    writer.finish(&tree)?;
+    progress.advance(1);
+    Ok((tree, stats))
+}
+
+/// The virtual root over `roots`: no geometry, `w` and `v` aggregated like
+/// any cluster's, its box the union of the roots' boxes in the world over
+/// the whole span. Answers its id.
+fn virtual_root(ctx: &Context, clusters: &mut Vec<Cluster>, roots: Vec<u32>) -> u32 {
+    let root_steps: Vec<(f64, StepFunction)> = roots
+        .iter()
+        .map(|&r| {
+            let c = &clusters[r as usize];
+            (c.w, StepFunction::from_tree(&c.visibility))
+        })
+        .collect();
+    let parts: Vec<(f64, &StepFunction)> = root_steps.iter().map(|(w, s)| (*w, s)).collect();
+    let visibility = StepFunction::weighted_mean(&parts).simplified(ctx.config.max_steps, ctx.span);
+    let bounds = roots
+        .iter()
+        .map(|&r| world_box(&clusters[r as usize]))
+        .reduce(|a, b| a.union(&b))
+        .unwrap_or(Aabb::new(DVec3::ZERO, DVec3::ZERO));
+    let eps = roots
+        .iter()
+        .map(|&r| clusters[r as usize].eps)
+        .fold(0.0, f64::max);
+    let level = clusters.iter().map(|c| c.level).max().unwrap_or(0) + 1;
+    let node = Node {
+        bounds,
+        w: bounds.diagonal(),
+        eps,
+        children: roots,
+        ..Node::new(
+            ClusterClass::Root,
+            level,
+            (Vec3::ZERO, Vec3::ZERO),
+            &visibility,
+        )
+    };
+    add(clusters, node)
+}
+
+/// The box of a cluster in the world over the whole span: a dynamic
+/// cluster's own box moved by every keyframe.
+fn world_box(c: &Cluster) -> Aabb {
+    let Some(motion) = &c.motion else {
+        return c.bounds;
+    };
+    motion
+        .keyframes()
+        .iter()
+        .map(|k| k.matrix().as_dmat4())
+        .map(|m| crate::tree::cut::moved_box(&c.bounds, &m))
+        .reduce(|a, b| a.union(&b))
+        .unwrap_or(c.bounds)
+}

@@ -1,0 +1,213 @@
+//! A parent's geometry and its error: the children's union reduced within
+//! the level's budget, and `eps_c` measured, never estimated
+//! (docs/method.md section 2). Also the parent a lone cluster gets of its
+//! own, and the reduction the dynamic LOD chains share.
+
+use std::sync::Arc;
+
+use glam::Mat4;
+
+use super::config::Thresholds;
+use super::context::{Active, Context};
+use crate::Result;
+use crate::geometry::{self, Mesh, Part, SimplifyOptions, Strategy};
+
+/// A parent made by `make_parent`: its geometry, `eps_c`, geometry hash and
+/// the originals below it (if kept).
+pub(super) struct Parent {
+    pub mesh: Mesh,
+    pub eps: f64,
+    pub hash: String,
+    pub originals: Option<Vec<Arc<Mesh>>>,
+}
+
+/// Merges the children's geometry, simplifies it within the level's budget
+/// and measures the spatial error: `eps_c = D_H(g_c, union g_c') + max
+/// eps_c'`, with `D_H` a computed upper bound (see `reduce_within`). When
+/// nothing removes triangles, the parent is the union (`D_H = 0`).
+pub(super) fn make_parent(
+    ctx: &Context,
+    active: &[Active],
+    group: &[usize],
+    th: &Thresholds,
+) -> Result<Parent> {
+    let children: Vec<&Active> = group.iter().map(|&i| &active[i]).collect();
+    let child_eps = children.iter().map(|c| c.eps).fold(0.0, f64::max);
+    let parts: Vec<Part> = children
+        .iter()
+        .map(|c| Part {
+            mesh: &c.mesh,
+            transform: Mat4::IDENTITY,
+            color: [1.0; 4],
+        })
+        .collect();
+    let union = geometry::merge(&parts, 0.0);
+    let budget = (th.eps - child_eps) as f32;
+    let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
+    let (mesh, h) = reduce_within(&union, budget, tolerance).unwrap_or((union, 0.0));
+    let originals = originals_of(&children);
+    let eps = stored_eps(&mesh, h, child_eps, originals.as_deref(), tolerance);
+    let hash = ctx.sink.put(&mesh)?;
+    Ok(Parent {
+        mesh,
+        eps,
+        hash,
+        originals,
+    })
+}
+
+/// Clusters whose original objects have at most this many triangles in all
+/// get `direct_eps`: the measure costs what a parent's own does, and on the
+/// paper scene this covers the static surroundings and the lower levels.
+pub(super) const DIRECT_MAX_TRIANGLES: usize = 20_000;
+
+/// The originals below `children`, if all of them kept theirs and there
+/// are few enough.
+fn originals_of(children: &[&Active]) -> Option<Vec<Arc<Mesh>>> {
+    let mut out = Vec::new();
+    let mut triangles = 0;
+    for c in children {
+        for m in c.originals.as_ref()? {
+            triangles += m.triangle_count();
+            out.push(m.clone());
+        }
+    }
+    (triangles <= DIRECT_MAX_TRIANGLES).then_some(out)
+}
+
+/// The `eps_c` stored for geometry `mesh` made within the measured bound
+/// `h` of children whose largest error is `child_eps`. The recursive
+/// `h + child_eps` of docs/method.md section 2 bounds `D_H(g_c, union of the
+/// original objects of c)` through the triangle inequality, adding each
+/// level's bound to the one below; where the `originals` were kept, that
+/// distance is also measured directly, often half the sum, and the
+/// smaller of the two is stored (both are bounds), never below a child's,
+/// so errors still grow upwards. A smaller `eps_c` lets the cut stop
+/// higher in the tree.
+fn stored_eps(
+    mesh: &Mesh,
+    h: f32,
+    child_eps: f64,
+    originals: Option<&[Arc<Mesh>]>,
+    tolerance: f32,
+) -> f64 {
+    let recursive = f64::from(h) + child_eps;
+    originals.map_or(recursive, |o| {
+        direct_eps(mesh, o, tolerance, recursive)
+            .map_or(recursive, |direct| direct.min(recursive))
+            .max(child_eps)
+    })
+}
+
+/// A bound of `D_H(mesh, union of originals)`, measured, if it is at most
+/// `budget`.
+fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32, budget: f64) -> Option<f64> {
+    let parts: Vec<Part> = originals
+        .iter()
+        .map(|m| Part {
+            mesh: m,
+            transform: Mat4::IDENTITY,
+            color: [1.0; 4],
+        })
+        .collect();
+    let union = geometry::merge(&parts, 0.0);
+    geometry::bound_within(mesh, &union, tolerance, budget as f32).map(f64::from)
+}
+
+/// The paper's loop moves a cluster with no neighbours up unchanged; an
+/// element longer than `w(l)` then stays a leaf until a level whose error
+/// may be more than one pixel where the cut reaches it, so the cut draws
+/// the leaf. Instead it gets a parent of its own: its geometry reduced
+/// within `eps(l)`, when that keeps at most `min_reduction` of its
+/// triangles. Answers the parent's geometry and error.
+pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh, f64)> {
+    let triangles = child.mesh.triangle_count();
+    if (triangles as f64) * ctx.config.min_reduction < QUAD_TRIANGLES {
+        return None;
+    }
+    let budget = (th.eps - child.eps) as f32;
+    let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
+    let (mesh, h) = reduce_within(&child.mesh, budget, tolerance)?;
+    if mesh.triangle_count() as f64 > triangles as f64 * ctx.config.min_reduction {
+        return None;
+    }
+    let eps = stored_eps(&mesh, h, child.eps, child.originals.as_deref(), tolerance);
+    Some((mesh, eps))
+}
+
+/// The fewest triangles a part is reduced to (a quad): a cluster with fewer
+/// left after the reduction gains nothing from a parent of its own.
+pub(super) const QUAD_TRIANGLES: f64 = 2.0;
+
+/// `mesh` reduced within `budget` (scene units) and the measured bound of
+/// its Hausdorff distance to `mesh`, if some candidate removes triangles.
+/// The candidates: part by part (`geometry::reduce_parts`: per-part boxes
+/// or simplifications and a greedy cover) at half and all of the budget,
+/// the latter also followed by meshoptimizer on what is left of the
+/// budget, and, where those keep more than half, meshoptimizer on the
+/// whole. The cut draws a cluster once its error is small enough on
+/// screen, so a smaller error is worth some triangles: of the candidates
+/// within `EPS_PREFERENCE` times the fewest triangles, the one with the
+/// least error wins.
+pub(super) fn reduce_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+    if budget <= 0.0 {
+        return None;
+    }
+    let mut candidates: Vec<(Mesh, f32)> = Vec::new();
+    for share in [0.5, 1.0] {
+        let r = geometry::reduce_parts(mesh, budget * share, tolerance * share);
+        if share == 1.0
+            && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance)
+        {
+            candidates.push((m, h + r.bound));
+        }
+        candidates.push((r.mesh, r.bound));
+    }
+    // Worth its cost only where the parts gave little.
+    if candidates
+        .iter()
+        .all(|(m, _)| m.triangle_count() * 2 > mesh.triangle_count())
+    {
+        candidates.extend(simplified_within(mesh, budget, tolerance));
+    }
+    let fewest = candidates
+        .iter()
+        .map(|(m, _)| m.triangle_count())
+        .min()
+        .unwrap_or(usize::MAX);
+    candidates
+        .into_iter()
+        .filter(|(m, h)| {
+            *h <= budget
+                && m.triangle_count() < mesh.triangle_count()
+                && m.triangle_count() as f64 <= EPS_PREFERENCE * fewest as f64
+        })
+        .min_by(|a, b| {
+            a.1.total_cmp(&b.1)
+                .then(a.0.triangle_count().cmp(&b.0.triangle_count()))
+        })
+}
+
+/// How many times the fewest triangles a candidate parent may keep and
+/// still win by a smaller error.
+const EPS_PREFERENCE: f64 = 1.5;
+
+/// meshoptimizer's simplification of `mesh` within `budget` and its
+/// measured Hausdorff bound, if it removed triangles and the bound fits.
+fn simplified_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+    if budget <= 0.0 {
+        return None;
+    }
+    let s = geometry::simplify(
+        mesh,
+        &SimplifyOptions {
+            max_error: budget,
+            target_triangles: None,
+            prune: true,
+        },
+    );
+    if s.strategy == Strategy::Unchanged || s.triangles >= mesh.triangle_count() {
+        return None;
+    }
+    geometry::bound_within(&s.mesh, mesh, tolerance, budget).map(|h| (s.mesh, h))
+}
