@@ -312,22 +312,6 @@ mod tests {
     }
 
     #[test]
-    fn a_tree_crown_keeps_fewer_triangles_with_placed_vertices() {
-        // The paper scene's street tree (188 triangles): its crown is a
-        // 12 x 7 sphere 7 m across, which vertex selection alone took to
-        // 134 triangles for the tree within 0.5 m; its trunk, a tube 0.3 m
-        // across, becomes a quad.
-        let tree = crate::fixture::models::tree(12.0, 12);
-        let r = reduce_parts(&tree, 0.5, 0.01);
-        assert!(r.bound <= 0.5 && measured(&r.mesh, &tree) <= r.bound + 0.01);
-        assert!(
-            r.mesh.triangle_count() <= 100,
-            "{} triangles",
-            r.mesh.triangle_count()
-        );
-    }
-
-    #[test]
     fn keeps_what_the_budget_does_not_allow() {
         // Two thin tubes 3 apart, budget 0.05: each becomes its quad
         // (within its radius), neither covers the other.
