@@ -23,8 +23,6 @@
 //! point lies on a kept part's output, every input point is either on a
 //! kept part or covered), so the bound returned is a bound.
 
-use std::collections::HashMap;
-
 use glam::Vec3;
 
 use super::Mesh;
@@ -171,7 +169,7 @@ const PLACED_STEPS: usize = 4;
 /// within `budget` and of vertex placement at the fewest triangles within
 /// it.
 fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
-    let welded = welded(input);
+    let welded = input.welded();
     let n = input.triangle_count();
     let mut best: Option<(Mesh, f32)> = None;
     for request in REQUESTS {
@@ -213,28 +211,6 @@ fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh,
         step /= 2.0;
     }
     best.map(|(mesh, error)| (flat_shaded(&mesh), error))
-}
-
-/// `mesh` with its vertices merged by position alone (normals dropped,
-/// the first colour kept): flat-shaded parts repeat each corner per face,
-/// and edge collapse cannot move a vertex along a seam.
-fn welded(mesh: &Mesh) -> Mesh {
-    let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.positions.len());
-    let mut out = Mesh::default();
-    for &i in &mesh.indices {
-        let p = mesh.positions[i as usize];
-        let at = *index
-            .entry(p.to_array().map(f32::to_bits))
-            .or_insert_with(|| {
-                out.positions.push(p);
-                if let Some(c) = mesh.colors.get(i as usize) {
-                    out.colors.push(*c);
-                }
-                out.positions.len() as u32 - 1
-            });
-        out.indices.push(at);
-    }
-    out
 }
 
 /// `mesh` with a vertex per triangle corner and the triangle's normal: the
