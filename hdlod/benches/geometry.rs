@@ -113,7 +113,8 @@ fn horse_simplifiers(c: &mut Criterion) {
 
 /// Tree-builder sized work: a 12-box cluster, merged, simplified, measured.
 fn small_clusters(c: &mut Criterion) {
-    let cube = cube();
+    // Closed boxes of 8 shared corners.
+    let cube = Mesh::cuboid(Vec3::ZERO, Vec3::ONE, 1).welded();
     let parts: Vec<Part> = (0..12)
         .map(|i| Part {
             mesh: &cube,
@@ -141,28 +142,6 @@ fn small_clusters(c: &mut Criterion) {
         b.iter(|| hausdorff(&merged, &small, &options))
     });
     g.finish();
-}
-
-fn cube() -> Mesh {
-    let positions = (0..8)
-        .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
-        .collect();
-    let quads = [
-        [0, 2, 3, 1],
-        [4, 5, 7, 6],
-        [0, 1, 5, 4],
-        [2, 6, 7, 3],
-        [0, 4, 6, 2],
-        [1, 3, 7, 5],
-    ];
-    Mesh {
-        positions,
-        indices: quads
-            .iter()
-            .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
-            .collect(),
-        ..Mesh::default()
-    }
 }
 
 fn config() -> Criterion {

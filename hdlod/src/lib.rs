@@ -3,12 +3,14 @@
 //! Data flows one way through the modules:
 //! [`scene`] (model, schedule, `hdlod-scene/1` files) -> [`geometry`] (merge,
 //! simplify, Hausdorff) -> [`build`] (the tree builder) -> [`tree`] (the
-//! `hdlod-tree/1` format and the cut) -> [`tiles`] (time slices as 3D Tiles). [`io`] reads and writes mesh files and
-//! [`fixture`] generates test scenes. See `docs/ARCHITECTURE.md` for the map.
+//! `hdlod-tree/1` format and the cut) -> [`tiles`] (time slices as 3D Tiles).
+//! [`io`] reads and writes mesh files and [`import`] turns BIM models and
+//! schedules into scenes. Generated test scenes, the sample tree and the
+//! paper's benchmark set-up live in the `hdlod-fixtures` crate, which this
+//! one never depends on. See `docs/ARCHITECTURE.md` for the map.
 
 pub mod build;
 pub mod error;
-pub mod fixture;
 pub mod geometry;
 pub mod import;
 pub mod io;

@@ -89,27 +89,8 @@ fn an_error_budget_is_met_as_measured() {
 /// Many small separate boxes: edge collapse cannot remove a closed box's
 /// last triangles, so only clustering reaches a small target.
 fn box_field(count: usize) -> Mesh {
-    let cube = {
-        let positions = (0..8)
-            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32) * 0.3)
-            .collect();
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        Mesh {
-            positions,
-            indices: quads
-                .iter()
-                .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
-                .collect(),
-            ..Mesh::default()
-        }
-    };
+    // Closed: 8 corners shared by the faces.
+    let cube = Mesh::cuboid(Vec3::ZERO, Vec3::splat(0.3), 1).welded();
     let parts: Vec<Part> = (0..count)
         .map(|i| Part {
             mesh: &cube,

@@ -417,7 +417,7 @@ fn reloads_without_dropping_requests(hangup: bool) {
             statuses
         })
     };
-    hdlod::tree::sample::write_sample_tree(&server.tree, 1, 9).unwrap();
+    hdlod_fixtures::sample::write_sample_tree(&server.tree, 1, 9).unwrap();
     if hangup {
         let status = Command::new("kill")
             .args(["-HUP", &server.pid().to_string()])

@@ -37,33 +37,9 @@ mod tests {
     use super::*;
     use glam::Vec3;
 
-    fn unit_cube() -> Mesh {
-        let positions = (0..8)
-            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
-            .collect();
-        // Outward-facing quads as two triangles each.
-        let quads = [
-            [0, 2, 3, 1],
-            [4, 5, 7, 6],
-            [0, 1, 5, 4],
-            [2, 6, 7, 3],
-            [0, 4, 6, 2],
-            [1, 3, 7, 5],
-        ];
-        let indices = quads
-            .iter()
-            .flat_map(|q| [q[0], q[1], q[2], q[0], q[2], q[3]])
-            .collect();
-        Mesh {
-            positions,
-            indices,
-            ..Mesh::default()
-        }
-    }
-
     #[test]
     fn unit_cube_measures() {
-        let cube = unit_cube();
+        let cube = Mesh::cuboid(Vec3::ZERO, Vec3::ONE, 1);
         assert!((area(&cube) - 6.0).abs() < 1e-9);
         assert!((volume(&cube) - 1.0).abs() < 1e-9);
         let moved = cube.transformed(&glam::Mat4::from_translation(Vec3::new(5.0, -3.0, 2.0)));

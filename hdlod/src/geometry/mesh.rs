@@ -1,3 +1,5 @@
+use std::collections::HashMap;
+
 use glam::{Mat4, Vec3};
 
 /// An indexed triangle mesh: a polygon soup as far as any algorithm may
@@ -58,6 +60,87 @@ impl Mesh {
         }
     }
 
+    /// The box from `lo` to `hi` with each face cut into `k x k` quads
+    /// (`k` at least 1: `12 k^2` triangles), flat-shaded: every face has its
+    /// own vertices with its outward normal, and is wound outwards. Faces
+    /// come in the order +x, -x, +y, -y, +z, -z, a face's vertices row by
+    /// row with every other row reversed: an undivided face then lists its
+    /// corners around it and is split along the diagonal from its first
+    /// corner, as the box proxies of built trees always were (their
+    /// geometry is named by the hash of its bytes).
+    pub fn cuboid(lo: Vec3, hi: Vec3, k: u32) -> Mesh {
+        let k = k.max(1);
+        // The ends exactly: `lo + (hi - lo)` may round to a neighbour of `hi`.
+        let at = |along: usize, i: u32| match i {
+            0 => lo[along],
+            _ if i == k => hi[along],
+            _ => lo[along] + (hi[along] - lo[along]) * (i as f32 / k as f32),
+        };
+        let vertices = 6 * (k as usize + 1).pow(2);
+        let mut mesh = Mesh {
+            positions: Vec::with_capacity(vertices),
+            normals: Vec::with_capacity(vertices),
+            colors: Vec::new(),
+            indices: Vec::with_capacity(36 * (k as usize).pow(2)),
+        };
+        for axis in 0..3 {
+            for high in [true, false] {
+                // (s, t) span the face, s x t pointing out of the box.
+                let (s, t) = if high {
+                    ((axis + 1) % 3, (axis + 2) % 3)
+                } else {
+                    ((axis + 2) % 3, (axis + 1) % 3)
+                };
+                let mut normal = Vec3::ZERO;
+                normal[axis] = if high { 1.0 } else { -1.0 };
+                let base = mesh.positions.len() as u32;
+                let column = |i: u32, j: u32| if j.is_multiple_of(2) { i } else { k - i };
+                for j in 0..=k {
+                    for n in 0..=k {
+                        let mut p = Vec3::ZERO;
+                        p[axis] = if high { hi[axis] } else { lo[axis] };
+                        p[s] = at(s, column(n, j));
+                        p[t] = at(t, j);
+                        mesh.positions.push(p);
+                        mesh.normals.push(normal);
+                    }
+                }
+                let vertex = |i: u32, j: u32| base + j * (k + 1) + column(i, j);
+                for j in 0..k {
+                    for i in 0..k {
+                        let (a, b) = (vertex(i, j), vertex(i + 1, j));
+                        let (c, d) = (vertex(i + 1, j + 1), vertex(i, j + 1));
+                        mesh.indices.extend([a, b, c, a, c, d]);
+                    }
+                }
+            }
+        }
+        mesh
+    }
+
+    /// The mesh with its vertices merged by position alone (normals
+    /// dropped, the first colour kept, unused vertices gone): a
+    /// flat-shaded mesh repeats each corner per face, and edge collapse
+    /// cannot move a vertex along such a seam.
+    pub fn welded(&self) -> Mesh {
+        let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(self.positions.len());
+        let mut out = Mesh::default();
+        for &i in &self.indices {
+            let p = self.positions[i as usize];
+            let at = *index
+                .entry(p.to_array().map(f32::to_bits))
+                .or_insert_with(|| {
+                    out.positions.push(p);
+                    if let Some(c) = self.colors.get(i as usize) {
+                        out.colors.push(*c);
+                    }
+                    out.positions.len() as u32 - 1
+                });
+            out.indices.push(at);
+        }
+        out
+    }
+
     /// Checks the internal consistency a reader must guarantee: indices in
     /// range, a whole number of triangles, attribute lengths, finite values.
     pub fn validate(&self) -> Result<(), String> {
@@ -86,5 +169,43 @@ impl Mesh {
             return Err(format!("vertex {i} has a non-finite coordinate {p}"));
         }
         Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::geometry::measure;
+
+    #[test]
+    fn cuboids_are_closed_flat_and_wound_outwards() {
+        let (lo, hi) = (Vec3::new(-1.0, 0.5, 2.0), Vec3::new(0.1, 3.0, 2.3));
+        let size = (hi - lo).as_dvec3();
+        for k in 1..4 {
+            let m = Mesh::cuboid(lo, hi, k);
+            m.validate().unwrap();
+            assert_eq!(m.triangle_count(), 12 * (k * k) as usize);
+            assert_eq!(m.bounds(), Some((lo, hi)));
+            let volume = size.x * size.y * size.z;
+            let area = 2.0 * (size.x * size.y + size.y * size.z + size.z * size.x);
+            assert!((measure::volume(&m) - volume).abs() < 1e-5, "k = {k}");
+            assert!((measure::area(&m) - area).abs() < 1e-5, "k = {k}");
+            for t in m.indices.chunks_exact(3) {
+                let [a, b, c] = [0, 1, 2].map(|i| m.positions[t[i] as usize]);
+                let n = m.normals[t[0] as usize];
+                assert!((b - a).cross(c - a).normalize().dot(n) > 0.999);
+                assert!(t.iter().all(|&i| m.normals[i as usize] == n));
+            }
+        }
+        // Welded, the faces share their edges: 8 corners, and for k = 3 two
+        // points on each of the 12 edges and 4 inside each face.
+        let corners = Mesh::cuboid(lo, hi, 1).welded();
+        assert_eq!(corners.positions.len(), 8);
+        assert_eq!(corners.triangle_count(), 12);
+        assert!(corners.normals.is_empty());
+        assert_eq!(
+            Mesh::cuboid(lo, hi, 3).welded().positions.len(),
+            8 + 24 + 24
+        );
     }
 }

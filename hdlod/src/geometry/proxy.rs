@@ -93,85 +93,15 @@ fn push_vertex(out: &mut Mesh, mesh: &Mesh, i: usize) {
         .push(mesh.colors.get(i).copied().unwrap_or([1.0; 4]));
 }
 
-/// A box corner: the high (true) or low side on x, y and z.
-type Corner = (bool, bool, bool);
-
+/// The part's box (`Mesh::cuboid`), flat-shaded in the part's colour.
 pub(super) fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
-    let corner = |x: bool, y: bool, z: bool| {
-        Vec3::new(
-            if x { hi.x } else { lo.x },
-            if y { hi.y } else { lo.y },
-            if z { hi.z } else { lo.z },
-        )
-    };
-    // Each face: its normal and its corners counter-clockwise seen from
-    // outside.
-    let faces: [(Vec3, [Corner; 4]); 6] = [
-        (
-            Vec3::X,
-            [
-                (true, false, false),
-                (true, true, false),
-                (true, true, true),
-                (true, false, true),
-            ],
-        ),
-        (
-            Vec3::NEG_X,
-            [
-                (false, false, false),
-                (false, false, true),
-                (false, true, true),
-                (false, true, false),
-            ],
-        ),
-        (
-            Vec3::Y,
-            [
-                (false, true, false),
-                (false, true, true),
-                (true, true, true),
-                (true, true, false),
-            ],
-        ),
-        (
-            Vec3::NEG_Y,
-            [
-                (false, false, false),
-                (true, false, false),
-                (true, false, true),
-                (false, false, true),
-            ],
-        ),
-        (
-            Vec3::Z,
-            [
-                (false, false, true),
-                (true, false, true),
-                (true, true, true),
-                (false, true, true),
-            ],
-        ),
-        (
-            Vec3::NEG_Z,
-            [
-                (false, false, false),
-                (false, true, false),
-                (true, true, false),
-                (true, false, false),
-            ],
-        ),
-    ];
-    for (normal, corners) in faces {
-        let base = out.positions.len() as u32;
-        for (x, y, z) in corners {
-            out.positions.push(corner(x, y, z));
-            out.normals.push(normal);
-            out.colors.push(color);
-        }
-        out.indices
-            .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
-    }
+    let cuboid = Mesh::cuboid(lo, hi, 1);
+    let base = out.positions.len() as u32;
+    out.positions.extend(&cuboid.positions);
+    out.normals.extend(&cuboid.normals);
+    out.colors
+        .extend(std::iter::repeat_n(color, cuboid.positions.len()));
+    out.indices.extend(cuboid.indices.iter().map(|i| base + i));
 }
 
 /// The part's box squashed to its mid-plane across its thinnest axis: one

@@ -23,8 +23,6 @@
 //! point lies on a kept part's output, every input point is either on a
 //! kept part or covered), so the bound returned is a bound.
 
-use std::collections::HashMap;
-
 use glam::Vec3;
 
 use super::Mesh;
@@ -171,7 +169,7 @@ const PLACED_STEPS: usize = 4;
 /// within `budget` and of vertex placement at the fewest triangles within
 /// it.
 fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
-    let welded = welded(input);
+    let welded = input.welded();
     let n = input.triangle_count();
     let mut best: Option<(Mesh, f32)> = None;
     for request in REQUESTS {
@@ -213,28 +211,6 @@ fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh,
         step /= 2.0;
     }
     best.map(|(mesh, error)| (flat_shaded(&mesh), error))
-}
-
-/// `mesh` with its vertices merged by position alone (normals dropped,
-/// the first colour kept): flat-shaded parts repeat each corner per face,
-/// and edge collapse cannot move a vertex along a seam.
-fn welded(mesh: &Mesh) -> Mesh {
-    let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(mesh.positions.len());
-    let mut out = Mesh::default();
-    for &i in &mesh.indices {
-        let p = mesh.positions[i as usize];
-        let at = *index
-            .entry(p.to_array().map(f32::to_bits))
-            .or_insert_with(|| {
-                out.positions.push(p);
-                if let Some(c) = mesh.colors.get(i as usize) {
-                    out.colors.push(*c);
-                }
-                out.positions.len() as u32 - 1
-            });
-        out.indices.push(at);
-    }
-    out
 }
 
 /// `mesh` with a vertex per triangle corner and the triangle's normal: the
@@ -309,22 +285,6 @@ mod tests {
         let truth = measured(&r.mesh, &m);
         assert!(truth <= r.bound + 1e-3, "{truth} > {}", r.bound);
         assert!(r.bound <= 0.5);
-    }
-
-    #[test]
-    fn a_tree_crown_keeps_fewer_triangles_with_placed_vertices() {
-        // The paper scene's street tree (188 triangles): its crown is a
-        // 12 x 7 sphere 7 m across, which vertex selection alone took to
-        // 134 triangles for the tree within 0.5 m; its trunk, a tube 0.3 m
-        // across, becomes a quad.
-        let tree = crate::fixture::models::tree(12.0, 12);
-        let r = reduce_parts(&tree, 0.5, 0.01);
-        assert!(r.bound <= 0.5 && measured(&r.mesh, &tree) <= r.bound + 0.01);
-        assert!(
-            r.mesh.triangle_count() <= 100,
-            "{} triangles",
-            r.mesh.triangle_count()
-        );
     }
 
     #[test]

@@ -8,9 +8,7 @@ pub mod camera;
 pub mod cut;
 pub mod format;
 mod nodes;
-pub mod paper;
 pub mod presence;
-pub mod sample;
 pub mod store;
 
 use std::collections::BTreeMap;
@@ -178,6 +176,32 @@ impl<T> PartialEq for Derived<T> {
 }
 
 impl Tree {
+    /// A tree of `clusters` under `root`, with empty `config` and `stats`
+    /// for the maker to fill in. It is validated when written
+    /// ([`TreeWriter::finish`]) or loaded; what the cut derives from the
+    /// clusters is made on first use.
+    pub fn new(
+        scene: String,
+        time: TimeSpan,
+        bounds: Aabb,
+        up: Up,
+        root: u32,
+        clusters: Vec<Cluster>,
+    ) -> Tree {
+        Tree {
+            scene,
+            time,
+            bounds,
+            up,
+            root,
+            config: serde_json::json!({}),
+            stats: serde_json::json!({}),
+            clusters,
+            presence: Derived::default(),
+            nodes: Derived::default(),
+        }
+    }
+
     /// See [`presence`].
     pub fn presence(&self) -> &presence::Presence {
         self.presence

@@ -112,45 +112,7 @@ fn present(steps: &Steps) -> Vec<(f64, f64)> {
 
 #[cfg(test)]
 mod tests {
-    use rand::{Rng, SeedableRng};
-    use rand_chacha::ChaCha8Rng;
-
     use super::*;
-    use crate::tree::sample;
-
-    #[test]
-    fn candidates_hold_every_present_child_in_order() {
-        let dir = tempfile::tempdir().unwrap();
-        let tree = sample::write_sample_tree(&dir.path().join("t"), 5, 12).unwrap();
-        let children = &tree.clusters[tree.root as usize].children;
-        let index = Presence::new(&tree);
-        let mut rng = ChaCha8Rng::seed_from_u64(9);
-        let (mut skipped, mut present_total) = (0, 0);
-        for k in 0..3000 {
-            // Random times, the breakpoints themselves and times outside.
-            let t = match k % 3 {
-                0 => rng.random_range(-0.2..1.2) * tree.time.seconds,
-                1 => {
-                    let c = &tree.clusters[children[rng.random_range(0..children.len())] as usize];
-                    let steps = c.visibility.steps();
-                    steps[rng.random_range(0..steps.len())].0
-                }
-                _ => rng.random_range(0.0..1.0) * tree.time.seconds,
-            };
-            let got = index.candidates(t);
-            let position = |c: &u32| children.iter().position(|x| x == c).unwrap();
-            assert!(got.windows(2).all(|w| position(&w[0]) < position(&w[1])));
-            for &c in children {
-                if tree.clusters[c as usize].visibility.at(t) > 0.0 {
-                    present_total += 1;
-                    assert!(got.contains(&c), "child {c} present at {t} is missing");
-                }
-            }
-            skipped += children.len() - got.len();
-        }
-        assert!(present_total > 0);
-        assert!(skipped > 0, "the index never skipped a child");
-    }
 
     #[test]
     fn intervals_of_presence() {

@@ -12,26 +12,10 @@ use hdlod::scene::{
 };
 use hdlod::time::{TimeSpan, parse_date};
 
-/// A unit cube with flat normals (24 vertices, 12 triangles).
+/// A unit cube about the origin with flat normals (24 vertices, 12
+/// triangles).
 pub fn unit_box() -> Mesh {
-    let mut mesh = Mesh::default();
-    for axis in 0..3 {
-        for sign in [-1.0f32, 1.0] {
-            let n = Vec3::from_array(std::array::from_fn(|k| if k == axis { sign } else { 0.0 }));
-            let u = Vec3::from_array(std::array::from_fn(|k| {
-                if k == (axis + 1) % 3 { 1.0 } else { 0.0 }
-            }));
-            let v = n.cross(u);
-            let base = mesh.positions.len() as u32;
-            for (a, b) in [(-1.0, -1.0), (1.0, -1.0), (1.0, 1.0), (-1.0, 1.0)] {
-                mesh.positions.push(0.5 * (n + a * u + b * v));
-                mesh.normals.push(n);
-            }
-            mesh.indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
-        }
-    }
-    mesh
+    Mesh::cuboid(Vec3::splat(-0.5), Vec3::splat(0.5), 1)
 }
 
 /// A tetrahedron with vertex colours and no normals.

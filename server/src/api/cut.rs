@@ -381,7 +381,7 @@ pub fn answer<'a>(
 
 #[cfg(test)]
 mod tests {
-    use hdlod::tree::paper;
+    use hdlod_fixtures::paper;
 
     use super::*;
 
@@ -391,7 +391,7 @@ mod tests {
     #[test]
     fn fragments_write_the_serialised_response() {
         let dir = tempfile::tempdir().unwrap();
-        let tree = hdlod::tree::sample::write_sample_tree(&dir.path().join("t"), 3, 6).unwrap();
+        let tree = hdlod_fixtures::sample::write_sample_tree(&dir.path().join("t"), 3, 6).unwrap();
         let fragments = Fragments::of(&tree);
         let baseline = Baseline::of(&tree);
         let mut compared = 0;

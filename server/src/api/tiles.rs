@@ -114,7 +114,7 @@ mod tests {
     #[test]
     fn stub_uris_name_served_files() {
         let dir = tempfile::tempdir().unwrap();
-        let tree = hdlod::tree::sample::write_sample_tree(&dir.path().join("t"), 2, 6).unwrap();
+        let tree = hdlod_fixtures::sample::write_sample_tree(&dir.path().join("t"), 2, 6).unwrap();
         let small = 8 * 1024;
         let t = tree.time.seconds / 2.0;
         let mut pending: Vec<(Option<String>, Tileset)> =

@@ -1,5 +1,5 @@
 //! `hdlod bench paper TREE [--json]`: the paper's table 2 on a tree
-//! (`hdlod::tree::paper`), printed and written into docs/benchmarks.md.
+//! (`hdlod_fixtures::paper`), printed and written into docs/benchmarks.md.
 //! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
 //! their view at a fixed rate, bounded in time, reporting update latency.
 
@@ -8,7 +8,7 @@ use std::time::{Duration, Instant};
 
 use anyhow::Context;
 use futures_util::{SinkExt, StreamExt};
-use hdlod::tree::paper;
+use hdlod_fixtures::paper;
 use tokio_tungstenite::tungstenite::Message;
 
 #[derive(clap::Subcommand)]

@@ -7,7 +7,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use hdlod::build::{BuildConfig, Silent, build_to};
-use hdlod::fixture::{Scale, skyscraper};
+use hdlod_fixtures::{Scale, skyscraper};
 use plotters::prelude::*;
 use serde::Serialize;
 

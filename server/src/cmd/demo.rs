@@ -7,8 +7,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use hdlod::build::{BuildConfig, build_to};
-use hdlod::fixture::{Scale, skyscraper};
 use hdlod::scene::format;
+use hdlod_fixtures::{Scale, skyscraper};
 
 use super::progress::Report;
 

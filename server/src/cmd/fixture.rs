@@ -5,8 +5,8 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Subcommand;
-use hdlod::fixture::{Scale, check_table_1, skyscraper};
 use hdlod::scene::{Summary, format};
+use hdlod_fixtures::{Scale, check_table_1, skyscraper};
 
 #[derive(Subcommand)]
 pub enum Fixture {

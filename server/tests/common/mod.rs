@@ -1,7 +1,7 @@
 //! Shared by the server's tests: the binary run as a command, trees to serve
-//! (the tiny fixture's, built by the binary; the library's sample tree), the
-//! real server on loopback, the browser's presence, and (from the library's
-//! test helpers) scenes and JSON Schema checks.
+//! (the tiny fixture's, built by the binary; the sample tree of
+//! `hdlod-fixtures`), the real server on loopback, the browser's presence,
+//! and (from the library's test helpers) scenes and JSON Schema checks.
 #![allow(dead_code, unused_imports)]
 
 #[path = "../../../hdlod/tests/common/mod.rs"]
@@ -56,11 +56,11 @@ pub fn build_tree(dir: &Path) -> PathBuf {
     tree
 }
 
-/// The library's sample tree (scene `sample-1`) of `floors` floors in
+/// The sample tree (scene `sample-1`) of `floors` floors in
 /// `dir/tree`.
 pub fn sample_tree(dir: &Path, floors: usize) -> PathBuf {
     let tree = dir.join("tree");
-    hdlod::tree::sample::write_sample_tree(&tree, 1, floors).unwrap();
+    hdlod_fixtures::sample::write_sample_tree(&tree, 1, floors).unwrap();
     tree
 }
 
