@@ -1,7 +1,9 @@
 //! The HDLOD tree: the `hdlod-tree/1` format on disk ([`format`], [`store`])
 //! and the cut ([`camera`], [`cut`]). [`Tree`] is the validated in-memory
 //! form the builder produces and the cut reads: clusters in a `Vec` indexed
-//! by id, visibility as sorted steps.
+//! by id, visibility as sorted steps. The tests that need a whole tree (the
+//! store, the cut, its presence index and baseline) run on the sample tree
+//! of `hdlod-fixtures`, in `fixtures/tests/`.
 
 pub mod baseline;
 pub mod camera;
