@@ -1,7 +1,8 @@
 #!/usr/bin/env python3
 """Checks `hdlod simplify`'s Hausdorff bound against MeshLab's.
 
-For bunny and horse (shared/data/meshes beside the repository), simplified
+For bunny and horse (the classic meshes: `--meshes DIR`, or the `meshes/`
+of the test data at `$HDLOD_DATA`, e.g. HDLOD_DATA=../shared/data), simplified
 to 10% and 2% of their triangles by each method, MeshLab measures the
 Hausdorff distance in both directions with dense surface sampling
 (pymeshlab's get_hausdorff_distance: vertices, edges and faces sampled,
@@ -13,6 +14,7 @@ Creates its own virtualenv in .venv (gitignored) with pymeshlab from PyPI
 on first use, and builds `hdlod` in release mode.
 """
 
+import argparse
 import json
 import os
 import subprocess
@@ -46,11 +48,20 @@ def ensure_venv() -> None:
     os.execv(venv_python(), [str(venv_python()), __file__, *sys.argv[1:]])
 
 
-def data_dir() -> Path:
-    for d in (ROOT.parent / "shared" / "data" / "meshes", ROOT.parent.parent / "shared" / "data" / "meshes"):
-        if d.exists():
-            return d
-    sys.exit("shared/data/meshes not found beside the repository")
+def data_dir(meshes: str | None) -> Path:
+    """`--meshes DIR`, else `$HDLOD_DATA/meshes`."""
+    if meshes is not None:
+        d = Path(meshes)
+    elif "HDLOD_DATA" in os.environ:
+        d = Path(os.environ["HDLOD_DATA"]) / "meshes"
+    else:
+        sys.exit(
+            "no meshes: give --meshes DIR or set HDLOD_DATA to the directory whose meshes/ holds "
+            "stanford-bunny.obj and horse.ply (github.com/alecjacobson/common-3d-test-models, folder data/)"
+        )
+    if not d.is_dir():
+        sys.exit(f"{d}: no such directory of meshes")
+    return d
 
 
 def hdlod() -> Path:
@@ -93,13 +104,16 @@ def meshlab_distance(original: Path, simplified: Path) -> tuple[float, float]:
 
 
 def main() -> int:
+    parser = argparse.ArgumentParser(description="hdlod's Hausdorff bound against MeshLab's")
+    parser.add_argument("--meshes", help="directory of stanford-bunny.obj and horse.ply (default: $HDLOD_DATA/meshes)")
+    meshes = data_dir(parser.parse_args().meshes)
     ensure_venv()
     exe = hdlod()
     OUT.mkdir(parents=True, exist_ok=True)
     rows = []
     failed = 0
     for name, file in MODELS:
-        original = data_dir() / file
+        original = meshes / file
         for ratio in RATIOS:
             for method in METHODS:
                 simplified = OUT / f"{name}-{method}-{ratio}.obj"

@@ -4,9 +4,11 @@
 //! points: the vertices, edge midpoints and centroids of horse's 10%
 //! version against the full horse. Build and query are timed apart.
 //!
-//! `cargo bench -p hdlod --bench closest`.
+//! `HDLOD_DATA=/abs/path/to/data cargo bench -p hdlod --bench closest` (the
+//! directory whose `meshes/` holds horse.ply).
 
-use std::path::Path;
+mod common;
+
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -15,18 +17,6 @@ use hdlod::geometry::{Mesh, SimplifyOptions, TriangleSet, edge_collapse};
 use parry3d::na::Point3;
 use parry3d::query::PointQuery;
 use parry3d::shape::TriMesh;
-
-fn horse() -> Mesh {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository");
-    hdlod::io::ply::read_mesh(&dir.join("horse.ply")).expect("horse.ply")
-}
 
 fn queries(mesh: &Mesh) -> Vec<Vec3> {
     let low = edge_collapse(
@@ -64,7 +54,7 @@ fn parry(mesh: &Mesh) -> TriMesh {
 }
 
 fn nearest(c: &mut Criterion) {
-    let mesh = horse();
+    let mesh = common::horse();
     let points = queries(&mesh);
     let ours = TriangleSet::new(mesh.triangles());
     let theirs = parry(&mesh);

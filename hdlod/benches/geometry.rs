@@ -5,14 +5,16 @@
 //! horse and its 10% version under 1 s; plus the per-call cost on the small
 //! meshes the tree builder works on.
 //!
-//! `cargo bench -p hdlod --bench geometry` (`-- qem` to run a subset).
+//! `HDLOD_DATA=/abs/path/to/data cargo bench -p hdlod --bench geometry` (the
+//! directory whose `meshes/` holds horse.ply; `-- qem` to run a subset).
 //! Rayon's threads are the machine's cores unless `RAYON_NUM_THREADS` says
 //! otherwise (`RAYON_NUM_THREADS=1` gives the parallel path's serial cost).
 //! The `meshopt_*` cases call meshoptimizer directly on the horse as it was
 //! read (already indexed and welded), so that the wrapper's own share of the
 //! QEM time can be told from meshoptimizer's.
 
-use std::path::Path;
+mod common;
+
 use std::time::Duration;
 
 use criterion::{Criterion, Throughput, criterion_group, criterion_main};
@@ -23,20 +25,8 @@ use hdlod::geometry::{
 };
 use meshopt::{SimplifyOptions as Flags, VertexDataAdapter, typed_to_bytes};
 
-fn horse() -> Mesh {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    let dir = [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository");
-    hdlod::io::ply::read_mesh(&dir.join("horse.ply")).expect("horse.ply")
-}
-
 fn horse_simplifiers(c: &mut Criterion) {
-    let mesh = horse();
+    let mesh = common::horse();
     let n = mesh.triangle_count();
     let ten = SimplifyOptions {
         max_error: f32::INFINITY,

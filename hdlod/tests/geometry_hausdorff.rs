@@ -182,15 +182,33 @@ fn degenerate_nan_and_duplicate_triangles_do_not_poison_the_result() {
     );
 }
 
+/// Two runs on equal inputs built apart, one on a pool of one thread and
+/// one on a pool of four, agree to the bit: nothing depends on how threads
+/// are scheduled or on what an earlier call left behind.
 #[test]
 fn results_are_deterministic() {
-    let a = quad(0.0, 1.0);
-    let mut b = quad(0.0, 1.0);
-    b.positions[2].z = 0.3;
-    assert_eq!(
-        hausdorff(&a, &b, &opts(1e-3)),
-        hausdorff(&a, &b, &opts(1e-3))
-    );
+    let run = || {
+        let heights: Vec<f32> = (0..53)
+            .map(|k| ((k * 29 % 17) as f32 - 8.0) * 0.01)
+            .collect();
+        let flips: Vec<bool> = (0..41).map(|k| k % 3 == 0).collect();
+        let fine = height_field(24, &heights, &flips);
+        let coarse = height_field(7, &heights[5..], &flips[2..]);
+        (
+            hausdorff(&fine, &coarse, &opts(1e-5)),
+            bound_within(&fine, &coarse, 1e-5, 1.0),
+        )
+    };
+    let pool = |threads| {
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap()
+    };
+    let serial = pool(1).install(run);
+    let parallel = pool(4).install(run);
+    assert!(serial.0.bound > 0.0 && serial.1.is_some(), "{serial:?}");
+    assert_eq!(serial, parallel);
 }
 
 fn soup(max_triangles: usize) -> impl Strategy<Value = Mesh> {

@@ -8,10 +8,6 @@ mod common;
 use hdlod::geometry::{Mesh, Method, SimplifyOptions};
 use hdlod::io::glb;
 
-fn fandisk() -> Mesh {
-    common::shared_mesh("fandisk.obj")
-}
-
 fn chain(mesh: &Mesh, method: Method, ratios: &[f64]) -> Vec<Mesh> {
     let n = mesh.triangle_count();
     ratios
@@ -29,7 +25,9 @@ fn chain(mesh: &Mesh, method: Method, ratios: &[f64]) -> Vec<Mesh> {
 
 #[test]
 fn lod_chains_pass_the_validator() {
-    let mesh = fandisk();
+    let Some(mesh) = common::data_mesh("fandisk.obj") else {
+        return;
+    };
     let ratios = [1.0, 0.5, 0.25, 0.1];
     let coverage = [0.5, 0.25, 0.125, 0.0];
     let dir = tempfile::tempdir().unwrap();
@@ -97,7 +95,7 @@ fn lod_chains_pass_the_validator() {
 fn bad_chains_are_errors() {
     let dir = tempfile::tempdir().unwrap();
     let path = dir.path().join("bad.glb");
-    let mesh = fandisk();
+    let mesh = common::unit_box();
     let e = glb::write_lod(std::slice::from_ref(&mesh), &[0.5, 0.1], &path).unwrap_err();
     assert!(e.to_string().contains("bad.glb"), "{e}");
     let e = glb::write_lod(&[mesh, Mesh::default()], &[0.5, 0.0], &path).unwrap_err();

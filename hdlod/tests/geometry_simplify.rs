@@ -2,6 +2,8 @@
 //! strategy, bad input gets a defined result, and (proptest) random soups
 //! never yield NaN or more triangles than they had.
 
+mod common;
+
 use glam::{Mat4, Vec3};
 use hdlod::geometry::{
     HausdorffOptions, Mesh, Part, SimplifyOptions, Strategy, clustering, edge_collapse,
@@ -10,21 +12,6 @@ use hdlod::geometry::{
 use proptest::prelude::*;
 use proptest::strategy::Strategy as _;
 use std::collections::HashMap;
-
-/// `shared/data` beside the repository (a clone) or two levels up (a
-/// worktree).
-fn bunny() -> Mesh {
-    let here = std::path::Path::new(env!("CARGO_MANIFEST_DIR"));
-    let path = [
-        here.join("../../shared/data/meshes"),
-        here.join("../../../shared/data/meshes"),
-    ]
-    .into_iter()
-    .find(|d| d.exists())
-    .expect("shared/data/meshes next to the repository")
-    .join("stanford-bunny.obj");
-    hdlod::io::obj::read_mesh(&path).expect("the bunny from shared/data")
-}
 
 fn ratio(target: usize) -> SimplifyOptions {
     SimplifyOptions {
@@ -36,7 +23,9 @@ fn ratio(target: usize) -> SimplifyOptions {
 
 #[test]
 fn bunny_to_ten_percent_by_edge_collapse() {
-    let mesh = bunny();
+    let Some(mesh) = common::data_mesh("stanford-bunny.obj") else {
+        return;
+    };
     let n = mesh.triangle_count();
     let s = simplify(&mesh, &ratio(n / 10));
     assert_eq!(s.strategy, Strategy::EdgeCollapse);
@@ -60,7 +49,9 @@ fn bunny_to_ten_percent_by_edge_collapse() {
 
 #[test]
 fn an_error_budget_is_met_as_measured() {
-    let mesh = bunny();
+    let Some(mesh) = common::data_mesh("stanford-bunny.obj") else {
+        return;
+    };
     let (lo, hi) = mesh.bounds().unwrap();
     let budget = 0.002 * (hi - lo).length();
     let options = SimplifyOptions {

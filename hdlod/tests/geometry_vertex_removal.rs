@@ -10,7 +10,6 @@ use hdlod::geometry::{
 use proptest::prelude::*;
 
 mod common;
-use common::shared_mesh;
 
 fn to(target: usize) -> SimplifyOptions {
     SimplifyOptions {
@@ -27,7 +26,9 @@ fn diagonal(m: &Mesh) -> f32 {
 
 #[test]
 fn horse_to_ten_percent() {
-    let mesh = shared_mesh("horse.ply");
+    let Some(mesh) = common::data_mesh("horse.ply") else {
+        return;
+    };
     let n = mesh.triangle_count();
     let start = std::time::Instant::now();
     let out = vertex_removal(&mesh, &to(n / 10));

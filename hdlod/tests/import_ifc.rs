@@ -1,6 +1,8 @@
 //! IFC geometry and IFC4 tasks: the hand-written fixtures/ifc-tiny/tiny.ifc
 //! (every number below follows from its text), broken files, .ifczip, and
-//! the real Schependomlaan models when ../shared/data holds them.
+//! the real Schependomlaan models when the test data holds them.
+
+mod common;
 
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -188,23 +190,13 @@ fn ifczip_reads_the_ifc_inside() {
     assert!(e.contains("empty.ifczip") && e.contains("no .ifc"), "{e}");
 }
 
-/// The real building's data, next to the repository (as CI has it).
-fn schependomlaan() -> PathBuf {
-    let here = Path::new(env!("CARGO_MANIFEST_DIR"));
-    [
-        here.join("../../shared/data/schependomlaan"),
-        here.join("../../../shared/data/schependomlaan"),
-    ]
-    .into_iter()
-    .find(|p| p.join("planning.xml").is_file())
-    .expect("shared/data/schependomlaan next to the repository")
-}
-
 /// The real building: every model imports, the rules link every element
 /// but the surveyor's marker, and the storeys rise in order through 2015.
 #[test]
 fn schependomlaan_rises_storey_by_storey() {
-    let data = schependomlaan();
+    let Some(data) = common::data("schependomlaan") else {
+        return;
+    };
     let mut models: Vec<PathBuf> = std::fs::read_dir(data.join("ifc"))
         .unwrap()
         .map(|e| e.unwrap().path())

@@ -26,9 +26,7 @@ fn committed_scenes_follow_the_schema() {
     let v = validator();
     let mut found = Vec::new();
     for dir in [repo().join("fixtures"), repo().join("docs")] {
-        let Ok(entries) = std::fs::read_dir(&dir) else {
-            continue;
-        };
+        let entries = std::fs::read_dir(&dir).unwrap_or_else(|e| panic!("{}: {e}", dir.display()));
         for entry in entries.flatten() {
             let path = entry.path().join("scene.json");
             if path.is_file() {
@@ -43,7 +41,14 @@ fn committed_scenes_follow_the_schema() {
             }
         }
     }
-    eprintln!("validated {} committed scene(s): {found:?}", found.len());
+    // A search that finds nothing must not pass: the committed fixture is
+    // among what it checked.
+    let tiny = repo().join("fixtures/skyscraper-tiny/scene.json");
+    assert!(
+        found.contains(&tiny),
+        "{} not checked: {found:?}",
+        tiny.display()
+    );
 }
 
 #[test]

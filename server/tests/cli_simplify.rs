@@ -6,10 +6,11 @@ mod common;
 
 use std::path::PathBuf;
 
-use common::{assert_no_gltf_errors, assert_valid, hdlod, schema, shared_data};
+use common::{assert_no_gltf_errors, assert_valid, data, hdlod, schema};
 
-fn fandisk() -> PathBuf {
-    shared_data("meshes").join("fandisk.obj")
+/// A classic mesh of the test data, or `None` when it is missing.
+fn mesh(name: &str) -> Option<PathBuf> {
+    Some(data("meshes")?.join(name))
 }
 
 fn report(args: &[&str]) -> serde_json::Value {
@@ -26,8 +27,10 @@ fn report(args: &[&str]) -> serde_json::Value {
 
 #[test]
 fn every_method_reports_valid_json() {
+    let Some(input) = mesh("fandisk.obj") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
-    let input = fandisk();
     for method in ["qem", "clustering", "vertex-removal"] {
         let out = dir.path().join(format!("{method}.obj"));
         let json = report(&[
@@ -61,8 +64,10 @@ fn every_method_reports_valid_json() {
 
 #[test]
 fn positions_only_drops_the_normals_and_says_so() {
+    let Some(horse) = mesh("horse.ply") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
-    let horse = shared_data("meshes").join("horse.ply");
     assert!(
         !hdlod::io::ply::read_mesh(&horse)
             .unwrap()
@@ -90,9 +95,11 @@ fn positions_only_drops_the_normals_and_says_so() {
 
 #[test]
 fn glb_out_and_back_in() {
+    let Some(f) = mesh("fandisk.obj") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let (glb, again) = (dir.path().join("o.glb"), dir.path().join("again.obj"));
-    let f = fandisk();
     let first = report(&[
         "simplify",
         f.to_str().unwrap(),
@@ -115,9 +122,11 @@ fn glb_out_and_back_in() {
 /// horse.ply's normals are not unit length; glTF requires them to be.
 #[test]
 fn glb_output_passes_the_gltf_validator() {
+    let Some(horse) = mesh("horse.ply") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let glb = dir.path().join("horse.glb");
-    let horse = shared_data("meshes").join("horse.ply");
     report(&[
         "simplify",
         horse.to_str().unwrap(),
@@ -133,8 +142,11 @@ fn glb_output_passes_the_gltf_validator() {
 
 #[test]
 fn an_error_budget_and_a_ratio_above_one() {
+    let Some(input) = mesh("fandisk.obj") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
-    let (input, out) = (fandisk(), dir.path().join("o.obj"));
+    let out = dir.path().join("o.obj");
     let (i, o) = (input.to_str().unwrap(), out.to_str().unwrap());
     let json = report(&["simplify", i, o, "--error", "0.01", "--json"]);
     assert!(json["triangles_out"].as_u64() < json["triangles_in"].as_u64());
@@ -172,7 +184,12 @@ fn bad_input_is_a_clear_error() {
         &["simplify", empty.to_str().unwrap(), o, "--ratio", "0.5"],
         "no triangles",
     );
-    let f = fandisk();
+    let f = dir.path().join("tetra.obj");
+    std::fs::write(
+        &f,
+        "v 0 0 0\nv 1 0 0\nv 0 1 0\nv 0 0 1\nf 1 3 2\nf 1 2 4\nf 1 4 3\nf 2 3 4\n",
+    )
+    .unwrap();
     fail(
         &["simplify", f.to_str().unwrap(), o, "--ratio", "-1"],
         "--ratio",
@@ -186,8 +203,9 @@ fn bad_input_is_a_clear_error() {
 
 #[test]
 fn bench_simplify_rows_match_the_schema() {
-    let dir = fandisk();
-    let dir = dir.parent().unwrap();
+    let Some(dir) = data("meshes") else {
+        return;
+    };
     let out = hdlod(&[
         "bench",
         "simplify",
@@ -229,16 +247,34 @@ fn bench_simplify_rows_match_the_schema() {
             "{r}"
         );
     }
+}
+
+#[test]
+fn bench_simplify_names_the_meshes_it_lacks() {
     let fail = hdlod(&["bench", "simplify", "--meshes", "/nonexistent", "--json"]);
     assert!(!fail.status.success());
     assert!(String::from_utf8_lossy(&fail.stderr).contains("/nonexistent"));
+    // Without --meshes or HDLOD_DATA it says what to pass.
+    let fail = std::process::Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(["bench", "simplify", "--json"])
+        .env_remove("HDLOD_DATA")
+        .output()
+        .unwrap();
+    let stderr = String::from_utf8_lossy(&fail.stderr);
+    assert!(!fail.status.success());
+    assert!(
+        stderr.contains("--meshes") && stderr.contains("HDLOD_DATA"),
+        "{stderr}"
+    );
 }
 
 #[test]
 fn lod_writes_one_glb_and_measures_each_level() {
+    let Some(f) = mesh("fandisk.obj") else {
+        return;
+    };
     let dir = tempfile::tempdir().unwrap();
     let out = dir.path().join("fandisk-lod.glb");
-    let f = fandisk();
     let run = hdlod(&[
         "lod",
         f.to_str().unwrap(),

@@ -1,8 +1,10 @@
 //! Shared by the tests of the library and of the server: small hand-built
-//! scenes, the repository and `shared/data` beside it, JSON Schema checks.
+//! scenes, the repository, the test data (`shared/data` beside the
+//! repository, or `$HDLOD_DATA`) or a loud skip, JSON Schema checks.
 #![allow(dead_code)]
 
 use std::collections::BTreeMap;
+use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
@@ -150,25 +152,85 @@ pub fn repo() -> PathBuf {
         .unwrap()
 }
 
-/// `shared/data/SUB` beside the repository: in the directory that holds it,
-/// or in the nearest ancestor that has one.
-pub fn shared_data(sub: &str) -> PathBuf {
-    let repo = repo();
-    repo.ancestors()
-        .skip(1)
-        .map(|a| a.join("shared/data").join(sub))
-        .find(|d| d.exists())
-        .unwrap_or_else(|| panic!("no shared/data/{sub} beside {}", repo.display()))
+/// The data sets the tests read, none of them in the repository: what each
+/// holds and where to get it (`shared/data/README.md` beside the
+/// repository describes them in full).
+const DATA_SETS: [(&str, &str); 3] = [
+    (
+        "meshes",
+        "the classic meshes stanford-bunny.obj, horse.ply, fandisk.obj, rocker-arm.obj \
+         from the folder data/ of github.com/alecjacobson/common-3d-test-models",
+    ),
+    (
+        "schependomlaan",
+        "the Schependomlaan building, CC BY 4.0, from github.com/SvSchaijk/DataSetSchependomlaan: \
+         into ifc/ the twelve ROOT-*.ifczip of 'Coordination model and subcontractors \
+         models/BIMsight Projectdata1/' except ROOT-Compleet, a space in a name made _; \
+         as planning.xml 'Planning/XML/Uitvoering Schependomlaan 18-02-2015.xml'",
+    ),
+    (
+        "3d-tiles-schema",
+        "the 3D Tiles 1.1 JSON schemas (tileset.schema.json and the files it refers to) \
+         from the folder specification/schema/ of github.com/CesiumGS/3d-tiles",
+    ),
+];
+
+/// Where the data sets are: `$HDLOD_DATA`, else `shared/data` beside the
+/// repository.
+fn data_root() -> PathBuf {
+    match std::env::var_os("HDLOD_DATA") {
+        Some(dir) => PathBuf::from(dir),
+        None => repo()
+            .parent()
+            .expect("the repository has a parent")
+            .join("shared/data"),
+    }
 }
 
-/// One of the classic meshes in `shared/data/meshes` (OBJ or PLY).
-pub fn shared_mesh(name: &str) -> Mesh {
-    let path = shared_data("meshes").join(name);
-    match name.rsplit('.').next() {
+/// The directory of the data set `set` (a name of [`DATA_SETS`]), or `None`
+/// after one line on stderr that says which test is skipped, what is
+/// missing and where to get it; with `HDLOD_REQUIRE_DATA=1` a missing set
+/// fails the test instead. Read as
+/// `let Some(dir) = common::data("meshes") else { return };`.
+pub fn data(set: &str) -> Option<PathBuf> {
+    let (_, what) = DATA_SETS
+        .iter()
+        .find(|(name, _)| *name == set)
+        .unwrap_or_else(|| panic!("no data set {set:?}"));
+    let dir = data_root().join(set);
+    if dir.is_dir() {
+        return Some(dir);
+    }
+    let thread = std::thread::current();
+    let test = format!(
+        "{}::{}",
+        env!("CARGO_CRATE_NAME"),
+        thread.name().unwrap_or("?")
+    );
+    let missing = format!(
+        "{test}: needs {} ({what}; HDLOD_DATA=DIR reads DIR/{set} instead)",
+        dir.display()
+    );
+    assert!(
+        std::env::var("HDLOD_REQUIRE_DATA").as_deref() != Ok("1"),
+        "HDLOD_REQUIRE_DATA=1 but {missing}"
+    );
+    // Straight to stderr, in one write: the test harness captures
+    // `eprintln!` of tests that pass, and a skip must be seen whole.
+    let line = format!("SKIPPED {missing}\n");
+    let _ = std::io::stderr().write_all(line.as_bytes());
+    None
+}
+
+/// One of the classic meshes of the data set `meshes` (OBJ or PLY), or
+/// `None` when the set is missing (see [`data`]).
+pub fn data_mesh(name: &str) -> Option<Mesh> {
+    let path = data("meshes")?.join(name);
+    let mesh = match name.rsplit('.').next() {
         Some("ply") => hdlod::io::ply::read_mesh(&path),
         _ => hdlod::io::obj::read_mesh(&path),
-    }
-    .unwrap_or_else(|e| panic!("{e}"))
+    };
+    Some(mesh.unwrap_or_else(|e| panic!("{e}")))
 }
 
 /// The first errors of `value` against `v`, each with where it is.
@@ -198,17 +260,18 @@ pub fn assert_matches_schema(value: &serde_json::Value, name: &str) {
     assert_valid(&schema(name), value, name);
 }
 
-/// The official 3D Tiles 1.1 `tileset.schema.json` from
-/// `shared/data/3d-tiles-schema`; its relative `$ref`s resolve as files next
-/// to it.
-pub fn tileset_validator() -> jsonschema::Validator {
-    let path = shared_data("3d-tiles-schema").join("tileset.schema.json");
-    let schema: serde_json::Value =
-        serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    jsonschema::options()
+/// The official 3D Tiles 1.1 `tileset.schema.json` of the data set
+/// `3d-tiles-schema` (its relative `$ref`s resolve as files next to it), or
+/// `None` when the set is missing (see [`data`]).
+pub fn tileset_validator() -> Option<jsonschema::Validator> {
+    let path = data("3d-tiles-schema")?.join("tileset.schema.json");
+    let text = std::fs::read_to_string(&path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    let schema: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let validator = jsonschema::options()
         .with_base_uri(format!("file://{}", path.display()))
         .build(&schema)
-        .expect("the official 3D Tiles schemas compile")
+        .expect("the official 3D Tiles schemas compile");
+    Some(validator)
 }
 
 /// The Khronos glTF validator's reports on `files`, in order

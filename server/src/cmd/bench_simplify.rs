@@ -20,8 +20,8 @@ use super::simplify::{Method, measured_distance, read};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// Directory of the meshes (.obj, .ply, .glb, .gltf); default: the
-    /// repository's `../shared/data/meshes`.
+    /// Directory of the meshes (.obj, .ply, .glb, .gltf); default:
+    /// `$HDLOD_DATA/meshes`.
     #[arg(long)]
     meshes: Option<PathBuf>,
     /// Only these models (file names without extension).
@@ -90,19 +90,15 @@ fn thesis_seconds(model: &str, method: Method, ratio: f64) -> Option<f64> {
     })
 }
 
-/// `../shared/data/meshes` from the working directory or from the binary
-/// (target/{debug,release}/hdlod in the repository).
+/// `$HDLOD_DATA/meshes`: the test data's classic meshes, where the user
+/// says they are (the repository does not hold them).
 fn default_meshes() -> anyhow::Result<PathBuf> {
-    let mut candidates = vec![PathBuf::from("../shared/data/meshes")];
-    if let Ok(exe) = std::env::current_exe() {
-        for up in exe.ancestors().skip(1).take(5) {
-            candidates.push(up.join("../shared/data/meshes"));
-        }
-    }
-    candidates
-        .into_iter()
-        .find(|d| d.is_dir())
-        .context("no ../shared/data/meshes beside the repository: give --meshes DIR")
+    let data = std::env::var_os("HDLOD_DATA").context(
+        "no meshes to measure: give --meshes DIR, or set HDLOD_DATA to the directory whose \
+         meshes/ holds the classic meshes (stanford-bunny.obj, horse.ply, fandisk.obj, \
+         rocker-arm.obj from github.com/alecjacobson/common-3d-test-models, folder data/)",
+    )?;
+    Ok(PathBuf::from(data).join("meshes"))
 }
 
 fn models(dir: &Path, only: &[String]) -> anyhow::Result<Vec<(String, PathBuf)>> {
