@@ -1,5 +1,5 @@
 //! Times `scene::format::save` and `load` on a synthetic scene of the
-//! paper's size (56,157 objects, about 4.26 M triangles; DESIGN.md
+//! paper's size (56,157 objects, about 4.26 M triangles; docs/method.md
 //! section 5). Run with `cargo run --release --example scene_io_bench [DIR]`
 //! (a DIR given is kept).
 
@@ -9,7 +9,7 @@ use std::time::Instant;
 use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
 use hdlod::scene::{
-    Keyframe, Motion, Object, Scene, ScheduleOptions, Summary, Task, TaskType, Up, Visibility,
+    Keyframe, Motion, Object, Scene, ScheduleOptions, SceneSummary, Task, TaskType, Up, Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 
@@ -138,7 +138,7 @@ fn main() {
     let load_s = t.elapsed().as_secs_f64();
     assert_eq!(back.objects.len(), scene.objects.len());
     assert_eq!(back.meshes.len(), scene.meshes.len());
-    let summary = Summary::of(&back);
+    let summary = SceneSummary::of(&back);
     println!(
         "{} objects, {} triangles, {} meshes: save {save_s:.2} s, load {load_s:.2} s, GLB {:.0} MB",
         summary.objects,

@@ -1,4 +1,4 @@
-//! The invariants of DESIGN.md sections 2 and 3 on the tree built from the
+//! The invariants of docs/method.md sections 2 and 3 on the tree built from the
 //! committed tiny fixture, read back from disk.
 
 mod common;

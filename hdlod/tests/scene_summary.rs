@@ -1,13 +1,13 @@
-//! `Summary::of`: counts per class and visibility type, bounds over poses.
+//! `SceneSummary::of`: counts per class and visibility type, bounds over poses.
 
 mod common;
 
 use common::sample_scene;
-use hdlod::scene::{Class, Summary, VisibilityType};
+use hdlod::scene::{Class, SceneSummary, VisibilityType};
 
 #[test]
 fn counts_classes_and_visibility_types() {
-    let s = Summary::of(&sample_scene());
+    let s = SceneSummary::of(&sample_scene());
     assert_eq!((s.objects, s.meshes, s.triangles), (4, 2, 3 * 12 + 4));
     let c = |class| s.classes[&class];
     assert_eq!(
@@ -37,7 +37,7 @@ fn counts_classes_and_visibility_types() {
 
 #[test]
 fn bounds_cover_every_keyframe_of_moving_objects() {
-    let b = Summary::of(&sample_scene()).bounds.unwrap();
+    let b = SceneSummary::of(&sample_scene()).bounds.unwrap();
     // The truck's tetrahedron, turned half round at (10, 0, -3), gives max x
     // and min z; the scaffold box at (-5, 1, 2) min x and max z; the beam
     // (0.3 high at y = 3) max y.
@@ -48,7 +48,7 @@ fn bounds_cover_every_keyframe_of_moving_objects() {
 
 #[test]
 fn serialises_with_the_documented_keys() {
-    let json = serde_json::to_value(Summary::of(&sample_scene())).unwrap();
+    let json = serde_json::to_value(SceneSummary::of(&sample_scene())).unwrap();
     for class in ["static", "pseudo_dynamic", "dynamic", "absent"] {
         assert!(json["classes"][class]["objects"].is_u64(), "{json}");
     }

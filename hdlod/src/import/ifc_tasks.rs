@@ -2,7 +2,7 @@
 //! products it makes through `IfcRelAssignsToProduct` (outputs) and those it
 //! acts on through `IfcRelAssignsToProcess` (inputs). The task's type is its
 //! `PredefinedType` (or `ObjectType` when USERDEFINED), mapped by
-//! [`TaskType::parse`] as DESIGN.md section 1 says.
+//! [`TaskType::parse`] as docs/method.md section 1 says.
 //!
 //! Outputs take the task's type. Inputs are what the task uses up or acts
 //! on: a construct task consumes its inputs (they disappear at its finish,

@@ -1,6 +1,6 @@
 //! The scene model: objects `s = (g_s, v_s, p_s)` with triangle geometry,
 //! visibility and position functions over the time span `[0, T]`, the
-//! schedule that drives visibility, and the classification of DESIGN.md
+//! schedule that drives visibility, and the classification of docs/method.md
 //! section 1.
 
 pub mod format;
@@ -19,7 +19,7 @@ use crate::time::TimeSpan;
 
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
-pub use summary::{Bounds, Counts, Summary, TimeSummary};
+pub use summary::{Bounds, Counts, SceneSummary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
 
 /// Which axis points up in the scene's world frame.
@@ -31,7 +31,7 @@ pub enum Up {
     Z,
 }
 
-/// The classes of DESIGN.md section 1.
+/// The classes of docs/method.md section 1.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord, Serialize, Deserialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Class {

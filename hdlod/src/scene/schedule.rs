@@ -1,5 +1,5 @@
 //! Schedule-driven visibility: tasks of four types act on objects, and the
-//! visibility of an object is composed from all its tasks (DESIGN.md
+//! visibility of an object is composed from all its tasks (docs/method.md
 //! section 1, the profiles of Navisworks TimeLiner, Synchro and IfcOpenShell).
 
 use serde::{Deserialize, Serialize};
@@ -49,7 +49,7 @@ pub enum Instant {
 }
 
 /// Build options of the schedule: when a constructed element appears and
-/// when a demolished one disappears. Defaults follow DESIGN.md: present from
+/// when a demolished one disappears. Defaults follow docs/method.md section 1: present from
 /// the start of its construct task, present until the finish of its
 /// demolish task.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]

@@ -33,7 +33,7 @@ pub struct Bounds {
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
-pub struct Summary {
+pub struct SceneSummary {
     /// Always `"scene"` (a tree summary will say `"tree"`).
     pub kind: String,
     pub name: String,
@@ -51,8 +51,8 @@ pub struct Summary {
     pub visibility_types: BTreeMap<VisibilityType, usize>,
 }
 
-impl Summary {
-    pub fn of(scene: &Scene) -> Summary {
+impl SceneSummary {
+    pub fn of(scene: &Scene) -> SceneSummary {
         let span = scene.time.seconds;
         let mut classes: BTreeMap<Class, Counts> =
             Class::ALL.iter().map(|&c| (c, Counts::default())).collect();
@@ -76,7 +76,7 @@ impl Summary {
                 }
             }
         }
-        Summary {
+        SceneSummary {
             kind: "scene".into(),
             name: scene.name.clone(),
             meshes: scene.meshes.len(),

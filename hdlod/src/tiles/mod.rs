@@ -1,5 +1,5 @@
 //! Time slices of the HDLOD tree as 3D Tiles 1.1 tilesets (OGC 3D Tiles 1.1,
-//! <https://docs.ogc.org/cs/22-025r4/22-025r4.html>; DESIGN.md section 4).
+//! <https://docs.ogc.org/cs/22-025r4/22-025r4.html>; docs/method.md section 4).
 //!
 //! The cut's rule `delta_c(t) / distance < r` is the screen-space-error rule
 //! of 3D Tiles, so the tree at a time `t` is a tileset with

@@ -1,7 +1,7 @@
 //! The tree at time `t` as one 3D Tiles 1.1 tile hierarchy (OGC 3D Tiles
 //! 1.1, sections "Tiles", "Bounding volumes", "Geometric error",
 //! "Refinement" and "Coordinate reference systems"; the cut of
-//! `tree::cut`, DESIGN.md section 4).
+//! `tree::cut`, docs/method.md section 4).
 //!
 //! Per cluster `c` with `v = v_c(t)`:
 //! - `v == 0`: the tile and its subtree are left out (the cut skips them);

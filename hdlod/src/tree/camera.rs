@@ -1,5 +1,5 @@
 //! The view of a cut: the camera's frustum planes, its eye and the angle `r`
-//! of one pixel-error budget (DESIGN.md section 4).
+//! of one pixel-error budget (docs/method.md section 4).
 //!
 //! A camera is given either by position, target, up, vertical field of view,
 //! aspect, near and far, or by a column-major 4x4 view-projection matrix

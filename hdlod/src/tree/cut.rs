@@ -1,4 +1,4 @@
-//! The cut (Semenov et al. 2020, appendix 1; DESIGN.md section 4): the
+//! The cut (Semenov et al. 2020, appendix 1; docs/method.md section 4): the
 //! clusters a viewer draws at time `t` for a view.
 //!
 //! ```text

@@ -1,5 +1,5 @@
 //! The serde types of the `hdlod-tree/1` files, field for field as
-//! DESIGN.md section 8 fixes them (`schemas/tree-manifest.schema.json` and
+//! docs/method.md section 8 fixes them (`schemas/tree-manifest.schema.json` and
 //! `schemas/tree-clusters.schema.json` describe the same shapes). These are
 //! the on-disk records only; [`super::Tree`] is the validated in-memory form.
 

@@ -106,13 +106,13 @@ pub(crate) fn step_at(steps: &[(f64, f32)], t: f64) -> f32 {
     if i == 0 { 0.0 } else { steps[i - 1].1 }
 }
 
-/// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (DESIGN.md section 2).
+/// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (docs/method.md section 2).
 pub(crate) fn delta(eps: f64, w: f64, v: f32) -> f64 {
     let v = f64::from(v);
     eps + 2.0 * w * v.min(1.0 - v)
 }
 
-/// One cluster `c = (g_c, v_c, p_c, b_c, w_c, eps_c, gamma_c)` of DESIGN.md
+/// One cluster `c = (g_c, v_c, p_c, b_c, w_c, eps_c, gamma_c)` of docs/method.md
 /// section 2. `id` equals its index in [`Tree::clusters`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct Cluster {
@@ -141,7 +141,7 @@ impl Cluster {
         self.children.is_empty()
     }
 
-    /// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (DESIGN.md section 2).
+    /// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (docs/method.md section 2).
     pub fn delta(&self, v: f32) -> f64 {
         delta(self.eps, self.w, v)
     }
@@ -218,7 +218,7 @@ impl Tree {
 
 /// Counts of a tree for listings and `inspect`.
 #[derive(Debug, Clone, PartialEq, Serialize)]
-pub struct Summary {
+pub struct TreeSummary {
     pub clusters: usize,
     pub leaves: usize,
     pub leaf_triangles: u64,
@@ -246,7 +246,7 @@ impl Tree {
         &self.clusters[self.root as usize]
     }
 
-    pub fn summary(&self) -> Summary {
+    pub fn summary(&self) -> TreeSummary {
         let mut classes: BTreeMap<&'static str, usize> =
             ClusterClass::ALL.iter().map(|c| (c.name(), 0)).collect();
         let mut levels: BTreeMap<u32, LevelSummary> = BTreeMap::new();
@@ -269,7 +269,7 @@ impl Tree {
                 leaf_triangles += c.triangles;
             }
         }
-        Summary {
+        TreeSummary {
             clusters: self.clusters.len(),
             leaves,
             leaf_triangles,

@@ -1,5 +1,5 @@
 //! Which children of the root can be present at a time. The root holds
-//! one child per dynamic object (DESIGN.md section 2: each dynamic object
+//! one child per dynamic object (docs/method.md section 2: each dynamic object
 //! gets its own cluster, all roots hang under one virtual root): 15,000 on
 //! the paper scene, most of them on site for a few hours of a two-year
 //! period. Testing every one's visibility made a cut of 30 clusters visit

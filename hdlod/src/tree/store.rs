@@ -1,5 +1,5 @@
 //! The tree on disk: content-addressed GLB blobs under `geometry/` and an
-//! atomic write of the whole directory (DESIGN.md section 8).
+//! atomic write of the whole directory (docs/method.md section 8).
 //!
 //! Atomicity: everything is written into a temporary directory beside the
 //! target, then renamed into place. A failed or interrupted build leaves the

@@ -21,7 +21,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
-use hdlod::tree::{Baseline, Summary, Tree};
+use hdlod::tree::{Baseline, Tree, TreeSummary};
 use tower_http::compression::CompressionLayer;
 
 use self::metrics::Metrics;
@@ -32,7 +32,7 @@ pub const BODY_LIMIT: usize = 64 * 1024;
 pub struct LoadedScene {
     pub tree: Tree,
     pub dir: PathBuf,
-    pub summary: Summary,
+    pub summary: TreeSummary,
     pub baseline: Baseline,
     pub fragments: cut::Fragments,
 }

@@ -1,7 +1,7 @@
 //! `hdlod bench simplify [--meshes DIR] [--json] [--docs FILE]`: the three
 //! simplifiers (quadric edge collapse, vertex clustering, vertex removal)
 //! on the real meshes, compared as the decimation theses compare them
-//! (DESIGN.md section 6): for each model, method and target share of the
+//! (docs/method.md section 6): for each model, method and target share of the
 //! triangles, the time (median of `--runs`), the measured Hausdorff bound
 //! and mean distance to the input, and the volume and area ratios; the
 //! thesis's own times beside ours for the models it shares. JSON rows are
@@ -71,7 +71,7 @@ struct Row {
     thesis_seconds: Option<f64>,
 }
 
-/// The thesis's times to 10% (DESIGN.md section 6), 2008-era PC.
+/// The thesis's times to 10% (docs/method.md section 6), 2008-era PC.
 fn thesis_seconds(model: &str, method: Method, ratio: f64) -> Option<f64> {
     if (ratio - 0.1).abs() > 1e-9 {
         return None;

@@ -5,7 +5,7 @@ use std::time::Instant;
 
 use anyhow::Context;
 use clap::Subcommand;
-use hdlod::scene::{Summary, format};
+use hdlod::scene::{SceneSummary, format};
 use hdlod_fixtures::{Scale, check_table_1, skyscraper};
 
 #[derive(Subcommand)]
@@ -43,7 +43,7 @@ pub fn run(fixture: Fixture) -> anyhow::Result<()> {
     let started = Instant::now();
     let scene = skyscraper(scale, seed);
     let generated = started.elapsed().as_secs_f64();
-    let summary = Summary::of(&scene);
+    let summary = SceneSummary::of(&scene);
     println!(
         "{}: {} objects, {} meshes, {} tasks, {:.0} days",
         scene.name,

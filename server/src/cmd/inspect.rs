@@ -3,7 +3,7 @@
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use hdlod::scene::{Summary, format};
+use hdlod::scene::{SceneSummary, format};
 use hdlod::time::format_date;
 use hdlod::tree::{LevelSummary, Tree};
 use serde::Serialize;
@@ -39,13 +39,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-fn scene_summary(path: &Path) -> anyhow::Result<Summary> {
+fn scene_summary(path: &Path) -> anyhow::Result<SceneSummary> {
     let scene =
         format::load(path).with_context(|| format!("cannot load the scene {}", path.display()))?;
-    Ok(Summary::of(&scene))
+    Ok(SceneSummary::of(&scene))
 }
 
-fn table(s: &Summary) -> String {
+fn table(s: &SceneSummary) -> String {
     let mut out = format!(
         "scene {}: {} objects, {} distinct meshes, {} triangles\n",
         s.name,
