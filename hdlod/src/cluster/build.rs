@@ -22,7 +22,6 @@ use super::steps::Steps;
 use super::{BuildStats, GeometrySink, LevelStats, Progress};
 use crate::geometry::{self, Mesh, Part, SimplifyOptions, Strategy};
 use crate::scene::{Class, Scene, Visibility, VisibilityType};
-use crate::tree::cut::moved_box;
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
 use crate::{Error, Result};
 
@@ -389,7 +388,7 @@ fn world_box(c: &Cluster) -> Aabb {
     motion
         .keyframes()
         .iter()
-        .map(|k| moved_box(&c.bounds, &k.matrix().as_dmat4()))
+        .map(|k| c.bounds.transformed(&k.matrix().as_dmat4()))
         .reduce(|a, b| a.union(&b))
         .unwrap_or(c.bounds)
 }

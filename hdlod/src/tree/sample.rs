@@ -340,7 +340,7 @@ pub fn write_sample_tree(dir: &Path, seed: u64, floors: usize) -> Result<Tree> {
         .iter()
         .map(|c| match &c.motion {
             Some(m) => m.keyframes().iter().fold(c.bounds, |acc, k| {
-                acc.union(&super::cut::moved_box(&c.bounds, &k.matrix().as_dmat4()))
+                acc.union(&c.bounds.transformed(&k.matrix().as_dmat4()))
             }),
             None => c.bounds,
         })
