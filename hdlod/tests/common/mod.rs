@@ -179,12 +179,7 @@ pub fn shared_data(sub: &str) -> PathBuf {
 
 /// One of the classic meshes in `shared/data/meshes` (OBJ or PLY).
 pub fn shared_mesh(name: &str) -> Mesh {
-    let path = shared_data("meshes").join(name);
-    match name.rsplit('.').next() {
-        Some("ply") => hdlod::io::ply::read_mesh(&path),
-        _ => hdlod::io::obj::read_mesh(&path),
-    }
-    .unwrap_or_else(|e| panic!("{e}"))
+    hdlod::io::read_mesh(&shared_data("meshes").join(name)).unwrap_or_else(|e| panic!("{e}"))
 }
 
 /// The first errors of `value` against `v`, each with where it is.
