@@ -23,6 +23,10 @@ pub enum Error {
         at: String,
         message: String,
     },
+    /// A file wrong as a whole, with no one field at fault: an unknown
+    /// format, or a mesh that fails its checks.
+    #[error("{}: {message}", file.display())]
+    File { file: PathBuf, message: String },
     /// Input that does not come from a file (an API argument, a parameter).
     #[error("{at}: {message}")]
     Argument { at: String, message: String },
@@ -44,6 +48,13 @@ impl Error {
         Error::Invalid {
             file: file.into(),
             at: at.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn file(file: impl Into<PathBuf>, message: impl Into<String>) -> Self {
+        Error::File {
+            file: file.into(),
             message: message.into(),
         }
     }

@@ -1,4 +1,5 @@
-//! OBJ and PLY readers on the shared meshes and on bad files.
+//! OBJ and PLY readers, and the reader by extension, on the shared meshes
+//! and on bad files.
 
 mod common;
 
@@ -62,4 +63,39 @@ fn a_truncated_horse_names_the_file_and_the_faces() {
     std::fs::write(&cut, &bytes[..bytes.len() / 2]).unwrap();
     let e = hdlod::io::ply::read_mesh(&cut).unwrap_err().to_string();
     assert!(e.contains("cut.ply") && e.contains("face"), "{e}");
+}
+
+/// `io::read_mesh` picks the reader by the extension, in any case, and
+/// names the file when it knows no reader or the reader fails.
+#[test]
+fn read_mesh_by_extension() {
+    let Some(meshes) = common::data("meshes") else {
+        return;
+    };
+    let data = |name: &str| meshes.join(name);
+    let dir = tempfile::tempdir().unwrap();
+    let upper = dir.path().join("HORSE.PLY");
+    std::fs::copy(data("horse.ply"), &upper).unwrap();
+    assert_eq!(
+        hdlod::io::read_mesh(&upper).unwrap(),
+        hdlod::io::ply::read_mesh(&data("horse.ply")).unwrap()
+    );
+    assert_eq!(
+        hdlod::io::read_mesh(&data("fandisk.obj")).unwrap(),
+        hdlod::io::obj::read_mesh(&data("fandisk.obj")).unwrap()
+    );
+    let stl = dir.path().join("part.stl");
+    std::fs::write(&stl, "solid part\nendsolid part\n").unwrap();
+    let e = hdlod::io::read_mesh(&stl).unwrap_err().to_string();
+    assert_eq!(
+        e,
+        format!(
+            "{}: unknown mesh format \"stl\" (expected .obj, .ply, .glb or .gltf)",
+            stl.display()
+        )
+    );
+    let nan = dir.path().join("nan.obj");
+    std::fs::write(&nan, "v 0 0 0\nv 1 0 0\nv 0 nan 0\nf 1 2 3\n").unwrap();
+    let e = hdlod::io::read_mesh(&nan).unwrap_err().to_string();
+    assert!(e.starts_with(&format!("{}: line 3", nan.display())), "{e}");
 }

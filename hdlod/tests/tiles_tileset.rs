@@ -15,7 +15,6 @@ use hdlod::scene::{Up, format};
 use hdlod::tiles::{
     DEFAULT_MAX_BYTES, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform, time_slice,
 };
-use hdlod::tree::cut::moved_box;
 use hdlod::tree::{Aabb, CameraSpec, Tree, View, Viewport, cut, load};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
@@ -282,12 +281,12 @@ fn boxes_transforms_and_content_are_the_cuts() {
                     Some(m) => {
                         let pose = m.at(t).as_dmat4();
                         moving += 1;
-                        (pose, moved_box(&c.bounds, &pose))
+                        (pose, c.bounds.transformed(&pose))
                     }
                     None => (DMat4::IDENTITY, c.bounds),
                 };
                 // The tile's box in the world is the cut's box in the world.
-                let expected = moved_box(&cut_box, &world);
+                let expected = cut_box.transformed(&world);
                 let got = Client::world_box(&visit);
                 let tol = 1e-6 * (1.0 + tree.bounds.diagonal());
                 assert!(

@@ -1,9 +1,11 @@
 //! The `hdlod` command: one subcommand per job, each in its own module under
 //! `cmd/`. The HDLOD logic lives in the `hdlod` library; this crate parses
-//! arguments, reports progress and serves HTTP.
+//! arguments, reports progress and serves HTTP, and `protocol/` holds the
+//! cut requests and answers that the API and the CLI share.
 
 mod api;
 mod cmd;
+mod protocol;
 
 use std::process::ExitCode;
 

@@ -229,8 +229,7 @@ fn world_box(c: &Cluster) -> Aabb {
     motion
         .keyframes()
         .iter()
-        .map(|k| k.matrix().as_dmat4())
-        .map(|m| crate::tree::cut::moved_box(&c.bounds, &m))
+        .map(|k| c.bounds.transformed(&k.matrix().as_dmat4()))
         .reduce(|a, b| a.union(&b))
         .unwrap_or(c.bounds)
 }

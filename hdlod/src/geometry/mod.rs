@@ -2,6 +2,7 @@
 //! simplification to an error budget, the Hausdorff bound and measures.
 
 mod closest;
+mod distance;
 mod hausdorff;
 pub mod measure;
 mod merge;
@@ -13,6 +14,7 @@ mod simplify;
 mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
+pub use distance::distance;
 pub use hausdorff::{Hausdorff, HausdorffOptions, bound_within, hausdorff, one_sided_bound};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;

@@ -1,7 +1,37 @@
 //! Mesh file formats: glTF/GLB in ([`gltf`]) and out ([`glb`]), OBJ in and
-//! out ([`obj`]), PLY in ([`ply`]).
+//! out ([`obj`]), PLY in ([`ply`]); [`read_mesh`] picks the reader by the
+//! file's extension.
 
 pub mod glb;
 pub mod gltf;
 pub mod obj;
 pub mod ply;
+
+use std::path::Path;
+
+use crate::error::{Error, Result};
+use crate::geometry::Mesh;
+
+/// One mesh from an `.obj`, `.ply`, `.glb` or `.gltf` file (a glTF file's
+/// meshes all placed into one), checked by [`Mesh::validate`]: the
+/// simplifiers and the Hausdorff bound assume a valid mesh.
+pub fn read_mesh(path: &Path) -> Result<Mesh> {
+    let extension = path
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_ascii_lowercase();
+    let mesh = match extension.as_str() {
+        "obj" => obj::read_mesh(path)?,
+        "ply" => ply::read_mesh(path)?,
+        "glb" | "gltf" => gltf::read_mesh(path)?,
+        other => {
+            return Err(Error::file(
+                path,
+                format!("unknown mesh format {other:?} (expected .obj, .ply, .glb or .gltf)"),
+            ));
+        }
+    };
+    mesh.validate().map_err(|m| Error::file(path, m))?;
+    Ok(mesh)
+}

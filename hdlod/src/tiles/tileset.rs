@@ -7,7 +7,7 @@
 //! - `v == 0`: the tile and its subtree are left out (the cut skips them);
 //! - content (the cluster's GLB) only where `v >= 0.5`, otherwise a tile
 //!   without content: the cut draws nothing there either;
-//! - the bounding volume is the box the cut tests, `tree::cut::moved_box` of
+//! - the bounding volume is the box the cut tests, `Aabb::transformed` of
 //!   the cluster's bounds at `t` for dynamic clusters, written in the tile's
 //!   own frame, so that a client that applies the tile transforms gets the
 //!   cut's box back exactly;
@@ -33,7 +33,6 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::scene::Up;
 use crate::time::format_date;
-use crate::tree::cut::moved_box;
 use crate::tree::format::CLUSTERS_FILE;
 use crate::tree::{Aabb, Tree};
 
@@ -213,7 +212,7 @@ impl Slice<'_> {
         let (pose, world) = match &c.motion {
             Some(m) => {
                 let pose = m.at(self.t).as_dmat4();
-                (pose, moved_box(&c.bounds, &pose))
+                (pose, c.bounds.transformed(&pose))
             }
             None => (DMat4::IDENTITY, c.bounds),
         };

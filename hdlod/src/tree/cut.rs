@@ -19,9 +19,9 @@
 //! children are pushed in reverse so that clusters come out in the order of
 //! the recursive definition.
 
-use glam::{DMat4, DVec3, Mat4};
+use glam::Mat4;
 
-use super::{Aabb, Tree, View};
+use super::{Tree, View};
 
 /// One emitted cluster.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -47,35 +47,6 @@ pub struct CutStats {
 pub struct Cut {
     pub items: Vec<CutItem>,
     pub stats: CutStats,
-}
-
-/// The box of `bounds` moved by `m`: the bounds of its 8 moved corners.
-pub fn moved_box(bounds: &Aabb, m: &DMat4) -> Aabb {
-    let mut lo = DVec3::splat(f64::INFINITY);
-    let mut hi = DVec3::splat(f64::NEG_INFINITY);
-    for i in 0..8 {
-        let corner = DVec3::new(
-            if i & 1 == 0 {
-                bounds.min.x
-            } else {
-                bounds.max.x
-            },
-            if i & 2 == 0 {
-                bounds.min.y
-            } else {
-                bounds.max.y
-            },
-            if i & 4 == 0 {
-                bounds.min.z
-            } else {
-                bounds.max.z
-            },
-        );
-        let p = m.transform_point3(corner);
-        lo = lo.min(p);
-        hi = hi.max(p);
-    }
-    Aabb::new(lo, hi)
 }
 
 /// The cut of `tree` at `t` (seconds since the scene's start) for `view`.
@@ -113,7 +84,7 @@ pub fn cut_into(tree: &Tree, view: &View, t: f64, out: &mut Cut, stack: &mut Vec
                 sampled = (c.motion, motion.at(t));
             }
             (
-                moved_box(&c.bounds(), &sampled.1.as_dmat4()),
+                c.bounds().transformed(&sampled.1.as_dmat4()),
                 Some(sampled.1),
             )
         } else {

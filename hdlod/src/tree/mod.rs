@@ -16,7 +16,7 @@ pub mod store;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use glam::{DVec3, Quat, Vec3};
+use glam::{DMat4, DVec3, Quat, Vec3};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
@@ -57,6 +57,23 @@ impl Aabb {
     pub fn contains(&self, other: &Aabb, tolerance: f64) -> bool {
         (other.min - self.min).min_element() >= -tolerance
             && (self.max - other.max).min_element() >= -tolerance
+    }
+
+    /// The box moved by `m`: the bounds of its 8 moved corners.
+    pub fn transformed(&self, m: &DMat4) -> Aabb {
+        let mut lo = DVec3::splat(f64::INFINITY);
+        let mut hi = DVec3::splat(f64::NEG_INFINITY);
+        for i in 0..8 {
+            let corner = DVec3::new(
+                if i & 1 == 0 { self.min.x } else { self.max.x },
+                if i & 2 == 0 { self.min.y } else { self.max.y },
+                if i & 4 == 0 { self.min.z } else { self.max.z },
+            );
+            let p = m.transform_point3(corner);
+            lo = lo.min(p);
+            hi = hi.max(p);
+        }
+        Aabb::new(lo, hi)
     }
 }
 

@@ -226,11 +226,7 @@ pub fn data(set: &str) -> Option<PathBuf> {
 /// `None` when the set is missing (see [`data`]).
 pub fn data_mesh(name: &str) -> Option<Mesh> {
     let path = data("meshes")?.join(name);
-    let mesh = match name.rsplit('.').next() {
-        Some("ply") => hdlod::io::ply::read_mesh(&path),
-        _ => hdlod::io::obj::read_mesh(&path),
-    };
-    Some(mesh.unwrap_or_else(|e| panic!("{e}")))
+    Some(hdlod::io::read_mesh(&path).unwrap_or_else(|e| panic!("{e}")))
 }
 
 /// The first errors of `value` against `v`, each with where it is.

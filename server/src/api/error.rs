@@ -7,6 +7,8 @@ use axum::http::StatusCode;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
+use crate::protocol::ProtocolError;
+
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ApiError {
     #[serde(skip)]
@@ -33,25 +35,6 @@ impl ApiError {
         Self::new(StatusCode::NOT_FOUND, Some(field.into()), message)
     }
 
-    /// A JSON body that does not parse or has the wrong shape: the field is
-    /// the path serde stopped at, plus the missing or unknown field's name.
-    pub fn from_json(e: serde_path_to_error::Error<serde_json::Error>) -> Self {
-        let path = e.path().to_string();
-        let message = e.inner().to_string();
-        // serde's path stops at the container of a missing field, but at
-        // an unknown field itself.
-        let named = message
-            .strip_prefix("missing field `")
-            .and_then(|rest| rest.split('`').next());
-        let field = match (path.as_str(), named) {
-            (".", Some(name)) => name.to_owned(),
-            (_, Some(name)) => format!("{path}.{name}"),
-            (".", None) => "body".to_owned(),
-            _ => path,
-        };
-        Self::bad(field, message)
-    }
-
     /// The JSON value of the body, also sent over the WebSocket.
     pub fn body(&self) -> serde_json::Value {
         serde_json::json!({"error": {
@@ -59,6 +42,12 @@ impl ApiError {
             "field": self.field,
             "message": self.message,
         }})
+    }
+}
+
+impl From<ProtocolError> for ApiError {
+    fn from(e: ProtocolError) -> Self {
+        Self::bad(e.field, e.message)
     }
 }
 

@@ -10,12 +10,11 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::time::format_date;
-use hdlod::tree::Cut;
 use serde_json::{Value, json};
 
-use super::cut::{self, CutRequest, scene_path};
 use super::error::ApiError;
 use super::{AppState, LoadedScene};
+use crate::protocol::{self, CutRequest, scene_path};
 
 type Answer<T> = Result<T, ApiError>;
 
@@ -143,27 +142,10 @@ pub async fn scene(
     })))
 }
 
-/// Bytes a cluster takes in a cut answer, about: the buffer is sized once.
-const CLUSTER_JSON_BYTES: usize = 256;
-
-fn cut_answer(state: &AppState, name: &str, request: &CutRequest) -> Answer<Response> {
-    let s = find(state, name)?;
-    let (view, t) = cut::prepare(&s.tree, request)?;
-    let (mut answer, mut stack) = (Cut::default(), Vec::new());
-    let micros = cut::run(&s.tree, &view, t, &mut answer, &mut stack);
-    state
-        .metrics
-        .cut(answer.stats.clusters, answer.stats.triangles);
-    let mut body = Vec::with_capacity((answer.items.len() + 1) * CLUSTER_JSON_BYTES);
-    cut::write_response(
-        &s.tree,
-        &s.baseline,
-        &s.fragments,
-        t,
-        &answer,
-        micros,
-        &mut body,
-    );
+fn cut_answer(state: &AppState, s: &LoadedScene, request: &CutRequest) -> Answer<Response> {
+    let mut body = Vec::new();
+    let stats = protocol::write_answer(&s.tree, &s.baseline, &s.fragments, request, &mut body)?;
+    state.metrics.cut(stats.clusters, stats.triangles);
     Ok((
         [(
             header::CONTENT_TYPE,
@@ -181,9 +163,8 @@ pub async fn cut_post(
 ) -> Answer<Response> {
     let body = body.map_err(|r| ApiError::new(r.status(), Some("body".into()), r.body_text()))?;
     // The scene is checked first: an unknown scene is a 404 whatever the body.
-    find(&state, &name)?;
-    let request = cut::parse_json(&body)?;
-    cut_answer(&state, &name, &request)
+    let s = find(&state, &name)?;
+    cut_answer(&state, &s, &protocol::parse_json(&body)?)
 }
 
 pub async fn cut_get(
@@ -192,9 +173,8 @@ pub async fn cut_get(
     query: Result<Query<Vec<(String, String)>>, QueryRejection>,
 ) -> Answer<Response> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
-    find(&state, &name)?;
-    let request = cut::parse_query(&pairs)?;
-    cut_answer(&state, &name, &request)
+    let s = find(&state, &name)?;
+    cut_answer(&state, &s, &protocol::parse_query(&pairs)?)
 }
 
 pub async fn geometry(

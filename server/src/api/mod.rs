@@ -3,7 +3,6 @@
 //! `Arc` and works on that snapshot, so a reload (SIGHUP) swaps in new trees
 //! without disturbing requests in flight.
 
-pub mod cut;
 pub mod error;
 mod handlers;
 pub mod metrics;
@@ -25,6 +24,7 @@ use hdlod::tree::{Baseline, Tree, TreeSummary};
 use tower_http::compression::CompressionLayer;
 
 use self::metrics::Metrics;
+use crate::protocol::Fragments;
 
 /// Largest request body: a cut request is well under 1 KiB.
 pub const BODY_LIMIT: usize = 64 * 1024;
@@ -34,7 +34,7 @@ pub struct LoadedScene {
     pub dir: PathBuf,
     pub summary: TreeSummary,
     pub baseline: Baseline,
-    pub fragments: cut::Fragments,
+    pub fragments: Fragments,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -49,7 +49,7 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
     let summary = tree.summary();
     let baseline = Baseline::of(&tree);
-    let fragments = cut::Fragments::of(&tree);
+    let fragments = Fragments::of(&tree);
     Ok(LoadedScene {
         fragments,
         tree,

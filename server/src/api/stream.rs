@@ -14,10 +14,10 @@ use axum::response::Response;
 use hdlod::tree::Cut;
 use rustc_hash::FxHashMap;
 
-use super::cut::{self, stats_out, write_number, write_transform};
 use super::error::ApiError;
 use super::handlers::find;
 use super::{AppState, LoadedScene};
+use crate::protocol::{self, stats_out, write_number, write_transform};
 
 pub async fn stream(
     State(state): State<Arc<AppState>>,
@@ -62,10 +62,10 @@ impl Session {
     /// added clusters exactly as `POST .../cut` writes them).
     fn update(&mut self, state: &AppState, name: &str, text: &str) -> Result<String, ApiError> {
         let scene = find(state, name)?;
-        let request = cut::parse_json(text.as_bytes())?;
+        let request = protocol::parse_json(text.as_bytes())?;
         let tree = &scene.tree;
-        let (view, t) = cut::prepare(tree, &request)?;
-        let micros = cut::run(tree, &view, t, &mut self.cut, &mut self.stack);
+        let (view, t) = protocol::prepare(tree, &request)?;
+        let micros = protocol::run(tree, &view, t, &mut self.cut, &mut self.stack);
         state
             .metrics
             .cut(self.cut.stats.clusters, self.cut.stats.triangles);

@@ -15,15 +15,13 @@ use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Path, Query, State};
 use hdlod::tiles::{DEFAULT_MAX_BYTES, Options, Tileset, time_slice};
+use hdlod::time::TimeValue;
 use hdlod::tree::Tree;
 
 use super::AppState;
-use super::cut::parse_time;
 use super::error::ApiError;
 use super::handlers::find;
-
-/// Dates are computed in milliseconds; keep far from their overflow.
-const MAX_SECONDS: f64 = 1e12;
+use crate::protocol::{parse_time_query, resolve_time, within_period};
 
 /// The options of a slice at `t` served from `.../tiles/tileset.json`: the
 /// external tilesets sit in `.../tiles/{t}/`, the GLBs in `.../geometry/`.
@@ -34,20 +32,9 @@ fn options(t: f64, max_bytes: usize) -> Options {
     }
 }
 
-fn within(t: f64) -> Result<f64, ApiError> {
-    if t.abs() > MAX_SECONDS {
-        return Err(ApiError::bad("time", "is too far from the scene's period"));
-    }
-    Ok(t)
-}
-
-/// The root file for the query's `time` (ISO 8601 or seconds).
-fn root_file(tree: &Tree, time: &str, max_bytes: usize) -> Result<Tileset, ApiError> {
-    let t = tree
-        .time
-        .resolve(&parse_time(time))
-        .map_err(|m| ApiError::bad("time", m))?;
-    let t = within(t)?;
+/// The root file for the query's `time`.
+fn root_file(tree: &Tree, time: &TimeValue, max_bytes: usize) -> Result<Tileset, ApiError> {
+    let t = within_period(resolve_time(tree, "time", time)?)?;
     Ok(time_slice(tree, t, &options(t, max_bytes))?.root)
 }
 
@@ -65,7 +52,7 @@ fn external_file(
         .ok_or_else(|| {
             ApiError::not_found("time", format!("{time:?} is not a number of seconds"))
         })?;
-    let t = within(t)?;
+    let t = within_period(t)?;
     let id: u32 = file
         .strip_suffix(".json")
         .and_then(|id| id.parse().ok())
@@ -86,15 +73,8 @@ pub async fn tileset(
 ) -> Result<Json<Tileset>, ApiError> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let s = find(&state, &name)?;
-    let mut time = None;
-    for (key, value) in &pairs {
-        match key.as_str() {
-            "time" => time = Some(value),
-            other => return Err(ApiError::bad(other, "unknown query parameter")),
-        }
-    }
-    let time = time.ok_or_else(|| ApiError::bad("time", "is required"))?;
-    root_file(&s.tree, time, DEFAULT_MAX_BYTES).map(Json)
+    let time = parse_time_query(&pairs)?;
+    root_file(&s.tree, &time, DEFAULT_MAX_BYTES).map(Json)
 }
 
 pub async fn external(
@@ -117,8 +97,10 @@ mod tests {
         let tree = hdlod_fixtures::sample::write_sample_tree(&dir.path().join("t"), 2, 6).unwrap();
         let small = 8 * 1024;
         let t = tree.time.seconds / 2.0;
-        let mut pending: Vec<(Option<String>, Tileset)> =
-            vec![(None, root_file(&tree, &t.to_string(), small).unwrap())];
+        let mut pending: Vec<(Option<String>, Tileset)> = vec![(
+            None,
+            root_file(&tree, &TimeValue::Seconds(t), small).unwrap(),
+        )];
         let mut served = 0;
         while let Some((dir, tileset)) = pending.pop() {
             let mut stack = vec![&tileset.root];

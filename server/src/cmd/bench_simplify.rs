@@ -16,7 +16,7 @@ use plotters::prelude::*;
 use serde::Serialize;
 
 use super::bench_build::replace_section;
-use super::simplify::{Method, measured_distance, read};
+use super::simplify::Method;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -142,7 +142,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     };
     let mut rows = Vec::new();
     for (model, path) in models(&dir, &args.models)? {
-        let mesh = read(&path)?;
+        let mesh = hdlod::io::read_mesh(&path)?;
         for &method in &args.methods {
             for &ratio in &args.ratios {
                 let row = case(&model, &mesh, method, ratio, args.runs);
@@ -195,7 +195,7 @@ fn case(model: &str, mesh: &Mesh, method: Method, ratio: f64, runs: usize) -> Ro
         .zip(process_cpu_ns())
         .map(|(a, b)| b.saturating_sub(a) as f64 * 1e-9 / times.len() as f64);
     times.sort_by(f64::total_cmp);
-    let h = measured_distance(mesh, &out, 1);
+    let h = geometry::distance(mesh, &out, 1);
     let diagonal = mesh.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length());
     let quotient = |a: f64, b: f64| (b != 0.0).then(|| a / b);
     Row {

@@ -5,9 +5,8 @@
 use std::path::PathBuf;
 
 use anyhow::Context;
-use hdlod::tree::CameraSpec;
 
-use crate::api::cut::{self, CutRequest};
+use crate::protocol::{self, Flags};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -41,44 +40,31 @@ pub struct Args {
     json: bool,
 }
 
-fn api(e: crate::api::error::ApiError) -> anyhow::Error {
-    anyhow::anyhow!("{}: {}", e.field.unwrap_or_default(), e.message)
-}
-
 pub fn run(args: Args) -> anyhow::Result<()> {
     let tree = hdlod::tree::load(&args.tree)?;
-    let camera = match &args.camera_json {
-        Some(file) => {
-            let text = std::fs::read(file).with_context(|| file.display().to_string())?;
-            let mut de = serde_json::Deserializer::from_slice(&text);
-            serde_path_to_error::deserialize(&mut de)
-                .map_err(|e| anyhow::anyhow!("{}: {}: {}", file.display(), e.path(), e.inner()))?
-        }
-        None => {
-            let mut pairs = Vec::new();
-            for (k, v) in [
-                ("position", &args.position),
-                ("target", &args.target),
-                ("up", &args.up),
-            ] {
-                if let Some(v) = v {
-                    pairs.push((k.to_owned(), v.clone()));
-                }
+    let camera =
+        match &args.camera_json {
+            Some(file) => {
+                let text = std::fs::read(file).with_context(|| file.display().to_string())?;
+                let mut de = serde_json::Deserializer::from_slice(&text);
+                Some(serde_path_to_error::deserialize(&mut de).map_err(|e| {
+                    anyhow::anyhow!("{}: {}: {}", file.display(), e.path(), e.inner())
+                })?)
             }
-            pairs.push(("time".into(), "0".into()));
-            let mut camera: CameraSpec = cut::parse_query(&pairs).map_err(api)?.camera;
-            camera.fov_y_deg = args.fov;
-            camera
-        }
-    };
-    let request = CutRequest {
-        time: cut::parse_time(&args.time),
+            None => None,
+        };
+    let request = protocol::parse_flags(Flags {
+        time: &args.time,
         camera,
-        viewport: cut::parse_viewport("--viewport", &args.viewport).map_err(api)?,
+        position: args.position.as_deref(),
+        target: args.target.as_deref(),
+        up: args.up.as_deref(),
+        fov_y_deg: args.fov,
+        viewport: &args.viewport,
         pixel_error: args.pixel_error,
-    };
+    })?;
     let baseline = hdlod::tree::Baseline::of(&tree);
-    let answer = cut::answer(&tree, &baseline, &request).map_err(api)?;
+    let answer = protocol::answer(&tree, &baseline, &request)?;
     if args.json {
         println!("{}", serde_json::to_string_pretty(&answer)?);
         return Ok(());

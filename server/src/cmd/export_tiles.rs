@@ -13,7 +13,7 @@ use anyhow::Context;
 use hdlod::tiles::{DEFAULT_MAX_BYTES, Options, Tile, Tileset, time_slice};
 use hdlod::tree::format::GEOMETRY_DIR;
 
-use crate::api::cut::parse_time;
+use crate::protocol::{parse_time, resolve_time};
 
 const SUBTILESETS: &str = "tilesets";
 
@@ -80,10 +80,7 @@ fn write(tmp: &Path, tree_dir: &Path, slice: &hdlod::tiles::TimeSlice) -> anyhow
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let tree = hdlod::tree::load(&args.tree)?;
-    let t = tree
-        .time
-        .resolve(&parse_time(&args.time))
-        .map_err(|m| anyhow::anyhow!("--time: {m}"))?;
+    let t = resolve_time(&tree, "--time", &parse_time(&args.time))?;
     let options = Options {
         max_bytes: args.max_bytes,
         ..Options::new(GEOMETRY_DIR, SUBTILESETS)

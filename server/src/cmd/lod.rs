@@ -17,7 +17,7 @@ use anyhow::{bail, ensure};
 use hdlod::geometry::{self, SimplifyOptions};
 use serde::Serialize;
 
-use super::simplify::{Method, measured_distance, read};
+use super::simplify::Method;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -67,7 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         Some(e) if e.eq_ignore_ascii_case("glb") => {}
         _ => bail!("{}: the output must be a .glb file", args.output.display()),
     }
-    let mesh = read(&args.input)?;
+    let mesh = hdlod::io::read_mesh(&args.input)?;
     let n = mesh.triangle_count();
     ensure!(n > 0, "{}: the mesh has no triangles", args.input.display());
 
@@ -84,7 +84,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         };
         let level = method.run(&mesh, &options);
         let seconds = start.elapsed().as_secs_f64();
-        let h = measured_distance(&mesh, &level, args.seed);
+        let h = geometry::distance(&mesh, &level, args.seed);
         report.push(Level {
             ratio,
             triangles: level.triangle_count(),

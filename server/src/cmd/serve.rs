@@ -13,6 +13,7 @@ use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE};
 use notify::{Event, EventKind, RecommendedWatcher, RecursiveMode, Watcher};
 
 use crate::api::{self, AppState};
+use crate::protocol;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -53,7 +54,7 @@ fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool) -> anyhow::Resul
         for name in state.scenes().keys() {
             tracing::info!(
                 "scene {name:?} at http://{addr}{}",
-                api::cut::scene_path(name)
+                protocol::scene_path(name)
             );
         }
         println!("listening on http://{addr}");

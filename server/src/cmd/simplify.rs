@@ -6,8 +6,8 @@
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
-use anyhow::{Context, bail};
-use hdlod::geometry::{self, HausdorffOptions, Mesh, SimplifyOptions, measure};
+use anyhow::bail;
+use hdlod::geometry::{self, Mesh, SimplifyOptions, measure};
 use serde::Serialize;
 
 #[derive(Clone, Copy, clap::ValueEnum, Serialize)]
@@ -78,7 +78,7 @@ struct Report {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let mut mesh = read(&args.input)?;
+    let mut mesh = hdlod::io::read_mesh(&args.input)?;
     if args.positions_only {
         mesh.normals.clear();
         mesh.colors.clear();
@@ -116,7 +116,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let seconds = start.elapsed().as_secs_f64();
 
     write(&out, &args.output)?;
-    let h = measured_distance(&mesh, &out, args.seed);
+    let h = geometry::distance(&mesh, &out, args.seed);
     let ratio = |a: f64, b: f64| (b != 0.0).then(|| a / b);
     let report = Report {
         method: args.method,
@@ -152,57 +152,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     Ok(())
 }
 
-/// The Hausdorff bound within 1% of itself: a first pass at a tolerance of
-/// 0.1% of the mesh size finds the scale of the distance, a second one
-/// tightens the gap if the first left it wider than 1%.
-pub(crate) fn measured_distance(a: &Mesh, b: &Mesh, seed: u64) -> geometry::Hausdorff {
-    let diagonal = a.bounds().map_or(0.0, |(lo, hi)| (hi - lo).length());
-    let first = geometry::hausdorff(
-        a,
-        b,
-        &HausdorffOptions {
-            tolerance: 1e-3 * diagonal,
-            seed,
-        },
-    );
-    if first.bound - first.lower <= 0.01 * first.lower {
-        return first;
-    }
-    geometry::hausdorff(
-        a,
-        b,
-        &HausdorffOptions {
-            tolerance: 0.01 * first.lower,
-            seed,
-        },
-    )
-}
-
-fn extension(path: &Path) -> String {
-    path.extension()
+fn write(mesh: &Mesh, path: &Path) -> anyhow::Result<()> {
+    let extension = path
+        .extension()
         .and_then(|e| e.to_str())
         .unwrap_or("")
-        .to_ascii_lowercase()
-}
-
-pub(crate) fn read(path: &Path) -> anyhow::Result<Mesh> {
-    let mesh = match extension(path).as_str() {
-        "obj" => hdlod::io::obj::read_mesh(path)?,
-        "ply" => hdlod::io::ply::read_mesh(path)?,
-        "glb" | "gltf" => hdlod::io::gltf::read_mesh(path)?,
-        other => bail!(
-            "{}: unknown mesh format {other:?} (expected .obj, .ply, .glb or .gltf)",
-            path.display()
-        ),
-    };
-    mesh.validate()
-        .map_err(anyhow::Error::msg)
-        .with_context(|| path.display().to_string())?;
-    Ok(mesh)
-}
-
-fn write(mesh: &Mesh, path: &Path) -> anyhow::Result<()> {
-    match extension(path).as_str() {
+        .to_ascii_lowercase();
+    match extension.as_str() {
         "obj" => hdlod::io::obj::write_mesh(mesh, path)?,
         "glb" => hdlod::io::glb::write_mesh(mesh, path)?,
         other => bail!(
