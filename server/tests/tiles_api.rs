@@ -193,6 +193,12 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     assert!(!bad.status.success());
     let stderr = String::from_utf8_lossy(&bad.stderr);
     assert!(stderr.contains("--time"), "{stderr}");
+    let far = export(&tree, "1e13", &whole, None);
+    let stderr = String::from_utf8_lossy(&far.stderr);
+    assert!(
+        stderr.contains("--time: is too far from the scene's period"),
+        "{stderr}"
+    );
     assert!(whole.join("tileset.json").is_file());
     let missing = export(&dir.path().join("no-tree"), "0", &whole, None);
     assert!(!missing.status.success());

@@ -34,7 +34,7 @@ fn options(t: f64, max_bytes: usize) -> Options {
 
 /// The root file for the query's `time`.
 fn root_file(tree: &Tree, time: &TimeValue, max_bytes: usize) -> Result<Tileset, ApiError> {
-    let t = within_period(resolve_time(tree, "time", time)?)?;
+    let t = resolve_time(tree, "time", time)?;
     Ok(time_slice(tree, t, &options(t, max_bytes))?.root)
 }
 
@@ -52,7 +52,7 @@ fn external_file(
         .ok_or_else(|| {
             ApiError::not_found("time", format!("{time:?} is not a number of seconds"))
         })?;
-    let t = within_period(t)?;
+    let t = within_period("time", t)?;
     let id: u32 = file
         .strip_suffix(".json")
         .and_then(|id| id.parse().ok())

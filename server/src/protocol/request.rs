@@ -170,18 +170,21 @@ pub fn parse_flags(flags: Flags) -> Result<CutRequest, ProtocolError> {
     })
 }
 
-/// `time` in seconds since the scene's start; `field` names it in errors.
+/// `time` in seconds since the scene's start, checked by
+/// [`within_period`]; `field` names it in errors.
 pub fn resolve_time(tree: &Tree, field: &str, time: &TimeValue) -> Result<f64, ProtocolError> {
-    tree.time
+    let t = tree
+        .time
         .resolve(time)
-        .map_err(|m| ProtocolError::new(field, m))
+        .map_err(|m| ProtocolError::new(field, m))?;
+    within_period(field, t)
 }
 
-/// `t` if its date can be written, else an error naming `time`.
-pub fn within_period(t: f64) -> Result<f64, ProtocolError> {
+/// `t` if its date can be written, else an error naming `field`.
+pub fn within_period(field: &str, t: f64) -> Result<f64, ProtocolError> {
     if t.abs() > MAX_SECONDS {
         return Err(ProtocolError::new(
-            "time",
+            field,
             "is too far from the scene's period",
         ));
     }
@@ -197,7 +200,7 @@ pub(super) fn up_vector(up: Up) -> DVec3 {
 
 /// The view and time of a request, checked against the tree.
 pub fn prepare(tree: &Tree, request: &CutRequest) -> Result<(View, f64), ProtocolError> {
-    let t = within_period(resolve_time(tree, "time", &request.time)?)?;
+    let t = resolve_time(tree, "time", &request.time)?;
     let view = View::new(
         &request.camera,
         request.viewport,
