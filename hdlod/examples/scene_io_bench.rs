@@ -9,7 +9,7 @@ use std::time::Instant;
 use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
 use hdlod::scene::{
-    Keyframe, Motion, Object, Scene, ScheduleOptions, SceneSummary, Task, TaskType, Up, Visibility,
+    Keyframe, Motion, Object, Scene, SceneSummary, ScheduleOptions, Task, TaskType, Up, Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 

@@ -30,6 +30,11 @@ pub enum Error {
     /// Input that does not come from a file (an API argument, a parameter).
     #[error("{at}: {message}")]
     Argument { at: String, message: String },
+    /// A value wrong in itself (a date, a keyframe list, a mesh), checked
+    /// where nobody knows yet where it came from: the caller places it in
+    /// its file or argument, quoting the message.
+    #[error("{message}")]
+    Value { message: String },
 }
 
 impl Error {
@@ -62,6 +67,12 @@ impl Error {
     pub fn argument(at: impl Into<String>, message: impl Into<String>) -> Self {
         Error::Argument {
             at: at.into(),
+            message: message.into(),
+        }
+    }
+
+    pub fn value(message: impl Into<String>) -> Self {
+        Error::Value {
             message: message.into(),
         }
     }

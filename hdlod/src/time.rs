@@ -2,6 +2,7 @@
 //! a number of seconds since the scene's start. Inside the library a time is
 //! always `f64` seconds since the start.
 
+use crate::error::{Error, Result};
 use chrono::{DateTime, NaiveDate, NaiveDateTime, Utc};
 use serde::{Deserialize, Serialize};
 
@@ -37,10 +38,10 @@ impl TimeSpan {
 
     /// Resolves a time value to seconds since the start. Non-finite seconds
     /// and unparsable dates are errors; the caller adds the file or field.
-    pub fn resolve(&self, value: &TimeValue) -> Result<f64, String> {
+    pub fn resolve(&self, value: &TimeValue) -> Result<f64> {
         match value {
             TimeValue::Seconds(s) if s.is_finite() => Ok(*s),
-            TimeValue::Seconds(s) => Err(format!("time {s} is not a finite number")),
+            TimeValue::Seconds(s) => Err(Error::value(format!("time {s} is not a finite number"))),
             TimeValue::Iso(text) => parse_date(text).map(|d| self.seconds_of(d)),
         }
     }
@@ -48,7 +49,7 @@ impl TimeSpan {
 
 /// Parses an ISO 8601 date: `2015-02-18`, `2015-02-18T08:00:00` (taken as
 /// UTC) or with an offset, `2015-02-18T08:00:00+01:00`.
-pub fn parse_date(text: &str) -> Result<DateTime<Utc>, String> {
+pub fn parse_date(text: &str) -> Result<DateTime<Utc>> {
     if let Ok(d) = DateTime::parse_from_rfc3339(text) {
         return Ok(d.with_timezone(&Utc));
     }
@@ -58,9 +59,9 @@ pub fn parse_date(text: &str) -> Result<DateTime<Utc>, String> {
     if let Ok(d) = NaiveDate::parse_from_str(text, "%Y-%m-%d") {
         return Ok(d.and_hms_opt(0, 0, 0).expect("midnight exists").and_utc());
     }
-    Err(format!(
+    Err(Error::value(format!(
         "{text:?} is not an ISO 8601 date (e.g. 2015-02-18 or 2015-02-18T08:00:00Z)"
-    ))
+    )))
 }
 
 /// Formats a date as ISO 8601 in UTC with second precision.
@@ -78,14 +79,16 @@ mod tests {
             start: parse_date("2024-01-01").unwrap(),
             seconds: 86400.0 * 10.0,
         };
-        assert_eq!(span.resolve(&TimeValue::Seconds(5.0)), Ok(5.0));
+        assert_eq!(span.resolve(&TimeValue::Seconds(5.0)).unwrap(), 5.0);
         assert_eq!(
-            span.resolve(&TimeValue::Iso("2024-01-02T00:00:00Z".into())),
-            Ok(86400.0)
+            span.resolve(&TimeValue::Iso("2024-01-02T00:00:00Z".into()))
+                .unwrap(),
+            86400.0
         );
         assert_eq!(
-            span.resolve(&TimeValue::Iso("2024-01-01T01:00:00+01:00".into())),
-            Ok(0.0)
+            span.resolve(&TimeValue::Iso("2024-01-01T01:00:00+01:00".into()))
+                .unwrap(),
+            0.0
         );
         assert!(span.resolve(&TimeValue::Seconds(f64::NAN)).is_err());
         assert!(span.resolve(&TimeValue::Iso("yesterday".into())).is_err());

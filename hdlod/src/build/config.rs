@@ -3,6 +3,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use crate::error::{Error, Result};
 use crate::scene::ScheduleOptions;
 
 /// Every knob of the build, with documented defaults. Stored in the tree's
@@ -56,9 +57,10 @@ impl Default for BuildConfig {
 }
 
 impl BuildConfig {
-    /// Rejects values the algorithm cannot work with, naming the field.
-    pub fn validate(&self) -> Result<(), (String, String)> {
-        let bad = |f: &str, m: &str| Err((f.to_string(), m.to_string()));
+    /// Rejects values the algorithm cannot work with: an
+    /// [`Error::Argument`] at the field's name.
+    pub fn validate(&self) -> Result<()> {
+        let bad = |f: &str, m: &str| Err(Error::argument(f, m));
         if self.levels == Some(0) || self.levels.is_some_and(|l| l > 40) {
             return bad("levels", "must be between 1 and 40");
         }
@@ -146,6 +148,6 @@ mod tests {
             max_children: 1,
             ..c
         };
-        assert_eq!(bad.validate().unwrap_err().0, "max_children");
+        assert!(matches!(bad.validate(), Err(Error::Argument { at, .. }) if at == "max_children"));
     }
 }

@@ -42,9 +42,10 @@ pub fn build(
     sink: &dyn GeometrySink,
     progress: &dyn Progress,
 ) -> Result<(Tree, BuildStats)> {
-    config
-        .validate()
-        .map_err(|(field, message)| Error::argument(format!("config.{field}"), message))?;
+    config.validate().map_err(|e| match e {
+        Error::Argument { at, message } => Error::argument(format!("config.{at}"), message),
+        other => other,
+    })?;
     let mut scene_owned;
     let scene = match config.schedule {
         Some(options) if options != scene.schedule_options => {

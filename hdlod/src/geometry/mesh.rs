@@ -1,3 +1,4 @@
+use crate::error::{Error, Result};
 use std::collections::HashMap;
 
 use glam::{Mat4, Vec3};
@@ -143,22 +144,30 @@ impl Mesh {
 
     /// Checks the internal consistency a reader must guarantee: indices in
     /// range, a whole number of triangles, attribute lengths, finite values.
-    pub fn validate(&self) -> Result<(), String> {
+    pub fn validate(&self) -> Result<()> {
         if !self.indices.len().is_multiple_of(3) {
-            return Err(format!(
+            return Err(Error::value(format!(
                 "{} indices is not a whole number of triangles",
                 self.indices.len()
-            ));
+            )));
         }
         let n = self.positions.len();
         if let Some(i) = self.indices.iter().find(|&&i| i as usize >= n) {
-            return Err(format!("index {i} is out of range ({n} vertices)"));
+            return Err(Error::value(format!(
+                "index {i} is out of range ({n} vertices)"
+            )));
         }
         if !self.normals.is_empty() && self.normals.len() != n {
-            return Err(format!("{} normals for {n} vertices", self.normals.len()));
+            return Err(Error::value(format!(
+                "{} normals for {n} vertices",
+                self.normals.len()
+            )));
         }
         if !self.colors.is_empty() && self.colors.len() != n {
-            return Err(format!("{} colours for {n} vertices", self.colors.len()));
+            return Err(Error::value(format!(
+                "{} colours for {n} vertices",
+                self.colors.len()
+            )));
         }
         if let Some((i, p)) = self
             .positions
@@ -166,7 +175,9 @@ impl Mesh {
             .enumerate()
             .find(|(_, p)| !p.is_finite())
         {
-            return Err(format!("vertex {i} has a non-finite coordinate {p}"));
+            return Err(Error::value(format!(
+                "vertex {i} has a non-finite coordinate {p}"
+            )));
         }
         Ok(())
     }

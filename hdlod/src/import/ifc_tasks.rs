@@ -75,7 +75,8 @@ pub fn read(path: &Path, schema: &str, step: &[u8]) -> Result<Vec<ScheduleTask>>
             ));
         };
         let parse = |text: &str, field: &str| {
-            parse_date(text).map_err(|m| Error::invalid(path, format!("#{time_id} {field}"), m))
+            parse_date(text)
+                .map_err(|m| Error::invalid(path, format!("#{time_id} {field}"), m.to_string()))
         };
         let (start, finish) = (parse(start, "start")?, parse(finish, "finish")?);
         if finish < start {

@@ -62,7 +62,7 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
         }
         let date = |field: &str| -> Result<Option<_>> {
             child(task, field)
-                .map(|t| parse_date(t).map_err(|m| Error::invalid(path, at(field), m)))
+                .map(|t| parse_date(t).map_err(|m| Error::invalid(path, at(field), m.to_string())))
                 .transpose()
         };
         let (Some(start), Some(finish)) = (date("Start")?, date("Finish")?) else {

@@ -50,7 +50,7 @@ pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
 /// from other files are made unit length first.
 pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
     mesh.validate()
-        .map_err(|m| Error::invalid(path, "mesh", m))?;
+        .map_err(|m| Error::invalid(path, "mesh", m.to_string()))?;
     std::fs::write(path, mesh_to_glb(&unit_normals(mesh))).map_err(|e| Error::io(path, e))
 }
 
@@ -104,9 +104,9 @@ pub fn write_lod(levels: &[Mesh], coverage: &[f32], path: &Path) -> Result<()> {
             .and_then(|()| {
                 (!mesh.is_empty())
                     .then_some(())
-                    .ok_or_else(|| "no triangles".to_string())
+                    .ok_or_else(|| Error::value("no triangles"))
             })
-            .map_err(|m| Error::invalid(path, format!("level {i}"), m))?;
+            .map_err(|m| Error::invalid(path, format!("level {i}"), m.to_string()))?;
     }
     let levels: Vec<Mesh> = levels
         .iter()

@@ -359,7 +359,7 @@ fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<M
             return Err(at("the indices are not a whole number of triangles".into()));
         }
     }
-    out.validate()?;
+    out.validate().map_err(|e| e.to_string())?;
     if let Some(i) = out.normals.iter().position(|n| !n.is_finite()) {
         return Err(format!("normal {i} is not finite"));
     }

@@ -32,6 +32,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
             ));
         }
     };
-    mesh.validate().map_err(|m| Error::file(path, m))?;
+    mesh.validate()
+        .map_err(|m| Error::file(path, m.to_string()))?;
     Ok(mesh)
 }

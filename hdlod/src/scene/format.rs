@@ -134,7 +134,9 @@ impl Loader<'_> {
     }
 
     fn time(&self, span: &TimeSpan, value: &TimeValue, at: &str) -> Result<f64> {
-        let t = span.resolve(value).map_err(|m| self.err(at, m))?;
+        let t = span
+            .resolve(value)
+            .map_err(|m| self.err(at, m.to_string()))?;
         if t.abs() > MAX_SECONDS {
             return Err(self.err(
                 at,
@@ -154,7 +156,7 @@ impl Loader<'_> {
                 format!("{:?} is not supported (expected {FORMAT:?})", f.format),
             ));
         }
-        let start = parse_date(&f.time.start).map_err(|m| self.err("time.start", m))?;
+        let start = parse_date(&f.time.start).map_err(|m| self.err("time.start", m.to_string()))?;
         let mut time = TimeSpan {
             start,
             seconds: 0.0,
@@ -238,8 +240,10 @@ impl Loader<'_> {
                     scale: Vec3::from(key.scale),
                 });
             }
-            objects[i].motion =
-                Some(Motion::new(frames).map_err(|m| self.err(format!("object {id:?}"), m))?);
+            objects[i].motion = Some(
+                Motion::new(frames)
+                    .map_err(|m| self.err(format!("object {id:?}"), m.to_string()))?,
+            );
         }
 
         let mut scene = Scene {
@@ -444,7 +448,7 @@ fn check(scene: &Scene) -> Result<()> {
     }
     for (m, mesh) in scene.meshes.iter().enumerate() {
         mesh.validate()
-            .map_err(|e| Error::argument(format!("mesh {m}"), e))?;
+            .map_err(|e| Error::argument(format!("mesh {m}"), e.to_string()))?;
     }
     for t in &scene.tasks {
         let at = format!("task {:?}", t.id);

@@ -4,6 +4,8 @@
 
 use glam::{Mat4, Quat, Vec3};
 
+use crate::error::{Error, Result};
+
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Keyframe {
     /// Seconds since the scene's start.
@@ -28,9 +30,9 @@ pub struct Motion {
 impl Motion {
     /// Sorts the keyframes by time. Errors on an empty list, on two
     /// keyframes at the same time and on non-finite values.
-    pub fn new(mut keys: Vec<Keyframe>) -> Result<Self, String> {
+    pub fn new(mut keys: Vec<Keyframe>) -> Result<Self> {
         if keys.is_empty() {
-            return Err("a motion needs at least one keyframe".into());
+            return Err(Error::value("a motion needs at least one keyframe"));
         }
         for (i, k) in keys.iter().enumerate() {
             if !k.t.is_finite()
@@ -38,15 +40,17 @@ impl Motion {
                 || !k.rotation.is_finite()
                 || !k.scale.is_finite()
             {
-                return Err(format!("keyframe {i} has a non-finite value"));
+                return Err(Error::value(format!("keyframe {i} has a non-finite value")));
             }
             if k.rotation.length_squared() < 1e-12 {
-                return Err(format!("keyframe {i} has a zero rotation quaternion"));
+                return Err(Error::value(format!(
+                    "keyframe {i} has a zero rotation quaternion"
+                )));
             }
         }
         keys.sort_by(|a, b| a.t.total_cmp(&b.t));
         if let Some(w) = keys.windows(2).find(|w| w[0].t == w[1].t) {
-            return Err(format!("two keyframes at t = {}", w[0].t));
+            return Err(Error::value(format!("two keyframes at t = {}", w[0].t)));
         }
         for k in &mut keys {
             k.rotation = k.rotation.normalize();

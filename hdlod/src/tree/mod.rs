@@ -86,16 +86,20 @@ pub struct Steps {
 }
 
 impl Steps {
-    pub fn new(steps: Vec<(f64, f32)>) -> Result<Self, String> {
+    pub fn new(steps: Vec<(f64, f32)>) -> Result<Self> {
         for (i, &(t, v)) in steps.iter().enumerate() {
             if !t.is_finite() || !v.is_finite() {
-                return Err(format!("step {i} has a non-finite value"));
+                return Err(Error::value(format!("step {i} has a non-finite value")));
             }
             if !(0.0..=1.0).contains(&v) {
-                return Err(format!("step {i}: value {v} is outside [0, 1]"));
+                return Err(Error::value(format!(
+                    "step {i}: value {v} is outside [0, 1]"
+                )));
             }
             if i > 0 && steps[i - 1].0 >= t {
-                return Err(format!("step {i}: time {t} does not follow the one before"));
+                return Err(Error::value(format!(
+                    "step {i}: time {t} does not follow the one before"
+                )));
             }
         }
         Ok(Steps { steps })
@@ -513,7 +517,7 @@ impl Tree {
             ));
         }
         let start = parse_date(&manifest.time.start)
-            .map_err(|m| Error::invalid(&mfile, "time.start", m))?;
+            .map_err(|m| Error::invalid(&mfile, "time.start", m.to_string()))?;
         let aabb =
             |b: format::BoundsRecord| Aabb::new(DVec3::from_array(b.min), DVec3::from_array(b.max));
         let mut out = Vec::with_capacity(clusters.clusters.len());
@@ -526,7 +530,7 @@ impl Tree {
                 .iter()
                 .map(|&(t, v)| (t, v as f32))
                 .collect::<Vec<_>>();
-            let visibility = Steps::new(steps).map_err(|m| bad("visibility", m))?;
+            let visibility = Steps::new(steps).map_err(|m| bad("visibility", m.to_string()))?;
             let motion = match r.motion {
                 None => None,
                 Some(keys) => {
@@ -545,7 +549,7 @@ impl Tree {
                             scale: Vec3::from_array(k.scale),
                         })
                         .collect();
-                    Some(Motion::new(keys).map_err(|m| bad("motion", m))?)
+                    Some(Motion::new(keys).map_err(|m| bad("motion", m.to_string()))?)
                 }
             };
             out.push(Cluster {

@@ -116,7 +116,7 @@ fn read_config(path: &Path) -> anyhow::Result<BuildConfig> {
         serde_json::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     config
         .validate()
-        .map_err(|(field, message)| anyhow::anyhow!("{}: {field}: {message}", path.display()))?;
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     Ok(config)
 }
 

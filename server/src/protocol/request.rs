@@ -176,7 +176,7 @@ pub fn resolve_time(tree: &Tree, field: &str, time: &TimeValue) -> Result<f64, P
     let t = tree
         .time
         .resolve(time)
-        .map_err(|m| ProtocolError::new(field, m))?;
+        .map_err(|m| ProtocolError::new(field, m.to_string()))?;
     within_period(field, t)
 }
 
