@@ -2,6 +2,8 @@
 
 mod common;
 
+use std::process::Command;
+
 use serde_json::Value;
 
 fn hdlod(args: &[&str]) -> (bool, String, String) {
@@ -120,4 +122,24 @@ fn bench_paper_writes_the_table() {
     let text = std::fs::read_to_string(&doc).unwrap();
     assert!(text.starts_with("# Benchmarks\n\nOther text.\n"));
     assert_eq!(text.matches("| animation | 1/16 |").count(), 1, "{text}");
+
+    // Without --doc, run where a docs/benchmarks.md lies, nothing is written.
+    let here = dir.path().join("clone");
+    std::fs::create_dir_all(here.join("docs")).unwrap();
+    std::fs::write(here.join("docs/benchmarks.md"), "# Benchmarks\n").unwrap();
+    let out = Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args(&args[..args.len() - 3])
+        .current_dir(&here)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    assert!(String::from_utf8_lossy(&out.stdout).contains("| animation | 1/16 |"));
+    assert_eq!(
+        std::fs::read_to_string(here.join("docs/benchmarks.md")).unwrap(),
+        "# Benchmarks\n"
+    );
 }

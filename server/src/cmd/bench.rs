@@ -35,9 +35,10 @@ pub struct PaperArgs {
     /// Timings per cell (the median is reported).
     #[arg(long, default_value_t = 21)]
     repeats: usize,
-    /// Markdown file whose "paper table" section is replaced ("-": none).
-    #[arg(long, default_value = "docs/benchmarks.md")]
-    doc: String,
+    /// Markdown file whose "paper table" section is replaced. A benchmark
+    /// writes no file unless asked, so without it the table is only printed.
+    #[arg(long)]
+    doc: Option<PathBuf>,
 }
 
 #[derive(clap::Args)]
@@ -108,9 +109,8 @@ fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
     } else {
         print!("{table}");
     }
-    if args.doc != "-" {
-        let path = PathBuf::from(&args.doc);
-        let old = std::fs::read_to_string(&path).unwrap_or_else(|_| "# Benchmarks\n".into());
+    if let Some(path) = &args.doc {
+        let old = std::fs::read_to_string(path).unwrap_or_else(|_| "# Benchmarks\n".into());
         let new = match (old.find(BEGIN), old.find(END)) {
             (Some(a), Some(b)) if a < b => format!(
                 "{}{table}{}",
@@ -119,7 +119,7 @@ fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
             ),
             _ => format!("{}\n\n## The paper's table 2\n\n{table}", old.trim_end()),
         };
-        std::fs::write(&path, new).with_context(|| path.display().to_string())?;
+        std::fs::write(path, new).with_context(|| path.display().to_string())?;
         eprintln!("table written into {}", path.display());
     }
     Ok(())
