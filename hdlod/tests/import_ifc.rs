@@ -1,6 +1,7 @@
 //! IFC geometry and IFC4 tasks: the hand-written fixtures/ifc-tiny/tiny.ifc
 //! (every number below follows from its text), broken files, .ifczip, and
 //! the real Schependomlaan models when the test data holds them.
+#![cfg(feature = "ifc")]
 
 mod common;
 

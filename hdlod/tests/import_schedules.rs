@@ -1,5 +1,6 @@
 //! Schedules and linking rules: Microsoft Project XML, the element-task CSV,
 //! and rules over the objects of fixtures/ifc-tiny/tiny.ifc.
+#![cfg(feature = "ifc")]
 
 use std::path::{Path, PathBuf};
 

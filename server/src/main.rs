@@ -47,8 +47,17 @@ enum Command {
     /// A discrete LOD chain of one mesh in one GLB (MSFT_lod).
     Lod(cmd::lod::Args),
     /// Import BIM models and their schedule into a scene.
+    #[cfg(feature = "ifc")]
     #[command(subcommand)]
     Import(cmd::import::Import),
+    /// Not in this build: it was compiled without the `ifc` feature. Kept
+    /// so that the command answers why instead of "unrecognized subcommand".
+    #[cfg(not(feature = "ifc"))]
+    #[command(hide = true)]
+    Import {
+        #[arg(trailing_var_arg = true, allow_hyphen_values = true)]
+        args: Vec<String>,
+    },
 }
 
 fn main() -> ExitCode {
@@ -70,7 +79,13 @@ fn main() -> ExitCode {
         Command::Bench(b) => cmd::bench::run(b),
         Command::Simplify(a) => cmd::simplify::run(a),
         Command::Lod(a) => cmd::lod::run(a),
+        #[cfg(feature = "ifc")]
         Command::Import(c) => cmd::import::run(c),
+        #[cfg(not(feature = "ifc"))]
+        Command::Import { .. } => Err(anyhow::anyhow!(
+            "this hdlod was built without IFC import: rebuild it with the `ifc` cargo feature \
+             (on by default; left out by --no-default-features)"
+        )),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -1,5 +1,6 @@
 //! `hdlod import ifc` on fixtures/ifc-tiny: the report and the scene follow
 //! their schemas, the scene builds, bad input is a clear error.
+#![cfg(feature = "ifc")]
 
 #[path = "../../hdlod/tests/common/mod.rs"]
 mod common;

@@ -6,6 +6,7 @@ pub mod cut;
 pub mod demo;
 pub mod export_tiles;
 pub mod fixture;
+#[cfg(feature = "ifc")]
 pub mod import;
 pub mod inspect;
 pub mod lod;
