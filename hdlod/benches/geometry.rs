@@ -110,6 +110,7 @@ fn small_clusters(c: &mut Criterion) {
             mesh: &cube,
             transform: Mat4::from_translation(Vec3::new(i as f32 * 1.1, 0.0, (i % 3) as f32)),
             color: [0.8, 0.8, 0.8, 1.0],
+            feature: None,
         })
         .collect();
     let mut g = c.benchmark_group("small_cluster");

@@ -252,6 +252,7 @@ fn stored_eps_bounds_the_distance_to_the_original_objects() {
                     mesh: &b.scene.meshes[o.mesh],
                     transform: o.pose(shown),
                     color: o.color,
+                    feature: None,
                 }
             })
             .collect();
@@ -315,4 +316,108 @@ fn single_child_parents_reduce_their_child() {
         found[0] > 0 && found[1] > 0,
         "single-child parents (static or pseudo-dynamic, dynamic): {found:?}"
     );
+}
+
+/// Every cluster GLB carries a feature id per vertex (`_FEATURE_ID_0` with
+/// `EXT_mesh_features`), each triangle on one object; a leaf's ids are its
+/// object's, a parent's are objects below it; the Khronos validator finds
+/// no error in any of them.
+#[test]
+fn every_cluster_glb_carries_its_objects_feature_ids() {
+    let b = built();
+    let index: HashMap<&str, u32> = b
+        .scene
+        .objects
+        .iter()
+        .enumerate()
+        .map(|(i, o)| (o.id.as_str(), i as u32))
+        .collect();
+    let mut files = Vec::new();
+    for c in &b.tree.clusters {
+        let Some(hash) = &c.geometry else { continue };
+        let file = b.dir.join("geometry").join(format!("{hash}.glb"));
+        let mesh = read_mesh(&file).unwrap();
+        assert_eq!(
+            mesh.features.len(),
+            mesh.positions.len(),
+            "cluster {}",
+            c.id
+        );
+        for t in mesh.indices.chunks_exact(3) {
+            let f = mesh.features[t[0] as usize];
+            assert!(
+                t.iter().all(|&i| mesh.features[i as usize] == f),
+                "cluster {}: a triangle spans two objects",
+                c.id
+            );
+        }
+        let below: std::collections::HashSet<u32> = leaves_below(&b.tree, c.id)
+            .iter()
+            .flat_map(|&l| &b.tree.clusters[l as usize].objects)
+            .map(|o| index[o.as_str()])
+            .collect();
+        let mut distinct = mesh.features.clone();
+        distinct.sort_unstable();
+        distinct.dedup();
+        assert!(
+            distinct.iter().all(|f| below.contains(f)),
+            "cluster {}: features {distinct:?}, objects below {below:?}",
+            c.id
+        );
+        if c.is_leaf() {
+            assert_eq!(distinct.len(), 1, "leaf {}", c.id);
+        }
+        let bytes = std::fs::read(&file).unwrap();
+        let glb = gltf::binary::Glb::from_slice(&bytes).unwrap();
+        let json: serde_json::Value = serde_json::from_slice(&glb.json).unwrap();
+        assert_eq!(
+            json["extensionsUsed"],
+            serde_json::json!(["EXT_mesh_features"])
+        );
+        let primitive = &json["meshes"][0]["primitives"][0];
+        assert!(primitive["attributes"]["_FEATURE_ID_0"].is_u64());
+        let ids = &primitive["extensions"]["EXT_mesh_features"]["featureIds"][0];
+        assert_eq!(ids["attribute"], 0);
+        assert_eq!(ids["featureCount"], distinct.len());
+        files.push(file);
+    }
+    assert!(files.len() > 10);
+    common::assert_no_gltf_errors(&files);
+}
+
+/// Feature fidelity: the triangles a cluster gives an object lie within the
+/// cluster's `eps_c` of that object's own geometry.
+#[test]
+fn an_objects_triangles_lie_within_eps_of_the_object() {
+    let b = built();
+    let clusters: Vec<u32> = b.tree.clusters.iter().map(|c| c.id).collect();
+    let distances =
+        hdlod::tree::fidelity::feature_distances(&b.dir, &b.tree, &b.scene, &clusters, 1e-4)
+            .unwrap();
+    assert!(distances.len() >= b.scene.objects.len() / 2);
+    // What the measure adds for float rounding (`one_sided_bound`), and its
+    // tolerance.
+    let largest = b
+        .tree
+        .bounds
+        .min
+        .abs()
+        .max(b.tree.bounds.max.abs())
+        .max_element();
+    let slack = 16.0 * f64::from(f32::EPSILON) * largest + 1e-4;
+    let mut coarse = 0;
+    for d in &distances {
+        assert!(
+            d.distance <= d.eps + slack,
+            "cluster {} object {}: {} triangles up to {} from it, eps {}",
+            d.cluster,
+            d.feature,
+            d.triangles,
+            d.distance,
+            d.eps
+        );
+        coarse += usize::from(d.eps > 0.0 && d.distance > 0.0);
+    }
+    // The check saw reduced geometry, not only leaves.
+    assert!(coarse > 10, "{coarse} reduced features");
 }

@@ -16,6 +16,7 @@ fn part(mesh: &Mesh, transform: Mat4, color: [f32; 4]) -> Part<'_> {
         mesh,
         transform,
         color,
+        feature: None,
     }
 }
 

@@ -91,6 +91,7 @@ fn box_field(count: usize) -> Mesh {
                 ((i / 10) % 10) as f32,
             )),
             color: [1.0, 0.5, 0.25, 1.0],
+            feature: None,
         })
         .collect();
     merge(&parts, 1e-5)

@@ -1,10 +1,11 @@
-//! Dynamic objects: one cluster per object, its geometry in its own frame
-//! and shared by content hash among identical instances, and above it a
-//! discrete LOD chain of its model: coarser versions, each with its
-//! measured Hausdorff error to the original and the object's own
-//! visibility and motion.
+//! Dynamic objects: one cluster per object, its geometry in its own frame,
+//! and above it a discrete LOD chain of its model: coarser versions, each
+//! with its measured Hausdorff error to the original and the object's own
+//! visibility and motion. Identical instances share the chain's making;
+//! each stores its own copy carrying its feature id.
 
 use std::collections::HashMap;
+use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
@@ -18,10 +19,10 @@ use crate::geometry::{self, Mesh, Part};
 use crate::scene::{Scene, Visibility};
 use crate::tree::{Cluster, ClusterClass};
 
-/// One version of a model: its stored geometry and what the tree records.
+/// One version of a model: its geometry and what the tree records.
 #[derive(Clone)]
 struct Version {
-    hash: String,
+    mesh: Arc<Mesh>,
     triangles: u64,
     eps: f64,
     bounds: (Vec3, Vec3),
@@ -34,14 +35,15 @@ struct Version {
 /// when it has at most `min_reduction` of the triangles of the version
 /// below. The cut takes a coarser version once its error is small enough
 /// on screen, so the chain is made by error, not by triangle count.
-fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
+fn chain(ctx: &Context, mesh: Mesh) -> Vec<Version> {
     let bounds = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let mut out = vec![Version {
-        hash: ctx.sink.put(mesh)?,
         triangles: mesh.triangle_count() as u64,
         eps: 0.0,
         bounds,
+        mesh: Arc::new(mesh),
     }];
+    let mesh = out[0].mesh.clone();
     let size = f64::from((bounds.1 - bounds.0).length());
     for &share in &ctx.config.dynamic_budgets {
         let previous = out.last().expect("chain starts with the original");
@@ -52,7 +54,7 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
         let tolerance = (budget * ctx.config.hausdorff_fraction) as f32;
         // Measured against the original model directly: a tighter bound
         // than a recursive sum, and still a bound. Kept monotone.
-        let Some((reduced, h)) = reduce_within(mesh, budget as f32, tolerance) else {
+        let Some((reduced, h)) = reduce_within(&mesh, budget as f32, tolerance) else {
             continue;
         };
         if reduced.triangle_count() as f64 > previous.triangles as f64 * ctx.config.min_reduction {
@@ -62,13 +64,13 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
         // Contains the finer versions' boxes, as a parent's box must.
         let (lo, hi) = reduced.bounds().unwrap_or(bounds);
         out.push(Version {
-            hash: ctx.sink.put(&reduced)?,
             triangles: reduced.triangle_count() as u64,
             eps,
             bounds: (lo.min(previous.bounds.0), hi.max(previous.bounds.1)),
+            mesh: Arc::new(reduced),
         });
     }
-    Ok(out)
+    out
 }
 
 /// Adds the clusters of the dynamic objects; answers the tops of their
@@ -89,7 +91,7 @@ pub(super) fn dynamic_chains(
     let mut models: Vec<(usize, [u32; 4])> = objects.iter().map(|&(i, _)| key(i)).collect();
     models.sort_unstable();
     models.dedup();
-    let chains: Vec<Result<Vec<Version>>> = models
+    let chains: Vec<Vec<Version>> = models
         .par_iter()
         .map(|&(mesh, color)| {
             let coloured = geometry::merge(
@@ -97,31 +99,46 @@ pub(super) fn dynamic_chains(
                     mesh: &scene.meshes[mesh],
                     transform: Mat4::IDENTITY,
                     color: color.map(f32::from_bits),
+                    feature: None,
                 }],
                 0.0,
             );
-            chain(ctx, &coloured)
+            chain(ctx, coloured)
         })
         .collect();
-    let mut by_model: HashMap<(usize, [u32; 4]), Vec<Version>> = HashMap::new();
-    for (m, c) in models.into_iter().zip(chains) {
-        by_model.insert(m, c?);
-    }
+    let by_model: HashMap<(usize, [u32; 4]), Vec<Version>> =
+        models.into_iter().zip(chains).collect();
+    // Each object's copy of its chain, with its feature id.
+    let hashes: Vec<Result<Vec<String>>> = objects
+        .par_iter()
+        .map(|&(i, _)| {
+            by_model[&key(i)]
+                .iter()
+                .map(|v| {
+                    ctx.sink.put(&Mesh {
+                        features: vec![i as u32; v.mesh.positions.len()],
+                        ..(*v.mesh).clone()
+                    })
+                })
+                .collect()
+        })
+        .collect();
 
     let mut stats: Vec<LevelStats> = Vec::new();
     let mut tops = Vec::with_capacity(objects.len());
-    for (i, visibility) in objects {
+    for ((i, visibility), hashes) in objects.iter().zip(hashes) {
         let i = *i;
         let o = &scene.objects[i];
         let versions = &by_model[&key(i)];
+        let hashes = hashes?;
         let visibility = StepFunction::of_visibility(visibility, ctx.span);
         let mut below: Option<u32> = None;
-        for (level, v) in versions.iter().enumerate() {
+        for (level, (v, hash)) in versions.iter().zip(hashes).enumerate() {
             let node = Node {
                 eps: v.eps,
                 children: below.into_iter().collect(),
                 motion: o.motion.clone(),
-                geometry: Some((v.hash.clone(), v.triangles)),
+                geometry: Some((hash, v.triangles)),
                 objects: if level == 0 {
                     vec![o.id.clone()]
                 } else {

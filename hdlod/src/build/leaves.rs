@@ -109,6 +109,7 @@ pub(super) fn leaves(
                     mesh: &scene.meshes[o.mesh],
                     transform: p.transform,
                     color: o.color,
+                    feature: Some(p.object as u32),
                 }],
                 0.0,
             );

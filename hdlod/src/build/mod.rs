@@ -56,6 +56,16 @@ pub fn build(
         }
         _ => scene,
     };
+    if scene.objects.len() > crate::io::glb::MAX_FEATURE_ID as usize {
+        return Err(Error::argument(
+            "scene.objects",
+            format!(
+                "{} objects: a tree's feature ids reach {} objects at most",
+                scene.objects.len(),
+                crate::io::glb::MAX_FEATURE_ID
+            ),
+        ));
+    }
     let span = scene.time.seconds;
     let mut stats = BuildStats::default();
     let mut clusters: Vec<Cluster> = Vec::new();

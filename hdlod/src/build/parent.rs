@@ -39,6 +39,7 @@ pub(super) fn make_parent(
             mesh: &c.mesh,
             transform: Mat4::IDENTITY,
             color: [1.0; 4],
+            feature: None,
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);
@@ -108,6 +109,7 @@ fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32, budget: f64)
             mesh: m,
             transform: Mat4::IDENTITY,
             color: [1.0; 4],
+            feature: None,
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);

@@ -118,6 +118,8 @@ impl obvhs::Boundable for Tri {
 pub struct TriangleSet {
     /// In BVH leaf order, so that a leaf's range indexes this directly.
     tris: Vec<Tri>,
+    /// Each triangle's position in the input, for `input_index`.
+    inputs: Vec<u32>,
     bvh: Option<Bvh2>,
 }
 
@@ -131,16 +133,26 @@ pub struct Nearest {
 
 impl TriangleSet {
     pub fn new(triangles: impl Iterator<Item = [Vec3; 3]>) -> Self {
-        let tris: Vec<Tri> = triangles
-            .filter(|t| t.iter().all(|p| p.is_finite()))
-            .map(|[a, b, c]| Tri {
-                a: a.into(),
-                b: b.into(),
-                c: c.into(),
+        let (inputs, tris): (Vec<u32>, Vec<Tri>) = triangles
+            .enumerate()
+            .filter(|(_, t)| t.iter().all(|p| p.is_finite()))
+            .map(|(i, [a, b, c])| {
+                (
+                    i as u32,
+                    Tri {
+                        a: a.into(),
+                        b: b.into(),
+                        c: c.into(),
+                    },
+                )
             })
-            .collect();
+            .unzip();
         if tris.len() <= BRUTE_FORCE_MAX {
-            return TriangleSet { tris, bvh: None };
+            return TriangleSet {
+                tris,
+                inputs,
+                bvh: None,
+            };
         }
         // A minimal search distance builds fastest; the queries only need
         // a reasonable tree, not a ray-tracing quality one.
@@ -157,10 +169,22 @@ impl TriangleSet {
             .iter()
             .map(|&i| tris[i as usize])
             .collect();
+        let inputs = bvh
+            .primitive_indices
+            .iter()
+            .map(|&i| inputs[i as usize])
+            .collect();
         TriangleSet {
             tris,
+            inputs,
             bvh: Some(bvh),
         }
+    }
+
+    /// The position of `triangle` (a handle from `nearest`) in the
+    /// triangles the set was made of.
+    pub fn input_index(&self, triangle: u32) -> u32 {
+        self.inputs[triangle as usize]
     }
 
     pub fn is_empty(&self) -> bool {

@@ -1,5 +1,7 @@
 //! Merging the triangles of many placed objects into one indexed mesh (one
-//! draw call per cluster), welding coincident vertices.
+//! draw call per cluster), welding coincident vertices of one object; the
+//! vertices of two objects never weld, so that every triangle keeps its
+//! object's feature id and no simplifier's edge joins two objects.
 //!
 //! The weld is a uniform grid of cell size `tolerance` with a search of the
 //! 27 neighbouring cells, so that two vertices within the tolerance always
@@ -13,13 +15,15 @@ use glam::{Mat4, Vec3};
 
 use super::Mesh;
 
-/// One object to merge: its mesh, where it is, and its colour (used where
-/// the mesh has no vertex colours).
+/// One object to merge: its mesh, where it is, its colour (used where the
+/// mesh has no vertex colours) and its feature (given to every vertex;
+/// `None` keeps the mesh's own feature ids).
 #[derive(Debug, Clone, Copy)]
 pub struct Part<'a> {
     pub mesh: &'a Mesh,
     pub transform: Mat4,
     pub color: [f32; 4],
+    pub feature: Option<u32>,
 }
 
 /// Normals closer than this (`1 - cos` of the angle, for unit normals)
@@ -28,23 +32,29 @@ const NORMAL_TOLERANCE: f32 = 1e-4;
 /// Colours closer than this in every channel count as the same.
 const COLOR_TOLERANCE: f32 = 1.0 / 512.0;
 
-/// Merges `parts` into one mesh with per-vertex colours and normals. Parts
+/// Merges `parts` into one mesh with per-vertex colours and normals, and
+/// feature ids when every part has them (its own or the part's). Parts
 /// without normals get area-weighted vertex normals of their own triangles.
-/// Vertices within `weld_tolerance` of each other and with the same normal
-/// and colour become one (at the first one's position); a triangle that
-/// loses a corner to the weld is dropped. Triangles with an out-of-range
-/// index or a non-finite corner (after the transform) are left out.
+/// Vertices within `weld_tolerance` of each other and with the same normal,
+/// colour and feature become one (at the first one's position); a triangle
+/// that loses a corner to the weld is dropped. Triangles with an
+/// out-of-range index or a non-finite corner (after the transform) are
+/// left out.
 pub fn merge(parts: &[Part<'_>], weld_tolerance: f32) -> Mesh {
     let tolerance = if weld_tolerance.is_finite() {
         weld_tolerance.max(0.0)
     } else {
         0.0
     };
+    let with_features = parts
+        .iter()
+        .all(|p| p.feature.is_some() || p.mesh.features.len() == p.mesh.positions.len());
     let mut welder = Welder::new(tolerance);
     let mut out = Mesh::default();
     for part in parts {
         let mesh = part.mesh;
         let n = mesh.positions.len();
+        let own_features = mesh.features.len() == n;
         let positions: Vec<Vec3> = mesh
             .positions
             .iter()
@@ -76,11 +86,15 @@ pub fn merge(parts: &[Part<'_>], weld_tolerance: f32) -> Mesh {
                         .get(i)
                         .copied()
                         .filter(|_| mesh.colors.len() == n);
+                    let feature = with_features
+                        .then(|| part.feature.or(own_features.then(|| mesh.features[i])))
+                        .flatten();
                     ids[i] = welder.insert(
                         &mut out,
                         positions[i],
                         normals[i],
                         color.unwrap_or(part.color),
+                        feature,
                     );
                 }
                 tri[k] = ids[i];
@@ -117,7 +131,7 @@ struct Welder {
     /// Cell -> welded vertices in it.
     cells: HashMap<[i32; 3], Vec<u32>>,
     /// With a zero tolerance only identical vertices weld: exact keys.
-    exact: HashMap<[u32; 10], u32>,
+    exact: HashMap<[u32; 11], u32>,
 }
 
 impl Welder {
@@ -135,10 +149,11 @@ impl Welder {
         (p / self.tolerance).floor().to_array().map(|x| x as i32)
     }
 
-    fn insert(&mut self, out: &mut Mesh, p: Vec3, n: Vec3, c: [f32; 4]) -> u32 {
+    fn insert(&mut self, out: &mut Mesh, p: Vec3, n: Vec3, c: [f32; 4], f: Option<u32>) -> u32 {
         let next = out.positions.len() as u32;
         let id = if self.tolerance == 0.0 {
-            let mut key = [0u32; 10];
+            let mut key = [0u32; 11];
+            key[10] = f.unwrap_or(0);
             for (k, x) in p
                 .to_array()
                 .into_iter()
@@ -166,7 +181,8 @@ impl Welder {
                         };
                         for &v in list {
                             let i = v as usize;
-                            if out.positions[i].distance(p) <= self.tolerance
+                            if out.features.get(i).copied() == f
+                                && out.positions[i].distance(p) <= self.tolerance
                                 && out.normals[i].distance_squared(n) <= 2.0 * NORMAL_TOLERANCE
                                 && out.colors[i]
                                     .iter()
@@ -192,6 +208,7 @@ impl Welder {
             out.positions.push(p);
             out.normals.push(n);
             out.colors.push(c);
+            out.features.extend(f);
         }
         id
     }

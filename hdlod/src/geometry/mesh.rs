@@ -4,13 +4,18 @@ use std::collections::HashMap;
 use glam::{Mat4, Vec3};
 
 /// An indexed triangle mesh: a polygon soup as far as any algorithm may
-/// assume (no manifoldness, no connectivity). `normals` and `colors` are
-/// either empty or one per position; colours are linear RGBA.
+/// assume (no manifoldness, no connectivity). `normals`, `colors` and
+/// `features` are either empty or one per position; colours are linear
+/// RGBA. A feature is the scene object a vertex belongs to (its index in
+/// the scene); every stage that makes triangles keeps the three corners of
+/// a triangle on one feature, so that a viewer can pick, hide and colour
+/// objects inside a merged and simplified cluster.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Mesh {
     pub positions: Vec<Vec3>,
     pub normals: Vec<Vec3>,
     pub colors: Vec<[f32; 4]>,
+    pub features: Vec<u32>,
     pub indices: Vec<u32>,
 }
 
@@ -57,8 +62,19 @@ impl Mesh {
                 .map(|n| normal_m.transform_vector3(*n).normalize_or_zero())
                 .collect(),
             colors: self.colors.clone(),
+            features: self.features.clone(),
             indices: self.indices.clone(),
         }
+    }
+
+    /// The feature of each triangle (its first corner's), `None` for a
+    /// mesh without features.
+    pub fn triangle_features(&self) -> Option<impl Iterator<Item = u32> + '_> {
+        (!self.features.is_empty()).then(|| {
+            self.indices
+                .chunks_exact(3)
+                .map(|t| self.features[t[0] as usize])
+        })
     }
 
     /// The box from `lo` to `hi` with each face cut into `k x k` quads
@@ -82,6 +98,7 @@ impl Mesh {
             positions: Vec::with_capacity(vertices),
             normals: Vec::with_capacity(vertices),
             colors: Vec::new(),
+            features: Vec::new(),
             indices: Vec::with_capacity(36 * (k as usize).pow(2)),
         };
         for axis in 0..3 {
@@ -119,24 +136,25 @@ impl Mesh {
         mesh
     }
 
-    /// The mesh with its vertices merged by position alone (normals
-    /// dropped, the first colour kept, unused vertices gone): a
+    /// The mesh with its vertices merged by position (normals dropped, the
+    /// first colour kept, unused vertices gone), never across features: a
     /// flat-shaded mesh repeats each corner per face, and edge collapse
     /// cannot move a vertex along such a seam.
     pub fn welded(&self) -> Mesh {
-        let mut index: HashMap<[u32; 3], u32> = HashMap::with_capacity(self.positions.len());
+        let mut index: HashMap<([u32; 3], u32), u32> = HashMap::with_capacity(self.positions.len());
         let mut out = Mesh::default();
         for &i in &self.indices {
             let p = self.positions[i as usize];
-            let at = *index
-                .entry(p.to_array().map(f32::to_bits))
-                .or_insert_with(|| {
-                    out.positions.push(p);
-                    if let Some(c) = self.colors.get(i as usize) {
-                        out.colors.push(*c);
-                    }
-                    out.positions.len() as u32 - 1
-                });
+            let feature = self.features.get(i as usize).copied();
+            let key = (p.to_array().map(f32::to_bits), feature.unwrap_or(0));
+            let at = *index.entry(key).or_insert_with(|| {
+                out.positions.push(p);
+                if let Some(c) = self.colors.get(i as usize) {
+                    out.colors.push(*c);
+                }
+                out.features.extend(feature);
+                out.positions.len() as u32 - 1
+            });
             out.indices.push(at);
         }
         out
@@ -167,6 +185,12 @@ impl Mesh {
             return Err(Error::value(format!(
                 "{} colours for {n} vertices",
                 self.colors.len()
+            )));
+        }
+        if !self.features.is_empty() && self.features.len() != n {
+            return Err(Error::value(format!(
+                "{} feature ids for {n} vertices",
+                self.features.len()
             )));
         }
         if let Some((i, p)) = self

@@ -3,6 +3,7 @@
 
 mod closest;
 mod distance;
+mod features;
 mod hausdorff;
 pub mod measure;
 mod merge;

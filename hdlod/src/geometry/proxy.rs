@@ -16,7 +16,8 @@ use super::Mesh;
 
 /// The connected parts of `mesh` as lists of triangle indices, in order of
 /// first appearance. Parts are connected through shared vertices or
-/// coincident positions (flat-shaded meshes repeat corners per face).
+/// coincident positions (flat-shaded meshes repeat corners per face) of
+/// one feature: two objects are never one part.
 pub(super) fn parts(mesh: &Mesh) -> Vec<Vec<usize>> {
     let n = mesh.positions.len();
     let mut parent: Vec<u32> = (0..n as u32).collect();
@@ -33,9 +34,10 @@ pub(super) fn parts(mesh: &Mesh) -> Vec<Vec<usize>> {
             parent[ra.max(rb) as usize] = ra.min(rb);
         }
     };
-    let mut same_place: HashMap<[u32; 3], u32> = HashMap::with_capacity(n);
+    let mut same_place: HashMap<([u32; 3], u32), u32> = HashMap::with_capacity(n);
     for (i, p) in mesh.positions.iter().enumerate() {
-        let key = p.to_array().map(f32::to_bits);
+        let feature = mesh.features.get(i).copied().unwrap_or(0);
+        let key = (p.to_array().map(f32::to_bits), feature);
         let first = *same_place.entry(key).or_insert(i as u32);
         union(&mut parent, first, i as u32);
     }
@@ -69,10 +71,17 @@ pub(super) fn part_bounds(mesh: &Mesh, triangles: &[usize]) -> (Vec3, Vec3) {
     (lo, hi)
 }
 
-/// The colour of a part's first vertex.
-pub(super) fn part_color(mesh: &Mesh, triangles: &[usize]) -> [f32; 4] {
+/// The colour and feature a proxy gives its vertices.
+pub(super) type Look = ([f32; 4], Option<u32>);
+
+/// The colour and feature of a part's first vertex: a proxy stands in for
+/// the part in both.
+pub(super) fn part_look(mesh: &Mesh, triangles: &[usize]) -> Look {
     let first = mesh.indices[triangles[0] * 3] as usize;
-    mesh.colors.get(first).copied().unwrap_or([1.0; 4])
+    (
+        mesh.colors.get(first).copied().unwrap_or([1.0; 4]),
+        mesh.features.get(first).copied(),
+    )
 }
 
 /// Copies some triangles of `mesh` to `out` (unshared vertices).
@@ -91,22 +100,28 @@ fn push_vertex(out: &mut Mesh, mesh: &Mesh, i: usize) {
         .push(mesh.normals.get(i).copied().unwrap_or(Vec3::ZERO));
     out.colors
         .push(mesh.colors.get(i).copied().unwrap_or([1.0; 4]));
+    out.features.extend(mesh.features.get(i));
 }
 
-/// The part's box (`Mesh::cuboid`), flat-shaded in the part's colour.
-pub(super) fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
+/// The part's box (`Mesh::cuboid`), flat-shaded in the part's colour, of
+/// the part's feature.
+pub(super) fn push_box(out: &mut Mesh, lo: Vec3, hi: Vec3, look: Look) {
     let cuboid = Mesh::cuboid(lo, hi, 1);
     let base = out.positions.len() as u32;
     out.positions.extend(&cuboid.positions);
     out.normals.extend(&cuboid.normals);
     out.colors
-        .extend(std::iter::repeat_n(color, cuboid.positions.len()));
+        .extend(std::iter::repeat_n(look.0, cuboid.positions.len()));
+    if let Some(f) = look.1 {
+        out.features
+            .extend(std::iter::repeat_n(f, cuboid.positions.len()));
+    }
     out.indices.extend(cuboid.indices.iter().map(|i| base + i));
 }
 
 /// The part's box squashed to its mid-plane across its thinnest axis: one
 /// quad, facing along that axis (the material is double-sided).
-pub(super) fn push_quad(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
+pub(super) fn push_quad(out: &mut Mesh, lo: Vec3, hi: Vec3, look: Look) {
     let axis = (hi - lo).min_position();
     let (u, v) = ((axis + 1) % 3, (axis + 2) % 3);
     let mid = (lo[axis] + hi[axis]) / 2.0;
@@ -127,7 +142,8 @@ pub(super) fn push_quad(out: &mut Mesh, lo: Vec3, hi: Vec3, color: [f32; 4]) {
     ] {
         out.positions.push(p);
         out.normals.push(normal);
-        out.colors.push(color);
+        out.colors.push(look.0);
+        out.features.extend(look.1);
     }
     out.indices
         .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
@@ -166,7 +182,7 @@ mod tests {
         let mut proxies = Mesh::default();
         for p in &found {
             let (lo, hi) = part_bounds(&m, p);
-            push_box(&mut proxies, lo, hi, part_color(&m, p));
+            push_box(&mut proxies, lo, hi, part_look(&m, p));
         }
         assert_eq!(proxies.triangle_count(), 24);
         let h = hausdorff(

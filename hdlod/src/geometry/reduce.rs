@@ -28,7 +28,7 @@ use glam::Vec3;
 use super::Mesh;
 use super::closest::TriangleSet;
 use super::hausdorff::{bound_within, one_sided_bound};
-use super::proxy::{part_bounds, part_color, parts, push_box, push_quad, push_triangles};
+use super::proxy::{Look, part_bounds, part_look, parts, push_box, push_quad, push_triangles};
 use super::simplify::{SimplifyOptions, Strategy, edge_collapse_placed, simplify};
 
 /// A box has 12 triangles and a quad 2: parts with no more gain nothing
@@ -65,10 +65,10 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
             push_triangles(&mut input, mesh, &triangles);
             let (lo, hi) = part_bounds(mesh, &triangles);
             let size = (hi - lo).length();
-            let color = part_color(mesh, &triangles);
-            let proxy = |push: fn(&mut Mesh, Vec3, Vec3, [f32; 4])| {
+            let look = part_look(mesh, &triangles);
+            let proxy = |push: fn(&mut Mesh, Vec3, Vec3, Look)| {
                 let mut proxy = Mesh::default();
-                push(&mut proxy, lo, hi, color);
+                push(&mut proxy, lo, hi, look);
                 bound_within(&proxy, &input, tolerance, budget).map(|error| (proxy, error))
             };
             // Half the thickness is how far the quad's plane is from the
@@ -226,6 +226,7 @@ fn flat_shaded(mesh: &Mesh) -> Mesh {
             out.normals.push(normal);
             out.colors
                 .push(mesh.colors.get(i as usize).copied().unwrap_or([1.0; 4]));
+            out.features.extend(mesh.features.get(i as usize));
         }
     }
     out

@@ -19,7 +19,7 @@ use std::borrow::Cow;
 
 use meshopt::{SimplifyOptions as Flags, VertexDataAdapter, typed_to_bytes};
 
-use super::{Mesh, parallel};
+use super::{Mesh, features, parallel};
 
 /// What to simplify to.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -174,6 +174,7 @@ pub fn edge_collapse_placed(mesh: &Mesh, target_triangles: usize) -> Mesh {
         positions: positions.into_iter().map(glam::Vec3::from_array).collect(),
         normals: Vec::new(),
         colors: mesh.colors.clone(),
+        features: mesh.features.clone(),
         indices: Vec::new(),
     };
     compact(&moved, &indices)
@@ -251,6 +252,7 @@ pub(super) fn cleaned(mesh: &Mesh) -> Cow<'_, Mesh> {
     if mesh.indices.len().is_multiple_of(3)
         && fits(mesh.normals.len())
         && fits(mesh.colors.len())
+        && fits(mesh.features.len())
         && mesh.indices.iter().all(|&i| ok(i))
     {
         return Cow::Borrowed(mesh);
@@ -271,6 +273,11 @@ pub(super) fn cleaned(mesh: &Mesh) -> Cow<'_, Mesh> {
         },
         colors: if mesh.colors.len() == n {
             mesh.colors.clone()
+        } else {
+            Vec::new()
+        },
+        features: if mesh.features.len() == n {
+            mesh.features.clone()
         } else {
             Vec::new()
         },
@@ -378,14 +385,27 @@ fn edge_collapse_indices_in(
     .0
 }
 
+/// Vertex clustering; a mesh with feature ids is clustered feature by
+/// feature (`features::clustering_per_feature`).
 fn clustering_indices(mesh: &Mesh, options: &SimplifyOptions) -> Vec<u32> {
+    if !mesh.features.is_empty() {
+        return features::clustering_per_feature(
+            mesh,
+            options.target_triangles.unwrap_or(0),
+            |m, target| {
+                let error = relative_error(m, options);
+                meshopt::simplify_sloppy(&m.indices, &adapter(m), 3 * target, error, None)
+            },
+        );
+    }
     let target = options.target_triangles.unwrap_or(0) * 3;
     let error = relative_error(mesh, options);
     meshopt::simplify_sloppy(&mesh.indices, &adapter(mesh), target, error, None)
 }
 
 /// The mesh made of `indices` (into `mesh`'s vertices) with only the
-/// vertices they use, in first-use order.
+/// vertices they use, in first-use order, each triangle on one feature
+/// (`features::one_per_triangle`).
 pub(super) fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
     let mut remap = vec![u32::MAX; mesh.positions.len()];
     let mut out = Mesh::default();
@@ -401,8 +421,10 @@ pub(super) fn compact(mesh: &Mesh, indices: &[u32]) -> Mesh {
             if let Some(c) = mesh.colors.get(i as usize) {
                 out.colors.push(*c);
             }
+            out.features.extend(mesh.features.get(i as usize));
         }
         out.indices.push(*slot);
     }
+    features::one_per_triangle(&mut out, mesh);
     out
 }

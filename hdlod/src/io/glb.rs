@@ -26,8 +26,9 @@ use crate::geometry::Mesh;
 compile_error!("the GLB writer copies memory as little-endian bytes");
 
 /// One mesh as a GLB: positions, normals and `COLOR_0` when the mesh has
-/// them, and indices; one node and one white, non-metallic, double-sided
-/// material (vertex colours tint it). Double-sided because a coarse cluster
+/// them, its feature ids as `_FEATURE_ID_0` with `EXT_mesh_features` when it
+/// has them, and indices; one node and one white, non-metallic,
+/// double-sided material (vertex colours tint it). Double-sided because a coarse cluster
 /// stands a thin element in by one flat quad (`geometry::reduce_parts`),
 /// which must show from both sides, and because BIM triangle soup does not
 /// wind its faces consistently. The bytes depend only on the mesh, so they
@@ -35,23 +36,44 @@ compile_error!("the GLB writer copies memory as little-endian bytes");
 /// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
 /// an empty scene.
 pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
+    let mesh = &*unit_normals(mesh);
     let mut glb = GlbBuilder::new();
     let mut nodes = Vec::new();
+    let mut features = None;
     if !mesh.is_empty() {
         let accessors = glb.add_mesh(mesh);
         let material = glb.double_sided_material();
         let m = glb.add_primitive(&accessors, Some(material));
+        features = accessors.features.map(|(_, count)| (m.value(), count));
         nodes.push(glb.add_node(m, &Mat4::IDENTITY, None));
     }
-    glb.finish(nodes)
+    let Some((m, count)) = features else {
+        return glb.finish(nodes);
+    };
+    // EXT_mesh_features (3D Tiles 1.1): the gltf crate does not model it.
+    glb.finish_with(nodes, |json| {
+        json["extensionsUsed"] = serde_json::json!([MESH_FEATURES]);
+        json["meshes"][m]["primitives"][0]["extensions"] = serde_json::json!({
+            MESH_FEATURES: { "featureIds": [{ "featureCount": count, "attribute": 0 }] }
+        });
+    })
 }
 
-/// Writes [`mesh_to_glb`] to `path`, after checking the mesh; normals read
-/// from other files are made unit length first.
+/// <https://github.com/CesiumGS/glTF/tree/3d-tiles-next/extensions/2.0/Vendor/EXT_mesh_features>:
+/// per-vertex feature ids in `_FEATURE_ID_0`, `featureCount` the number of
+/// distinct ids in the primitive.
+const MESH_FEATURES: &str = "EXT_mesh_features";
+
+/// Feature ids are written as `FLOAT`, exact up to this (2^24): glTF has no
+/// 32-bit integer vertex attributes, and asks every vertex attribute element
+/// to start 4-byte aligned, so a `UNSIGNED_SHORT` would take 4 bytes too.
+pub const MAX_FEATURE_ID: u32 = 1 << 24;
+
+/// Writes [`mesh_to_glb`] to `path`, after checking the mesh.
 pub fn write_mesh(mesh: &Mesh, path: &Path) -> Result<()> {
     mesh.validate()
         .map_err(|m| Error::invalid(path, "mesh", m.to_string()))?;
-    std::fs::write(path, mesh_to_glb(&unit_normals(mesh))).map_err(|e| Error::io(path, e))
+    std::fs::write(path, mesh_to_glb(mesh)).map_err(|e| Error::io(path, e))
 }
 
 /// A discrete LOD chain as one GLB, after the MSFT_lod extension
@@ -115,18 +137,27 @@ pub fn write_lod(levels: &[Mesh], coverage: &[f32], path: &Path) -> Result<()> {
     std::fs::write(path, lod_to_glb(&levels, coverage)).map_err(|e| Error::io(path, e))
 }
 
-/// glTF requires unit normals, and mesh files do not always have them
-/// (horse.ply's are not): they are normalised, and a level with a normal
-/// of zero length loses its normals (viewers then shade it flat) rather
-/// than carry an invalid one.
+/// glTF requires unit normals, and neither mesh files (horse.ply's are not
+/// unit length) nor reductions (a vertex only on degenerate triangles has
+/// none) always have them: they are normalised, and a normal of zero
+/// length becomes the normal of a triangle at its vertex (+z if none has
+/// one).
 fn unit_normals(mesh: &Mesh) -> std::borrow::Cow<'_, Mesh> {
     let unit = |n: &Vec3| (n.length() - 1.0).abs() <= 1e-4;
     if mesh.normals.iter().all(unit) {
         return std::borrow::Cow::Borrowed(mesh);
     }
-    let normals: Option<Vec<Vec3>> = mesh.normals.iter().map(|n| n.try_normalize()).collect();
+    let mut normals: Vec<Option<Vec3>> = mesh.normals.iter().map(|n| n.try_normalize()).collect();
+    for t in mesh.indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| mesh.positions[t[k] as usize]);
+        if let Some(face) = (b - a).cross(c - a).try_normalize() {
+            for &i in t {
+                normals[i as usize].get_or_insert(face);
+            }
+        }
+    }
     std::borrow::Cow::Owned(Mesh {
-        normals: normals.unwrap_or_default(),
+        normals: normals.into_iter().map(|n| n.unwrap_or(Vec3::Z)).collect(),
         ..mesh.clone()
     })
 }
@@ -137,6 +168,8 @@ pub(crate) struct MeshAccessors {
     positions: json::Index<json::Accessor>,
     normals: Option<json::Index<json::Accessor>>,
     colors: Option<json::Index<json::Accessor>>,
+    /// The feature ids and how many distinct ones there are.
+    features: Option<(json::Index<json::Accessor>, usize)>,
     indices: json::Index<json::Accessor>,
 }
 
@@ -195,6 +228,21 @@ impl GlbBuilder {
                 None,
             )
         });
+        let features = (!mesh.features.is_empty()).then(|| {
+            let mut distinct = mesh.features.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            let float: Vec<f32> = mesh.features.iter().map(|&f| f as f32).collect();
+            let accessor = self.accessor(
+                bytemuck::cast_slice(&float),
+                n,
+                json::accessor::Type::Scalar,
+                json::accessor::ComponentType::F32,
+                json::buffer::Target::ArrayBuffer,
+                None,
+            );
+            (accessor, distinct.len())
+        });
         let indices = self.accessor(
             bytemuck::cast_slice(&mesh.indices),
             mesh.indices.len(),
@@ -207,6 +255,7 @@ impl GlbBuilder {
             positions,
             normals,
             colors,
+            features,
             indices,
         }
     }
@@ -266,6 +315,12 @@ impl GlbBuilder {
         }
         if let Some(a) = accessors.colors {
             attributes.insert(Valid(json::mesh::Semantic::Colors(0)), a);
+        }
+        if let Some((a, _)) = accessors.features {
+            attributes.insert(
+                Valid(json::mesh::Semantic::Extras("FEATURE_ID_0".into())),
+                a,
+            );
         }
         self.root.push(json::Mesh {
             extensions: None,

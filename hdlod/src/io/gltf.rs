@@ -53,8 +53,8 @@ impl ModelNode {
 
 /// Every mesh node of a .gltf/.glb flattened with its world transform into
 /// one mesh. Vertex colours are kept when any node has them or the nodes'
-/// colours differ (node colours then fill in); normals when every node has
-/// them.
+/// colours differ (node colours then fill in); normals and feature ids
+/// (`_FEATURE_ID_0`) when every node has them.
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
     let model = read_model(path)?;
     let used = |node: &ModelNode| &model.meshes[node.mesh];
@@ -64,6 +64,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
         .iter()
         .any(|n| !used(n).colors.is_empty() || Some(n.color) != first_color);
     let want_normals = model.nodes.iter().all(|n| !used(n).normals.is_empty());
+    let want_features = model.nodes.iter().all(|n| !used(n).features.is_empty());
     let mut out = Mesh::default();
     for node in &model.nodes {
         let part = used(node).transformed(&node.transform);
@@ -83,6 +84,9 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
         if want_normals {
             out.normals.extend_from_slice(&part.normals);
         }
+        if want_features {
+            out.features.extend_from_slice(&part.features);
+        }
         out.positions.extend_from_slice(&part.positions);
         out.indices.extend(part.indices.iter().map(|i| i + offset));
     }
@@ -93,7 +97,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
 /// primitive reads, and the colours baked into it when the materials differ.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 struct MeshKey {
-    primitives: Vec<[Option<usize>; 4]>,
+    primitives: Vec<[Option<usize>; 5]>,
     baked_colors: Option<Vec<[u32; 4]>>,
 }
 
@@ -228,6 +232,7 @@ fn mesh_key(mesh: &gltf::Mesh) -> Result<MeshKey, String> {
             attr(gltf::Semantic::Positions),
             attr(gltf::Semantic::Normals),
             attr(gltf::Semantic::Colors(0)),
+            attr(feature_ids()),
             p.indices().map(|a| a.index()),
         ]);
     }
@@ -264,6 +269,52 @@ fn check_accessor(
     Ok(())
 }
 
+/// The attribute of EXT_mesh_features' first feature id set.
+fn feature_ids() -> gltf::Semantic {
+    gltf::Semantic::Extras("FEATURE_ID_0".into())
+}
+
+/// A `_FEATURE_ID_0` accessor's values: unsigned integers, or whole floats
+/// (glTF has no 32-bit integer vertex attributes).
+fn read_feature_ids(
+    accessor: gltf::Accessor,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Vec<u32>, String> {
+    use gltf::accessor::{DataType, Iter};
+    let index = accessor.index();
+    let get = |b: gltf::Buffer| buffers.get(b.index()).map(|d| &d.0[..]);
+    let outside = || format!("_FEATURE_ID_0 accessor {index} lies outside its buffer");
+    let ids: Vec<u32> = match accessor.data_type() {
+        DataType::U8 => Iter::<u8>::new(accessor, get)
+            .ok_or_else(outside)?
+            .map(u32::from)
+            .collect(),
+        DataType::U16 => Iter::<u16>::new(accessor, get)
+            .ok_or_else(outside)?
+            .map(u32::from)
+            .collect(),
+        DataType::F32 => {
+            let floats: Vec<f32> = Iter::<f32>::new(accessor, get)
+                .ok_or_else(outside)?
+                .collect();
+            if let Some(f) = floats.iter().find(|f| {
+                !(f.fract() == 0.0 && (0.0..=crate::io::glb::MAX_FEATURE_ID as f32).contains(*f))
+            }) {
+                return Err(format!(
+                    "_FEATURE_ID_0 accessor {index} holds {f}, not a feature id"
+                ));
+            }
+            floats.into_iter().map(|f| f as u32).collect()
+        }
+        other => {
+            return Err(format!(
+                "_FEATURE_ID_0 accessor {index} has component type {other:?} (UNSIGNED_BYTE, UNSIGNED_SHORT or FLOAT)"
+            ));
+        }
+    };
+    Ok(ids)
+}
+
 /// One glTF mesh as one scene mesh, its primitives merged.
 fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<Mesh, String> {
     use gltf::accessor::Dimensions::{Scalar, Vec3 as D3, Vec4 as D4};
@@ -276,6 +327,7 @@ fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<M
     let has = |s: gltf::Semantic| prims.iter().map(move |p| p.get(&s).is_some());
     let want_colors = !uniform || has(gltf::Semantic::Colors(0)).any(|b| b);
     let want_normals = has(gltf::Semantic::Normals).all(|b| b);
+    let want_features = has(feature_ids()).all(|b| b);
 
     let mut out = Mesh::default();
     for (p, material_color) in prims.iter().zip(&colors) {
@@ -332,6 +384,15 @@ fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<M
             if out.colors.len() - before != count {
                 return Err(at("COLOR_0 and POSITION counts differ".into()));
             }
+        }
+        if want_features {
+            let acc = p.get(&feature_ids()).expect("checked above");
+            check_accessor(&acc, "_FEATURE_ID_0", &[Scalar], false).map_err(at)?;
+            let ids = read_feature_ids(acc, buffers).map_err(at)?;
+            if ids.len() != count {
+                return Err(at("_FEATURE_ID_0 and POSITION counts differ".into()));
+            }
+            out.features.extend(ids);
         }
         let base = offset as u32;
         match p.indices() {

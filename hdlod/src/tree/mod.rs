@@ -8,6 +8,7 @@
 pub mod baseline;
 pub mod camera;
 pub mod cut;
+pub mod fidelity;
 pub mod format;
 mod nodes;
 pub mod presence;

@@ -32,6 +32,7 @@ pub fn coloured_tetra() -> Mesh {
             [1.0, 1.0, 0.0, 0.5],
         ],
         indices: vec![0, 2, 1, 0, 1, 3, 0, 3, 2, 1, 2, 3],
+        ..Mesh::default()
     }
 }
 
