@@ -102,6 +102,29 @@ fn responses_match_the_openapi_document() {
     check(&doc, "CutResponse", &get_cut);
     assert_eq!(get_cut["clusters"], post["clusters"]);
 
+    // Exact presence draws the paper's clusters and the partly present ones.
+    let mut body = cut_body(json!(5e6));
+    body["presence"] = json!("exact");
+    check(&doc, "CutRequest", &body);
+    let exact = server.post_json("/api/v1/scenes/sample-1/cut", &body);
+    check(&doc, "CutResponse", &exact);
+    let ids = |cut: &Value| -> Vec<u64> {
+        cut["clusters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c["id"].as_u64().unwrap())
+            .collect()
+    };
+    let (paper_ids, exact_ids) = (ids(&post), ids(&exact));
+    assert!(paper_ids.iter().all(|id| exact_ids.contains(id)));
+    for c in exact["clusters"].as_array().unwrap() {
+        if !paper_ids.contains(&c["id"].as_u64().unwrap()) {
+            let v = c["visibility"].as_f64().unwrap();
+            assert!(v > 0.0 && v < 0.5, "{c}");
+        }
+    }
+
     let error = get("/api/v1/scenes/nope");
     check(&doc, "Error", &error);
 
@@ -171,6 +194,7 @@ fn bad_requests_name_the_field() {
             "viewport.height",
         ),
         (with(&|b| b["pixel_error"] = json!(0)), "pixel_error"),
+        (with(&|b| b["presence"] = json!("half")), "presence"),
         (with(&|b| b["extra"] = json!(1)), "extra"),
     ];
     for (body, field) in cases {
@@ -195,6 +219,17 @@ fn bad_requests_name_the_field() {
         .send()
         .unwrap();
     assert_eq!(response.json::<Value>().unwrap()["error"]["field"], "bogus");
+    let response = http
+        .get(format!(
+            "{cut}?time=1&position=1,2,3&target=0,0,0&presence=most"
+        ))
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::BAD_REQUEST);
+    assert_eq!(
+        response.json::<Value>().unwrap()["error"]["field"],
+        "presence"
+    );
 
     let response = http
         .post(server.url("/api/v1/scenes/nope/cut"))

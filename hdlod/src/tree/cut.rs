@@ -12,7 +12,9 @@
 //! is emitted (when `v >= 0.5`) even if its error is too large, which happens
 //! only at distance 0 (the eye inside its box) since a leaf's `delta` is 0
 //! unless its visibility is fractional; and the root has no geometry, so it
-//! is always refined. The root's children are taken from its presence
+//! is always refined. Beside the paper's rule, [`Presence::Exact`] draws
+//! every cluster with `v > 0` for clients that hide absent objects inside a
+//! cluster by their feature ids. The root's children are taken from its presence
 //! index (`presence`): those that may be present at `t`, in order, rather
 //! than every one of them. The traversal reads the tree's compact copy
 //! (`nodes`), is iterative with one reused stack;
@@ -22,6 +24,31 @@
 use glam::Mat4;
 
 use super::{Tree, View};
+
+/// Which partly present clusters the cut draws.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Presence {
+    /// The paper's rule: a cluster is drawn when `v_c(t) >= 0.5`, so an
+    /// object may be missing (its cluster mostly absent) or drawn while
+    /// absent (its cluster mostly present).
+    #[default]
+    Paper,
+    /// Every cluster with `v_c(t) > 0`: the client hides the features
+    /// absent at `t` by their ids, so nothing present is missing and
+    /// nothing absent is drawn, for more clusters drawn.
+    Exact,
+}
+
+impl Presence {
+    /// The least `v_c(t)` of a drawn cluster.
+    fn threshold(self) -> f32 {
+        match self {
+            Presence::Paper => 0.5,
+            Presence::Exact => f32::MIN_POSITIVE,
+        }
+    }
+}
 
 /// One emitted cluster.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -49,17 +76,27 @@ pub struct Cut {
     pub stats: CutStats,
 }
 
-/// The cut of `tree` at `t` (seconds since the scene's start) for `view`.
+/// The cut of `tree` at `t` (seconds since the scene's start) for `view`,
+/// by the paper's rule.
 pub fn cut(tree: &Tree, view: &View, t: f64) -> Cut {
     let mut out = Cut::default();
     let mut stack = Vec::new();
-    cut_into(tree, view, t, &mut out, &mut stack);
+    cut_into(tree, view, t, Presence::Paper, &mut out, &mut stack);
     out
 }
 
-/// [`cut`] into reused buffers: no allocation once they have grown. The
-/// stack holds node indices of the tree's compact copy (`nodes`).
-pub fn cut_into(tree: &Tree, view: &View, t: f64, out: &mut Cut, stack: &mut Vec<u32>) {
+/// [`cut`] under a `presence` rule into reused buffers: no allocation once
+/// they have grown. The stack holds node indices of the tree's compact copy
+/// (`nodes`).
+pub fn cut_into(
+    tree: &Tree,
+    view: &View,
+    t: f64,
+    presence: Presence,
+    out: &mut Cut,
+    stack: &mut Vec<u32>,
+) {
+    let drawn = presence.threshold();
     out.items.clear();
     out.stats = CutStats::default();
     stack.clear();
@@ -106,7 +143,7 @@ pub fn cut_into(tree: &Tree, view: &View, t: f64, out: &mut Cut, stack: &mut Vec
             );
         } else if refine {
             stack.extend((c.first_child..c.first_child + c.child_count).rev());
-        } else if v >= 0.5 && c.has_geometry {
+        } else if v >= drawn && c.has_geometry {
             out.stats.clusters += 1;
             out.stats.triangles += tree.clusters[c.id as usize].triangles;
             out.items.push(CutItem {

@@ -65,7 +65,14 @@ impl Session {
         let request = protocol::parse_json(text.as_bytes())?;
         let tree = &scene.tree;
         let (view, t) = protocol::prepare(tree, &request)?;
-        let micros = protocol::run(tree, &view, t, &mut self.cut, &mut self.stack);
+        let micros = protocol::run(
+            tree,
+            &view,
+            t,
+            request.presence,
+            &mut self.cut,
+            &mut self.stack,
+        );
         state
             .metrics
             .cut(self.cut.stats.clusters, self.cut.stats.triangles);

@@ -35,6 +35,11 @@ pub struct Args {
     /// `WIDTHxHEIGHT`.
     #[arg(long, default_value = "1920x1080")]
     viewport: String,
+    /// `paper` (clusters at least half present, the paper's rule) or
+    /// `exact` (every cluster partly present; the client hides absent
+    /// objects by their feature ids).
+    #[arg(long, default_value = "paper")]
+    presence: String,
     /// Print the HTTP answer's JSON.
     #[arg(long)]
     json: bool,
@@ -62,6 +67,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         fov_y_deg: args.fov,
         viewport: &args.viewport,
         pixel_error: args.pixel_error,
+        presence: &args.presence,
     })?;
     let baseline = hdlod::tree::Baseline::of(&tree);
     let answer = protocol::answer(&tree, &baseline, &request)?;

@@ -238,7 +238,7 @@ pub fn write_answer(
 ) -> Result<CutStats, ProtocolError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
-    let micros = run(tree, &view, t, &mut cut, &mut stack);
+    let micros = run(tree, &view, t, request.presence, &mut cut, &mut stack);
     out.reserve((cut.items.len() + 1) * CLUSTER_JSON_BYTES);
     write_response(tree, baseline, fragments, t, &cut, micros, out);
     Ok(cut.stats)
@@ -252,13 +252,14 @@ pub fn answer<'a>(
 ) -> Result<CutResponse<'a>, ProtocolError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
-    let micros = run(tree, &view, t, &mut cut, &mut stack);
+    let micros = run(tree, &view, t, request.presence, &mut cut, &mut stack);
     Ok(response(tree, baseline, t, &cut, micros))
 }
 
 #[cfg(test)]
 mod tests {
     use hdlod::tree::View;
+    use hdlod::tree::cut::Presence;
     use hdlod_fixtures::paper;
 
     use super::*;
@@ -285,7 +286,7 @@ mod tests {
                 )
                 .unwrap();
                 let (mut cut, mut stack) = (Cut::default(), Vec::new());
-                let micros = run(&tree, &view, t, &mut cut, &mut stack);
+                let micros = run(&tree, &view, t, Presence::Paper, &mut cut, &mut stack);
                 let mut fast = Vec::new();
                 write_response(&tree, &baseline, &fragments, t, &cut, micros, &mut fast);
                 let serde =

@@ -12,7 +12,7 @@ mod request;
 
 use std::time::Instant;
 
-use hdlod::tree::cut::cut_into;
+use hdlod::tree::cut::{Presence, cut_into};
 use hdlod::tree::{Cut, Tree, View};
 
 pub use answer::{
@@ -25,8 +25,15 @@ pub use request::{
 };
 
 /// Runs the cut into reused buffers and returns its duration in microseconds.
-pub fn run(tree: &Tree, view: &View, t: f64, cut: &mut Cut, stack: &mut Vec<u32>) -> f64 {
+pub fn run(
+    tree: &Tree,
+    view: &View,
+    t: f64,
+    presence: Presence,
+    cut: &mut Cut,
+    stack: &mut Vec<u32>,
+) -> f64 {
     let start = Instant::now();
-    cut_into(tree, view, t, cut, stack);
+    cut_into(tree, view, t, presence, cut, stack);
     start.elapsed().as_secs_f64() * 1e6
 }

@@ -6,6 +6,7 @@
 use glam::DVec3;
 use hdlod::scene::Up;
 use hdlod::time::TimeValue;
+use hdlod::tree::cut::Presence;
 use hdlod::tree::{CameraSpec, Tree, View, Viewport};
 use serde::{Deserialize, Serialize};
 
@@ -25,6 +26,22 @@ pub struct CutRequest {
     pub viewport: Viewport,
     #[serde(default = "one")]
     pub pixel_error: f64,
+    /// `paper` (the default: clusters with `v_c(t) >= 0.5`) or `exact`
+    /// (every cluster with `v_c(t) > 0`; the client hides absent features).
+    #[serde(default)]
+    pub presence: Presence,
+}
+
+/// `paper` or `exact`; `field` names it in errors.
+pub fn parse_presence(field: &str, text: &str) -> Result<Presence, ProtocolError> {
+    match text.trim() {
+        "paper" => Ok(Presence::Paper),
+        "exact" => Ok(Presence::Exact),
+        other => Err(ProtocolError::new(
+            field,
+            format!("{other:?} is not a presence rule (paper or exact)"),
+        )),
+    }
 }
 
 fn one() -> f64 {
@@ -89,12 +106,14 @@ pub fn parse_time(text: &str) -> TimeValue {
 
 /// The query parameters of `GET .../cut`: `time`, `position`, `target`,
 /// `up` (`x,y,z`), `fov_y_deg`, `aspect`, `near`, `far`, `view_projection`
-/// (16 numbers), `viewport` (`WxH`) or `width` and `height`, `pixel_error`.
+/// (16 numbers), `viewport` (`WxH`) or `width` and `height`, `pixel_error`,
+/// `presence`.
 pub fn parse_query(pairs: &[(String, String)]) -> Result<CutRequest, ProtocolError> {
     let mut time = None;
     let mut camera = CameraSpec::default();
     let mut viewport = Viewport::default();
     let mut pixel_error = 1.0;
+    let mut presence = Presence::default();
     for (key, value) in pairs {
         let k = key.as_str();
         match k {
@@ -111,6 +130,7 @@ pub fn parse_query(pairs: &[(String, String)]) -> Result<CutRequest, ProtocolErr
             "width" => viewport.width = dimension(k, value)?,
             "height" => viewport.height = dimension(k, value)?,
             "pixel_error" => pixel_error = number(k, value)?,
+            "presence" => presence = parse_presence(k, value)?,
             _ => return Err(ProtocolError::new(k, "unknown query parameter")),
         }
     }
@@ -119,6 +139,7 @@ pub fn parse_query(pairs: &[(String, String)]) -> Result<CutRequest, ProtocolErr
         camera,
         viewport,
         pixel_error,
+        presence,
     })
 }
 
@@ -148,6 +169,8 @@ pub struct Flags<'a> {
     /// `WxH`, named `--viewport` in errors.
     pub viewport: &'a str,
     pub pixel_error: f64,
+    /// Named `--presence` in errors.
+    pub presence: &'a str,
 }
 
 pub fn parse_flags(flags: Flags) -> Result<CutRequest, ProtocolError> {
@@ -167,6 +190,7 @@ pub fn parse_flags(flags: Flags) -> Result<CutRequest, ProtocolError> {
         camera,
         viewport: parse_viewport("--viewport", flags.viewport)?,
         pixel_error: flags.pixel_error,
+        presence: parse_presence("--presence", flags.presence)?,
     })
 }
 
