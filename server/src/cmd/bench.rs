@@ -21,6 +21,12 @@ pub enum Bench {
     Build(super::bench_build::Args),
     /// The three simplifiers on real meshes, as the decimation theses compare them.
     Simplify(super::bench_simplify::Args),
+    /// Temporal error of the paper's presence rule and the exact one in
+    /// the table's 12 cells.
+    Presence(super::bench_identity::PresenceArgs),
+    /// How far each object's triangles in a cluster lie from the object,
+    /// against the cluster's error.
+    Features(super::bench_identity::FeaturesArgs),
 }
 
 #[derive(clap::Args)]
@@ -65,6 +71,8 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
         Bench::Paper(a) => paper_table(a),
         Bench::Build(a) => super::bench_build::run(a),
         Bench::Simplify(a) => super::bench_simplify::run(a),
+        Bench::Presence(a) => super::bench_identity::presence(a),
+        Bench::Features(a) => super::bench_identity::features(a),
         Bench::Ws(a) => ws(a),
     }
 }

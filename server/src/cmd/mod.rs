@@ -1,5 +1,6 @@
 pub mod bench;
 pub mod bench_build;
+pub mod bench_identity;
 pub mod bench_simplify;
 pub mod build;
 pub mod cut;
