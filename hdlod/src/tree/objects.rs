@@ -88,8 +88,8 @@ impl TaskEntry {
 pub struct ObjectTables {
     objects: Vec<ObjectEntry>,
     tasks: Vec<TaskEntry>,
-    object_ids: HashMap<String, u32>,
-    task_ids: HashMap<String, u32>,
+    object_ids: ById,
+    task_ids: ById,
     object_text: SearchText,
     task_text: SearchText,
 }
@@ -107,8 +107,8 @@ pub struct Page {
 
 impl ObjectTables {
     pub fn new(objects: Vec<ObjectEntry>, tasks: Vec<TaskEntry>) -> ObjectTables {
-        let object_ids = index_of(objects.iter().map(|o| &o.id));
-        let task_ids = index_of(tasks.iter().map(|t| &t.id));
+        let object_ids = ById::new(|i| &objects[i as usize].id, objects.len());
+        let task_ids = ById::new(|k| &tasks[k as usize].id, tasks.len());
         let object_text = SearchText::new(objects.iter().map(|o| {
             [o.id.as_str(), o.name.as_deref().unwrap_or_default()]
                 .into_iter()
@@ -211,12 +211,12 @@ impl ObjectTables {
 
     /// The index of the object with this id.
     pub fn object_index(&self, id: &str) -> Option<u32> {
-        self.object_ids.get(id).copied()
+        self.object_ids.find(|i| &self.objects[i as usize].id, id)
     }
 
     /// The index of the task with this id.
     pub fn task_index(&self, id: &str) -> Option<u32> {
-        self.task_ids.get(id).copied()
+        self.task_ids.find(|k| &self.tasks[k as usize].id, id)
     }
 
     /// Objects whose id, name or any property value contains `query`,
@@ -244,18 +244,27 @@ impl ObjectTables {
         if n > u32::MAX as usize || m > u32::MAX as usize {
             return Err(bad("objects".into(), "too many objects or tasks".into()));
         }
+        if let Some((i, first)) = self.object_ids.duplicate(|i| &self.objects[i as usize].id) {
+            return Err(bad(
+                format!("objects[{i}].id"),
+                format!(
+                    "{:?} is also objects[{first}].id: ids must be unique",
+                    self.objects[i as usize].id
+                ),
+            ));
+        }
+        if let Some((k, first)) = self.task_ids.duplicate(|k| &self.tasks[k as usize].id) {
+            return Err(bad(
+                format!("tasks[{k}].id"),
+                format!(
+                    "{:?} is also tasks[{first}].id: ids must be unique",
+                    self.tasks[k as usize].id
+                ),
+            ));
+        }
         let mut named = 0usize;
         for (i, o) in self.objects.iter().enumerate() {
             let at = |field: &str| format!("objects[{i}].{field}");
-            if self.object_ids[&o.id] as usize != i {
-                return Err(bad(
-                    at("id"),
-                    format!(
-                        "{:?} is also objects[{}].id: ids must be unique",
-                        o.id, self.object_ids[&o.id]
-                    ),
-                ));
-            }
             if !increasing(&o.tasks, m) {
                 return Err(bad(
                     at("tasks"),
@@ -302,15 +311,6 @@ impl ObjectTables {
         let mut pairs = 0usize;
         for (k, t) in self.tasks.iter().enumerate() {
             let at = |field: &str| format!("tasks[{k}].{field}");
-            if self.task_ids[&t.id] as usize != k {
-                return Err(bad(
-                    at("id"),
-                    format!(
-                        "{:?} is also tasks[{}].id: ids must be unique",
-                        t.id, self.task_ids[&t.id]
-                    ),
-                ));
-            }
             if !t.start.is_finite() || !t.finish.is_finite() || t.finish < t.start {
                 return Err(bad(
                     at("finish"),
@@ -423,15 +423,14 @@ impl ObjectTables {
                 .iter()
                 .map(|&[a, b]| (a.unwrap_or(f64::NEG_INFINITY), b.unwrap_or(f64::INFINITY)))
                 .collect();
-            let presence = Visibility::from_intervals(raw.clone());
-            if presence.intervals() != raw.as_slice() {
+            let Some(presence) = Visibility::from_normalised(raw) else {
                 return Err(Error::invalid(
                     file,
                     format!("objects[{i}].presence"),
                     "intervals must be non-empty, sorted, apart, and open-ended (null) only at \
                      the first start and the last end",
                 ));
-            }
+            };
             objects.push(ObjectEntry {
                 id: r.id,
                 name: r.name,
@@ -461,14 +460,31 @@ impl ObjectTables {
     }
 }
 
-/// Each id's index; the first of equal ids wins (`validate` reports the
-/// others).
-fn index_of<'a>(ids: impl Iterator<Item = &'a String>) -> HashMap<String, u32> {
-    let mut map = HashMap::new();
-    for (i, id) in ids.enumerate() {
-        map.entry(id.clone()).or_insert(i as u32);
+/// Row indices sorted by id, equal ids by index: a look-up is a binary
+/// search, and no id is copied.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct ById(Vec<u32>);
+
+impl ById {
+    fn new<'a>(id: impl Fn(u32) -> &'a str, rows: usize) -> ById {
+        let mut order: Vec<u32> = (0..rows as u32).collect();
+        order.sort_unstable_by(|&a, &b| id(a).cmp(id(b)).then(a.cmp(&b)));
+        ById(order)
     }
-    map
+
+    /// The first row with this id.
+    fn find<'a>(&self, id: impl Fn(u32) -> &'a str, key: &str) -> Option<u32> {
+        let i = self.0.partition_point(|&r| id(r) < key);
+        self.0.get(i).copied().filter(|&r| id(r) == key)
+    }
+
+    /// A row whose id an earlier row has, and that earlier row.
+    fn duplicate<'a>(&self, id: impl Fn(u32) -> &'a str) -> Option<(u32, u32)> {
+        self.0
+            .windows(2)
+            .find(|w| id(w[0]) == id(w[1]))
+            .map(|w| (w[1], w[0]))
+    }
 }
 
 /// The searchable strings of every row, lower-cased once and kept in one
@@ -488,7 +504,7 @@ impl SearchText {
                 // A separator no query holds (`search` matches nothing
                 // for one that does), so that no match spans two fields.
                 out.text.push('\0');
-                out.text.extend(field.chars().flat_map(char::to_lowercase));
+                push_lowercase(&mut out.text, field);
             }
             out.ends.push(out.text.len());
         }
@@ -501,7 +517,9 @@ impl SearchText {
     }
 
     fn search(&self, query: &str, from: usize, limit: usize) -> Page {
-        let query: String = query.chars().flat_map(char::to_lowercase).collect();
+        let mut lower = String::with_capacity(query.len());
+        push_lowercase(&mut lower, query);
+        let query = lower;
         let rows = self.ends.len();
         let mut page = Page {
             items: Vec::with_capacity(limit.min(rows)),
@@ -535,6 +553,19 @@ impl SearchText {
             }
         }
         page
+    }
+}
+
+/// Appends `text` lower-cased. Most ids, names and values are ASCII, which
+/// is lower-cased in place, with no allocation: the search text of a
+/// paper-scale scene is made at every load.
+fn push_lowercase(out: &mut String, text: &str) {
+    if text.is_ascii() {
+        let start = out.len();
+        out.push_str(text);
+        out[start..].make_ascii_lowercase();
+    } else {
+        out.push_str(&text.to_lowercase());
     }
 }
 

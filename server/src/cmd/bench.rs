@@ -2,6 +2,7 @@
 //! (`hdlod_fixtures::paper`), printed and written into docs/benchmarks.md.
 //! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
 //! their view at a fixed rate, bounded in time, reporting update latency.
+//! `build`, `simplify` and `objects` are in their own files.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -21,6 +22,8 @@ pub enum Bench {
     Build(super::bench_build::Args),
     /// The three simplifiers on real meshes, as the decimation theses compare them.
     Simplify(super::bench_simplify::Args),
+    /// Loading a tree's object and task tables, and a search of them.
+    Objects(super::bench_objects::Args),
 }
 
 #[derive(clap::Args)]
@@ -65,6 +68,7 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
         Bench::Paper(a) => paper_table(a),
         Bench::Build(a) => super::bench_build::run(a),
         Bench::Simplify(a) => super::bench_simplify::run(a),
+        Bench::Objects(a) => super::bench_objects::run(a),
         Bench::Ws(a) => ws(a),
     }
 }
