@@ -49,17 +49,16 @@ fn millis(since: Instant) -> f64 {
     since.elapsed().as_secs_f64() * 1e3
 }
 
-/// Median, fastest and slowest of `n` timings (`n` >= 1) of `run`. What
-/// each run makes is dropped after the timings: freeing is not loading.
+/// Median, fastest and slowest of `n` timings (`n` >= 1) of `run`. What a
+/// run makes is dropped after its timing: freeing is not loading.
 fn timed<T>(n: usize, mut run: impl FnMut() -> anyhow::Result<T>) -> anyhow::Result<[f64; 3]> {
     let mut times = Vec::with_capacity(n);
-    let mut made = Vec::with_capacity(n);
     for _ in 0..n.max(1) {
         let start = Instant::now();
-        made.push(run()?);
+        let made = run()?;
         times.push(millis(start));
+        drop(made);
     }
-    drop(made);
     times.sort_by(f64::total_cmp);
     Ok([times[times.len() / 2], times[0], times[times.len() - 1]])
 }
