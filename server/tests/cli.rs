@@ -1,4 +1,5 @@
-//! `hdlod cut` and `hdlod bench paper` on a sample tree.
+//! `hdlod cut` and `hdlod bench paper` on a sample tree; `hdlod bench
+//! objects` on the tiny fixture's.
 
 mod common;
 
@@ -142,4 +143,35 @@ fn bench_paper_writes_the_table() {
         std::fs::read_to_string(here.join("docs/benchmarks.md")).unwrap(),
         "# Benchmarks\n"
     );
+}
+
+#[test]
+fn bench_objects_times_the_tables() {
+    let dir = tempfile::tempdir().unwrap();
+    let tree = common::build_tree(dir.path());
+    let (ok, out, err) = hdlod(&[
+        "bench",
+        "objects",
+        tree.to_str().unwrap(),
+        "--repeats",
+        "2",
+        "--json",
+    ]);
+    assert!(ok, "{err}");
+    let report: Value = serde_json::from_str(&out).unwrap();
+    assert_eq!(report["scene"], common::SCENE);
+    assert!(report["objects"].as_u64().unwrap() > 500);
+    for key in [
+        "read_ms",
+        "parse_ms",
+        "tables_ms",
+        "tree_load_ms",
+        "search_all_ms",
+    ] {
+        assert!(report[key].as_f64().unwrap() >= 0.0, "{key}");
+    }
+    // A tree without tables: the error names the file.
+    let sample = common::sample_tree(&dir.path().join("sample"), 2);
+    let (ok, _, err) = hdlod(&["bench", "objects", sample.to_str().unwrap()]);
+    assert!(!ok && err.contains("objects.json"), "{err}");
 }

@@ -86,6 +86,20 @@ fn imports_the_tiny_model_with_its_plan_and_builds_it() {
     assert!(out.status.success(), "{}", text(&out.stderr));
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     assert_eq!(summary["objects"], 2);
+    // Its object table names each element by what the import gave it.
+    let objects: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(tree.join("objects.json")).unwrap()).unwrap();
+    common::assert_matches_schema(&objects, "tree-objects.schema.json");
+    let wall = objects["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|o| o["id"] == "2WallTinyHdlod00000001")
+        .expect("the wall is in the table");
+    assert_eq!(wall["class"], "IfcWall");
+    assert_eq!(wall["properties"]["source_file"], "tiny.ifc");
+    assert_eq!(wall["name"], wall["properties"]["name"]);
+    assert!(!wall["tasks"].as_array().unwrap().is_empty());
 
     // Without --json: the table with the rules and their counts.
     let out = hdlod(&[

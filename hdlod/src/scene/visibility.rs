@@ -75,6 +75,14 @@ impl Visibility {
         Visibility { intervals }
     }
 
+    /// Intervals that are already normalised (each non-empty, sorted,
+    /// apart), kept as they are; `None` for any others.
+    pub fn from_normalised(intervals: Vec<(f64, f64)>) -> Option<Self> {
+        let normalised =
+            intervals.iter().all(|(a, b)| a < b) && intervals.windows(2).all(|w| w[0].1 < w[1].0);
+        normalised.then_some(Visibility { intervals })
+    }
+
     pub fn intervals(&self) -> &[(f64, f64)] {
         &self.intervals
     }
@@ -153,6 +161,15 @@ mod tests {
         assert!(v.at(5.5));
         assert_eq!(v.present_seconds(10.0), 3.0);
         assert_eq!(v.breakpoints(10.0), vec![1.0, 3.0, 5.0, 6.0]);
+        assert_eq!(Visibility::from_normalised(v.intervals().to_vec()), Some(v));
+        for bad in [
+            vec![(2.0, 1.0)],
+            vec![(1.0, 2.0), (2.0, 3.0)],
+            vec![(3.0, 4.0), (1.0, 2.0)],
+            vec![(f64::NAN, 1.0)],
+        ] {
+            assert_eq!(Visibility::from_normalised(bad), None);
+        }
     }
 
     #[test]

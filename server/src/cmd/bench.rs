@@ -2,6 +2,7 @@
 //! (`hdlod_fixtures::paper`), printed and written into docs/benchmarks.md.
 //! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
 //! their view at a fixed rate, bounded in time, reporting update latency.
+//! `build`, `simplify` and `objects` are in their own files.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -27,6 +28,8 @@ pub enum Bench {
     /// How far each object's triangles in a cluster lie from the object,
     /// against the cluster's error.
     Features(super::bench_identity::FeaturesArgs),
+    /// Loading a tree's object and task tables, and a search of them.
+    Objects(super::bench_objects::Args),
 }
 
 #[derive(clap::Args)]
@@ -73,6 +76,7 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
         Bench::Simplify(a) => super::bench_simplify::run(a),
         Bench::Presence(a) => super::bench_identity::presence(a),
         Bench::Features(a) => super::bench_identity::features(a),
+        Bench::Objects(a) => super::bench_objects::run(a),
         Bench::Ws(a) => ws(a),
     }
 }
