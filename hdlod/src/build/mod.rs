@@ -26,7 +26,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 
 use crate::scene::{Class, Scene, Visibility};
-use crate::tree::{Aabb, Cluster, ClusterClass, Tree, TreeWriter};
+use crate::tree::{Aabb, Cluster, ClusterClass, ObjectTables, Tree, TreeWriter};
 use crate::{Error, Result};
 use context::{Context, Node, add};
 
@@ -170,6 +170,7 @@ pub fn build(
         root,
         config: serde_json::to_value(config).expect("the config serialises"),
         stats: serde_json::to_value(&stats).expect("the statistics serialise"),
+        objects: Some(ObjectTables::of(scene, &clusters)),
         clusters,
         presence: Default::default(),
         nodes: Default::default(),

@@ -130,10 +130,7 @@ impl Rule {
 
 /// The property names the selectors `file`, `storey`, `class` and `name`
 /// stand for.
-pub const FILE: &str = "source_file";
-pub const STOREY: &str = "storey";
-pub const CLASS: &str = "ifc_class";
-pub const NAME: &str = "name";
+pub use crate::scene::property::{CLASS, FILE, NAME, STOREY};
 
 /// Reads and compiles a rules file against the schedule's tasks: an unknown
 /// task id, an ambiguous task name or a bad pattern is an error naming the

@@ -540,7 +540,7 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
             .map(|t| TaskFile {
                 id: t.id.clone(),
                 name: t.name.clone(),
-                kind: task_type_name(t.kind).into(),
+                kind: t.kind.name().into(),
                 start: time(t.start),
                 finish: time(t.finish),
                 objects: t.objects.clone(),
@@ -560,14 +560,5 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
             })
             .collect(),
         schedule_options: Some(scene.schedule_options),
-    }
-}
-
-fn task_type_name(kind: TaskType) -> &'static str {
-    match kind {
-        TaskType::Construct => "construct",
-        TaskType::Demolish => "demolish",
-        TaskType::Temporary => "temporary",
-        TaskType::Maintain => "maintain",
     }
 }

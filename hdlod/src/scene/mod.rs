@@ -22,6 +22,18 @@ pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
 pub use summary::{Bounds, Counts, SceneSummary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
 
+/// The names of the properties the IFC import gives an element (the
+/// linking rules select by them, the object table of a tree reads its
+/// name and class from them); other scenes may use them too.
+pub mod property {
+    /// The model file the element came from.
+    pub const FILE: &str = "source_file";
+    pub const STOREY: &str = "storey";
+    /// The element's class: its IFC entity, such as `IfcWall`.
+    pub const CLASS: &str = "ifc_class";
+    pub const NAME: &str = "name";
+}
+
 /// Which axis points up in the scene's world frame.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default, Serialize, Deserialize)]
 #[serde(rename_all = "lowercase")]

@@ -34,6 +34,16 @@ impl TaskType {
         })
     }
 
+    /// The name files use (`construct`, ...).
+    pub fn name(self) -> &'static str {
+        match self {
+            TaskType::Construct => "construct",
+            TaskType::Demolish => "demolish",
+            TaskType::Temporary => "temporary",
+            TaskType::Maintain => "maintain",
+        }
+    }
+
     /// All accepted names, for error messages.
     pub const NAMES: &'static str = "construct, demolish, temporary, maintain (or the IFC names \
          CONSTRUCTION, INSTALLATION, DEMOLITION, DISMANTLE, DISPOSAL, REMOVAL, MAINTENANCE, \

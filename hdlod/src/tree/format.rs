@@ -8,6 +8,9 @@ use serde::{Deserialize, Serialize};
 pub const FORMAT: &str = "hdlod-tree/1";
 pub const MANIFEST_FILE: &str = "manifest.json";
 pub const CLUSTERS_FILE: &str = "clusters.json";
+/// The object and task tables, optional (their records are in
+/// [`super::objects`]).
+pub const OBJECTS_FILE: &str = "objects.json";
 pub const GEOMETRY_DIR: &str = "geometry";
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]

@@ -1,5 +1,6 @@
-//! The HDLOD tree: the `hdlod-tree/1` format on disk ([`format`], [`store`])
-//! and the cut ([`camera`], [`cut`]). [`Tree`] is the validated in-memory
+//! The HDLOD tree: the `hdlod-tree/1` format on disk ([`format`], [`store`]),
+//! the cut ([`camera`], [`cut`]) and, apart from what the cut reads, the
+//! object and task tables ([`objects`]). [`Tree`] is the validated in-memory
 //! form the builder produces and the cut reads: clusters in a `Vec` indexed
 //! by id, visibility as sorted steps. The tests that need a whole tree (the
 //! store, the cut, its presence index and baseline) run on the sample tree
@@ -11,6 +12,7 @@ pub mod cut;
 pub mod fidelity;
 pub mod format;
 mod nodes;
+pub mod objects;
 pub mod presence;
 pub mod store;
 
@@ -28,6 +30,7 @@ pub use baseline::Baseline;
 pub use camera::{CameraSpec, View, Viewport};
 pub use cut::{Cut, CutItem, CutStats, cut};
 pub use format::ClusterClass;
+pub use objects::ObjectTables;
 pub use store::{TreeWriter, load};
 
 /// An axis-aligned box.
@@ -181,6 +184,9 @@ pub struct Tree {
     pub config: serde_json::Value,
     pub stats: serde_json::Value,
     pub clusters: Vec<Cluster>,
+    /// The object and task tables (`objects.json`), when the tree has them.
+    /// The cut never reads them.
+    pub objects: Option<ObjectTables>,
     /// The root's children by time, made on the first cut (the clusters
     /// must not change after it).
     pub(crate) presence: Derived<presence::Presence>,
@@ -221,6 +227,7 @@ impl Tree {
             config: serde_json::json!({}),
             stats: serde_json::json!({}),
             clusters,
+            objects: None,
             presence: Derived::default(),
             nodes: Derived::default(),
         }
@@ -582,6 +589,7 @@ impl Tree {
             config: manifest.config,
             stats: manifest.stats,
             clusters: out,
+            objects: None,
             presence: Derived::default(),
             nodes: Derived::default(),
         };

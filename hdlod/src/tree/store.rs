@@ -16,7 +16,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::Tree;
-use super::format::{self, CLUSTERS_FILE, GEOMETRY_DIR, MANIFEST_FILE};
+use super::format::{self, CLUSTERS_FILE, GEOMETRY_DIR, MANIFEST_FILE, OBJECTS_FILE};
+use super::objects::{ObjectTables, ObjectsRecord};
 use crate::error::{Error, Result};
 
 static SEQUENCE: AtomicU64 = AtomicU64::new(0);
@@ -81,10 +82,14 @@ impl TreeWriter {
     }
 
     /// Validates the tree (including that every geometry hash was stored),
-    /// writes the manifest and cluster table and moves the directory into place.
+    /// writes the manifest, the cluster table and the object and task
+    /// tables when the tree has them, and moves the directory into place.
     pub fn finish(mut self, tree: &Tree) -> Result<()> {
         let clusters_path = self.target.join(CLUSTERS_FILE);
         tree.validate(&clusters_path)?;
+        if let Some(tables) = &tree.objects {
+            tables.validate(&tree.clusters, &self.target.join(OBJECTS_FILE))?;
+        }
         {
             let stored = self.stored.lock().expect("no panic while holding");
             for c in &tree.clusters {
@@ -102,6 +107,13 @@ impl TreeWriter {
         let (manifest, clusters) = tree.to_records();
         write_json(&self.tmp.join(MANIFEST_FILE), &manifest, true)?;
         write_json(&self.tmp.join(CLUSTERS_FILE), &clusters, false)?;
+        if let Some(tables) = &tree.objects {
+            write_json(
+                &self.tmp.join(OBJECTS_FILE),
+                &tables.to_record(&tree.time),
+                false,
+            )?;
+        }
 
         let old = sibling(&self.target, "old");
         let had_old = self.target.exists();
@@ -159,14 +171,16 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     })
 }
 
-/// Loads and validates a tree directory: the manifest, the cluster table and
-/// the presence of every geometry file (one directory listing, no reads);
-/// makes the root's presence index and the cut's compact copy.
+/// Loads and validates a tree directory: the manifest, the cluster table,
+/// the object and task tables when there are any, and the presence of every
+/// geometry file (one directory listing, no reads); makes the root's
+/// presence index and the cut's compact copy.
 pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
     let dir = dir.as_ref();
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
     let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
-    let tree = Tree::from_records(manifest, clusters, dir)?;
+    let mut tree = Tree::from_records(manifest, clusters, dir)?;
+    tree.objects = load_objects(dir, &tree)?;
 
     let geometry = dir.join(GEOMETRY_DIR);
     let mut present = HashSet::new();
@@ -191,4 +205,16 @@ pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
     tree.presence();
     tree.nodes();
     Ok(tree)
+}
+
+/// The object and task tables of the tree in `dir` (loaded, with its
+/// clusters, as `tree`), checked against its clusters; `None` when the tree
+/// has none.
+pub fn load_objects(dir: &Path, tree: &Tree) -> Result<Option<ObjectTables>> {
+    let path = dir.join(OBJECTS_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let record: ObjectsRecord = read_json(&path)?;
+    ObjectTables::from_record(record, &tree.clusters, &path).map(Some)
 }

@@ -48,7 +48,7 @@ pub async fn metrics(State(state): State<Arc<AppState>>) -> impl IntoResponse {
 pub fn openapi_document() -> &'static Value {
     static DOC: OnceLock<Value> = OnceLock::new();
     DOC.get_or_init(|| {
-        let files: [(&str, &str); 7] = [
+        let files: [(&str, &str); 11] = [
             (
                 "error.schema.json",
                 include_str!("../../../schemas/api/error.schema.json"),
@@ -76,6 +76,22 @@ pub fn openapi_document() -> &'static Value {
             (
                 "stream-message.schema.json",
                 include_str!("../../../schemas/api/stream-message.schema.json"),
+            ),
+            (
+                "object-list.schema.json",
+                include_str!("../../../schemas/api/object-list.schema.json"),
+            ),
+            (
+                "object.schema.json",
+                include_str!("../../../schemas/api/object.schema.json"),
+            ),
+            (
+                "task-list.schema.json",
+                include_str!("../../../schemas/api/task-list.schema.json"),
+            ),
+            (
+                "task.schema.json",
+                include_str!("../../../schemas/api/task.schema.json"),
             ),
         ];
         let mut doc: Value =

@@ -6,6 +6,7 @@
 pub mod error;
 mod handlers;
 pub mod metrics;
+mod objects;
 mod stream;
 mod tiles;
 mod viewer;
@@ -144,6 +145,10 @@ pub fn router(state: Arc<AppState>) -> Router {
             get(handlers::geometry),
         )
         .route("/api/v1/scenes/{scene}/stream", get(stream::stream))
+        .route("/api/v1/scenes/{scene}/objects", get(objects::objects))
+        .route("/api/v1/scenes/{scene}/objects/{id}", get(objects::object))
+        .route("/api/v1/scenes/{scene}/tasks", get(objects::tasks))
+        .route("/api/v1/scenes/{scene}/tasks/{id}", get(objects::task))
         .route(
             "/api/v1/scenes/{scene}/tiles/tileset.json",
             get(tiles::tileset),

@@ -48,8 +48,12 @@ pub struct GeometryUrl<'a> {
 
 impl std::fmt::Display for GeometryUrl<'_> {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        let name = percent_encoding::utf8_percent_encode(self.scene, SEGMENT);
-        write!(f, "/api/v1/scenes/{name}/geometry/{}.glb", self.hash)
+        write!(
+            f,
+            "/api/v1/scenes/{}/geometry/{}.glb",
+            segment(self.scene),
+            self.hash
+        )
     }
 }
 
@@ -69,7 +73,7 @@ pub struct CutResponse<'a> {
     pub stats: StatsOut,
 }
 
-/// What a scene name keeps unencoded in a URL path: RFC 3986's
+/// What a name keeps unencoded in a URL path: RFC 3986's
 /// unreserved characters.
 const SEGMENT: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
     .remove(b'-')
@@ -77,10 +81,15 @@ const SEGMENT: &percent_encoding::AsciiSet = &percent_encoding::NON_ALPHANUMERIC
     .remove(b'.')
     .remove(b'~');
 
+/// A name (of a scene, an object, a task) as one URL path segment,
+/// percent-encoded.
+pub fn segment(name: &str) -> percent_encoding::PercentEncode<'_> {
+    percent_encoding::utf8_percent_encode(name, SEGMENT)
+}
+
 /// URL path prefix of a scene, its name percent-encoded.
 pub fn scene_path(scene: &str) -> String {
-    let name = percent_encoding::utf8_percent_encode(scene, SEGMENT);
-    format!("/api/v1/scenes/{name}")
+    format!("/api/v1/scenes/{}", segment(scene))
 }
 
 fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a> {

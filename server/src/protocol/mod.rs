@@ -16,7 +16,7 @@ use hdlod::tree::cut::cut_into;
 use hdlod::tree::{Cut, Tree, View};
 
 pub use answer::{
-    Fragments, answer, scene_path, stats_out, write_answer, write_number, write_transform,
+    Fragments, answer, scene_path, segment, stats_out, write_answer, write_number, write_transform,
 };
 pub use error::ProtocolError;
 pub use request::{

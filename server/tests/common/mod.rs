@@ -79,6 +79,15 @@ pub fn assert_content_type(response: &reqwest::blocking::Response, media_type: &
     assert!(header.starts_with(media_type), "{header}, not {media_type}");
 }
 
+/// Asserts that `value` follows the schema `name` of a served OpenAPI
+/// document's components; the other components ride along so that
+/// references between them resolve.
+pub fn assert_component(doc: &Value, name: &str, value: &Value) {
+    let schema = serde_json::json!({"$defs": doc["components"]["schemas"], "$ref": format!("#/$defs/{name}")});
+    let validator = jsonschema::validator_for(&schema).unwrap();
+    assert_valid(&validator, value, &format!("{name} in {value}"));
+}
+
 /// A running `hdlod` that listens on a free loopback port; killed on drop.
 pub struct Server {
     child: Child,

@@ -1,0 +1,573 @@
+//! The object and task tables of a tree (`objects.json`, `hdlod-objects/1`;
+//! docs/formats.md): every scene object in scene order, absent ones too, so
+//! that an object's index is the feature id its vertices carry in the
+//! cluster geometry; with its properties, class, tasks, presence and leaf
+//! clusters; and every task with its times and objects.
+//!
+//! The file is optional in `hdlod-tree/1`: the builder writes it, a tree
+//! without it still loads. The tables are kept apart from the clusters: the
+//! cut never reads them, they only answer what an object or task is.
+
+use std::collections::{BTreeMap, HashMap};
+use std::path::Path;
+
+use serde::{Deserialize, Serialize};
+
+use super::Cluster;
+use crate::error::{Error, Result};
+use crate::scene::{Class, Scene, TaskType, Visibility, property};
+use crate::time::{TimeSpan, format_date};
+
+/// The value of the file's `format` field.
+pub const FORMAT: &str = "hdlod-objects/1";
+
+/// The class property of scenes that do not name it as the IFC import
+/// does (`scene::property::CLASS`).
+const CLASS_FALLBACK: &str = "class";
+
+/// One scene object; its index in [`ObjectTables::objects`] is its index in
+/// the scene.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectEntry {
+    pub id: String,
+    /// The `name` property.
+    pub name: Option<String>,
+    /// The element's class: the `ifc_class` property, else `class`.
+    pub class: Option<String>,
+    pub properties: BTreeMap<String, String>,
+    pub visibility_class: Class,
+    /// Indices of the tasks acting on it, increasing.
+    pub tasks: Vec<u32>,
+    /// When it is present, as the schedule composes it (the first interval
+    /// may start at minus infinity, the last end at plus infinity).
+    pub presence: Visibility,
+    /// Its leaf clusters, increasing: one, or the pieces of a moving object
+    /// split where it stands still.
+    pub clusters: Vec<u32>,
+}
+
+/// One schedule task, times in seconds since the scene's start.
+#[derive(Debug, Clone, PartialEq)]
+pub struct TaskEntry {
+    pub id: String,
+    pub name: Option<String>,
+    pub kind: TaskType,
+    pub start: f64,
+    pub finish: f64,
+    /// Indices of the objects it acts on, increasing.
+    pub objects: Vec<u32>,
+}
+
+/// Where a task stands at a time.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum TaskState {
+    NotStarted,
+    InProgress,
+    Finished,
+}
+
+impl TaskEntry {
+    /// Not started before its start, in progress until its finish, finished
+    /// from it on (a task of no duration is finished from its start).
+    pub fn state(&self, t: f64) -> TaskState {
+        if t < self.start {
+            TaskState::NotStarted
+        } else if t < self.finish {
+            TaskState::InProgress
+        } else {
+            TaskState::Finished
+        }
+    }
+}
+
+/// The tables, and what answers a look-up or a search without a scan of
+/// the strings: made once, when the tables are made or read (so the rows
+/// are read-only).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectTables {
+    objects: Vec<ObjectEntry>,
+    tasks: Vec<TaskEntry>,
+    object_ids: HashMap<String, u32>,
+    task_ids: HashMap<String, u32>,
+    object_text: SearchText,
+    task_text: SearchText,
+}
+
+/// One page of a search: matching indices in order, and where the next
+/// page starts.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Page {
+    pub items: Vec<u32>,
+    /// The index the next page's scan starts at; `None` on the last page.
+    pub next: Option<u32>,
+    /// Matches in the whole table.
+    pub total: usize,
+}
+
+impl ObjectTables {
+    pub fn new(objects: Vec<ObjectEntry>, tasks: Vec<TaskEntry>) -> ObjectTables {
+        let object_ids = index_of(objects.iter().map(|o| &o.id));
+        let task_ids = index_of(tasks.iter().map(|t| &t.id));
+        let object_text = SearchText::new(objects.iter().map(|o| {
+            [o.id.as_str(), o.name.as_deref().unwrap_or_default()]
+                .into_iter()
+                .chain(o.properties.values().map(String::as_str))
+        }));
+        let task_text = SearchText::new(tasks.iter().map(|t| {
+            [
+                t.id.as_str(),
+                t.name.as_deref().unwrap_or_default(),
+                t.kind.name(),
+            ]
+        }));
+        ObjectTables {
+            objects,
+            tasks,
+            object_ids,
+            task_ids,
+            object_text,
+            task_text,
+        }
+    }
+
+    /// The tables of `scene` (as built: its schedule applied) over the
+    /// leaf clusters that name its objects.
+    pub fn of(scene: &Scene, clusters: &[Cluster]) -> ObjectTables {
+        let index: HashMap<&str, u32> = scene
+            .objects
+            .iter()
+            .enumerate()
+            .map(|(i, o)| (o.id.as_str(), i as u32))
+            .collect();
+        let mut leaves: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+        for c in clusters {
+            for id in &c.objects {
+                if let Some(&i) = index.get(id.as_str()) {
+                    leaves[i as usize].push(c.id);
+                }
+            }
+        }
+        let mut acting: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+        let tasks = scene
+            .tasks
+            .iter()
+            .enumerate()
+            .map(|(k, t)| {
+                let mut objects: Vec<u32> = t
+                    .objects
+                    .iter()
+                    .filter_map(|id| index.get(id.as_str()).copied())
+                    .collect();
+                objects.sort_unstable();
+                objects.dedup();
+                for &i in &objects {
+                    acting[i as usize].push(k as u32);
+                }
+                TaskEntry {
+                    id: t.id.clone(),
+                    name: Some(t.name.clone()).filter(|n| !n.is_empty()),
+                    kind: t.kind,
+                    start: t.start,
+                    finish: t.finish,
+                    objects,
+                }
+            })
+            .collect();
+        let objects = scene
+            .objects
+            .iter()
+            .zip(leaves.into_iter().zip(acting))
+            .map(|(o, (mut clusters, tasks))| {
+                clusters.sort_unstable();
+                clusters.dedup();
+                ObjectEntry {
+                    id: o.id.clone(),
+                    name: o.properties.get(property::NAME).cloned(),
+                    class: o
+                        .properties
+                        .get(property::CLASS)
+                        .or_else(|| o.properties.get(CLASS_FALLBACK))
+                        .cloned(),
+                    properties: o.properties.clone(),
+                    visibility_class: scene.class_of(o),
+                    tasks,
+                    presence: o.visibility.clone(),
+                    clusters,
+                }
+            })
+            .collect();
+        ObjectTables::new(objects, tasks)
+    }
+
+    /// Every object of the scene, in scene order.
+    pub fn objects(&self) -> &[ObjectEntry] {
+        &self.objects
+    }
+
+    pub fn tasks(&self) -> &[TaskEntry] {
+        &self.tasks
+    }
+
+    /// The index of the object with this id.
+    pub fn object_index(&self, id: &str) -> Option<u32> {
+        self.object_ids.get(id).copied()
+    }
+
+    /// The index of the task with this id.
+    pub fn task_index(&self, id: &str) -> Option<u32> {
+        self.task_ids.get(id).copied()
+    }
+
+    /// Objects whose id, name or any property value contains `query`,
+    /// ignoring case; an empty query matches every object. The scan starts
+    /// at index `from` and stops after `limit` matches.
+    pub fn search_objects(&self, query: &str, from: usize, limit: usize) -> Page {
+        self.object_text.search(query, from, limit)
+    }
+
+    /// Tasks whose id, name or type contains `query`, as [`Self::search_objects`].
+    pub fn search_tasks(&self, query: &str, from: usize, limit: usize) -> Page {
+        self.task_text.search(query, from, limit)
+    }
+
+    /// Checks the tables against themselves and the tree's clusters; `file`
+    /// names the table in errors.
+    pub fn validate(&self, clusters: &[Cluster], file: &Path) -> Result<()> {
+        let n = self.objects.len();
+        let m = self.tasks.len();
+        let bad = |at: String, message: String| Error::invalid(file, at, message);
+        let increasing = |list: &[u32], below: usize| {
+            list.windows(2).all(|w| w[0] < w[1])
+                && list.last().is_none_or(|&x| (x as usize) < below)
+        };
+        if n > u32::MAX as usize || m > u32::MAX as usize {
+            return Err(bad("objects".into(), "too many objects or tasks".into()));
+        }
+        let mut named = 0usize;
+        for (i, o) in self.objects.iter().enumerate() {
+            let at = |field: &str| format!("objects[{i}].{field}");
+            if self.object_ids[&o.id] as usize != i {
+                return Err(bad(
+                    at("id"),
+                    format!(
+                        "{:?} is also objects[{}].id: ids must be unique",
+                        o.id, self.object_ids[&o.id]
+                    ),
+                ));
+            }
+            if !increasing(&o.tasks, m) {
+                return Err(bad(
+                    at("tasks"),
+                    format!("must be increasing task indices below {m}"),
+                ));
+            }
+            if !increasing(&o.clusters, clusters.len()) {
+                return Err(bad(
+                    at("clusters"),
+                    format!("must be increasing cluster ids below {}", clusters.len()),
+                ));
+            }
+            if let Some(&c) = o
+                .clusters
+                .iter()
+                .find(|&&c| !clusters[c as usize].objects.contains(&o.id))
+            {
+                return Err(bad(
+                    at("clusters"),
+                    format!("cluster {c} does not list {:?} among its objects", o.id),
+                ));
+            }
+            named += o.clusters.len();
+        }
+        // Every object a cluster names lists it (each listing was checked
+        // above, so equal counts mean equal sets).
+        let listed: usize = clusters.iter().map(|c| c.objects.len()).sum();
+        if listed != named {
+            let stray = clusters
+                .iter()
+                .flat_map(|c| c.objects.iter().map(move |id| (c.id, id)))
+                .find(|&(c, id)| {
+                    self.object_index(id)
+                        .is_none_or(|i| !self.objects[i as usize].clusters.contains(&c))
+                });
+            let message = match stray {
+                Some((c, id)) => {
+                    format!("cluster {c} lists object {id:?}, which does not list the cluster")
+                }
+                None => "a cluster lists one object twice".into(),
+            };
+            return Err(bad("objects".into(), message));
+        }
+        let mut pairs = 0usize;
+        for (k, t) in self.tasks.iter().enumerate() {
+            let at = |field: &str| format!("tasks[{k}].{field}");
+            if self.task_ids[&t.id] as usize != k {
+                return Err(bad(
+                    at("id"),
+                    format!(
+                        "{:?} is also tasks[{}].id: ids must be unique",
+                        t.id, self.task_ids[&t.id]
+                    ),
+                ));
+            }
+            if !t.start.is_finite() || !t.finish.is_finite() || t.finish < t.start {
+                return Err(bad(
+                    at("finish"),
+                    format!(
+                        "start {} and finish {} must be finite, the finish not before the start",
+                        t.start, t.finish
+                    ),
+                ));
+            }
+            if !increasing(&t.objects, n) {
+                return Err(bad(
+                    at("objects"),
+                    format!("must be increasing object indices below {n}"),
+                ));
+            }
+            if let Some(&i) = t.objects.iter().find(|&&i| {
+                self.objects[i as usize]
+                    .tasks
+                    .binary_search(&(k as u32))
+                    .is_err()
+            }) {
+                return Err(bad(
+                    at("objects"),
+                    format!("objects[{i}] does not list task {k} among its tasks"),
+                ));
+            }
+            pairs += t.objects.len();
+        }
+        // As with the clusters: each task's objects list it, so equal
+        // counts mean every object's tasks list it too.
+        let listed: usize = self.objects.iter().map(|o| o.tasks.len()).sum();
+        if listed != pairs {
+            let stray = self
+                .objects
+                .iter()
+                .enumerate()
+                .flat_map(|(i, o)| o.tasks.iter().map(move |&k| (i, k)))
+                .find(|&(i, k)| {
+                    self.tasks[k as usize]
+                        .objects
+                        .binary_search(&(i as u32))
+                        .is_err()
+                });
+            if let Some((i, k)) = stray {
+                return Err(bad(
+                    format!("objects[{i}].tasks"),
+                    format!("task {k} does not list objects[{i}] among its objects"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
+    /// The on-disk record; `time` gives the tasks' dates.
+    pub fn to_record(&self, time: &TimeSpan) -> ObjectsRecord {
+        let end = |x: f64| x.is_finite().then_some(x);
+        ObjectsRecord {
+            format: FORMAT.into(),
+            objects: self
+                .objects
+                .iter()
+                .map(|o| ObjectRecord {
+                    id: o.id.clone(),
+                    name: o.name.clone(),
+                    class: o.class.clone(),
+                    properties: o.properties.clone(),
+                    visibility_class: o.visibility_class,
+                    tasks: o.tasks.clone(),
+                    presence: o
+                        .presence
+                        .intervals()
+                        .iter()
+                        .map(|&(a, b)| [end(a), end(b)])
+                        .collect(),
+                    clusters: o.clusters.clone(),
+                })
+                .collect(),
+            tasks: self
+                .tasks
+                .iter()
+                .map(|t| TaskRecord {
+                    id: t.id.clone(),
+                    name: t.name.clone(),
+                    kind: t.kind,
+                    start: t.start,
+                    finish: t.finish,
+                    start_date: format_date(time.date_at(t.start)),
+                    finish_date: format_date(time.date_at(t.finish)),
+                    objects: t.objects.clone(),
+                })
+                .collect(),
+        }
+    }
+
+    /// The tables of a record, checked against the tree's clusters; `file`
+    /// names the table in errors. The tasks' dates are for the file's
+    /// readers: the times are the seconds.
+    pub fn from_record(record: ObjectsRecord, clusters: &[Cluster], file: &Path) -> Result<Self> {
+        if record.format != FORMAT {
+            return Err(Error::invalid(
+                file,
+                "format",
+                format!("{:?} is not {FORMAT:?}", record.format),
+            ));
+        }
+        let mut objects = Vec::with_capacity(record.objects.len());
+        for (i, r) in record.objects.into_iter().enumerate() {
+            let raw: Vec<(f64, f64)> = r
+                .presence
+                .iter()
+                .map(|&[a, b]| (a.unwrap_or(f64::NEG_INFINITY), b.unwrap_or(f64::INFINITY)))
+                .collect();
+            let presence = Visibility::from_intervals(raw.clone());
+            if presence.intervals() != raw.as_slice() {
+                return Err(Error::invalid(
+                    file,
+                    format!("objects[{i}].presence"),
+                    "intervals must be non-empty, sorted, apart, and open-ended (null) only at \
+                     the first start and the last end",
+                ));
+            }
+            objects.push(ObjectEntry {
+                id: r.id,
+                name: r.name,
+                class: r.class,
+                properties: r.properties,
+                visibility_class: r.visibility_class,
+                tasks: r.tasks,
+                presence,
+                clusters: r.clusters,
+            });
+        }
+        let tasks = record
+            .tasks
+            .into_iter()
+            .map(|r| TaskEntry {
+                id: r.id,
+                name: r.name,
+                kind: r.kind,
+                start: r.start,
+                finish: r.finish,
+                objects: r.objects,
+            })
+            .collect();
+        let tables = ObjectTables::new(objects, tasks);
+        tables.validate(clusters, file)?;
+        Ok(tables)
+    }
+}
+
+/// Each id's index; the first of equal ids wins (`validate` reports the
+/// others).
+fn index_of<'a>(ids: impl Iterator<Item = &'a String>) -> HashMap<String, u32> {
+    let mut map = HashMap::new();
+    for (i, id) in ids.enumerate() {
+        map.entry(id.clone()).or_insert(i as u32);
+    }
+    map
+}
+
+/// The searchable strings of every row, lower-cased once and kept in one
+/// buffer: a search is then a scan of slices, with no allocation per row.
+#[derive(Debug, Clone, PartialEq, Default)]
+struct SearchText {
+    text: String,
+    /// Row `i` is `text[ends[i - 1]..ends[i]]`.
+    ends: Vec<usize>,
+}
+
+impl SearchText {
+    fn new<'a, R: IntoIterator<Item = &'a str>>(rows: impl Iterator<Item = R>) -> SearchText {
+        let mut out = SearchText::default();
+        for row in rows {
+            for field in row {
+                // A separator no query holds (`search` matches nothing
+                // for one that does), so that no match spans two fields.
+                out.text.push('\0');
+                out.text.extend(field.chars().flat_map(char::to_lowercase));
+            }
+            out.ends.push(out.text.len());
+        }
+        out
+    }
+
+    fn row(&self, i: usize) -> &str {
+        let start = if i == 0 { 0 } else { self.ends[i - 1] };
+        &self.text[start..self.ends[i]]
+    }
+
+    fn search(&self, query: &str, from: usize, limit: usize) -> Page {
+        let query: String = query.chars().flat_map(char::to_lowercase).collect();
+        let rows = self.ends.len();
+        let mut page = Page {
+            items: Vec::with_capacity(limit.min(rows)),
+            next: None,
+            total: 0,
+        };
+        if query.is_empty() {
+            page.items
+                .extend((from..rows.min(from.saturating_add(limit))).map(|i| i as u32));
+            page.next = Some(from.saturating_add(limit))
+                .filter(|&i| i < rows)
+                .map(|i| i as u32);
+            page.total = rows;
+            return page;
+        }
+        if query.contains('\0') {
+            return page;
+        }
+        for i in 0..rows {
+            if !self.row(i).contains(query.as_str()) {
+                continue;
+            }
+            page.total += 1;
+            if i < from || page.next.is_some() {
+                continue;
+            }
+            if page.items.len() < limit {
+                page.items.push(i as u32);
+            } else {
+                page.next = Some(i as u32);
+            }
+        }
+        page
+    }
+}
+
+/// `objects.json`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectsRecord {
+    pub format: String,
+    pub objects: Vec<ObjectRecord>,
+    pub tasks: Vec<TaskRecord>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct ObjectRecord {
+    pub id: String,
+    pub name: Option<String>,
+    pub class: Option<String>,
+    pub properties: BTreeMap<String, String>,
+    pub visibility_class: Class,
+    pub tasks: Vec<u32>,
+    /// Half-open intervals `[start, end)`, `null` for an open end.
+    pub presence: Vec<[Option<f64>; 2]>,
+    pub clusters: Vec<u32>,
+}
+
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct TaskRecord {
+    pub id: String,
+    pub name: Option<String>,
+    #[serde(rename = "type")]
+    pub kind: TaskType,
+    pub start: f64,
+    pub finish: f64,
+    pub start_date: String,
+    pub finish_date: String,
+    pub objects: Vec<u32>,
+}
