@@ -27,12 +27,10 @@ fn ids(v: &Value) -> Vec<u64> {
         .collect()
 }
 
-fn geometry_requests(base: &str) -> f64 {
-    let text = reqwest::blocking::get(format!("{base}/metrics"))
-        .unwrap()
-        .text()
-        .unwrap();
-    text.lines()
+/// Geometry requests the server counted, from its `/metrics` text.
+fn geometry_requests(metrics: &str) -> f64 {
+    metrics
+        .lines()
         .filter(|l| {
             l.starts_with(
                 "hdlod_http_requests_total{route=\"/api/v1/scenes/{scene}/geometry/{file}\"",
@@ -61,6 +59,8 @@ fn the_viewer_files_are_served() {
         "renderer.js",
         "glb.js",
         "mat4.js",
+        "featurestate.js",
+        "objects.js",
     ] {
         let response = get(&format!("/viewer/{file}"));
         assert_eq!(response.status(), 200, "{file}");
@@ -182,9 +182,13 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     assert!(moved > 1.0, "moved {moved} px: {d}");
 
     // Each GLB was fetched once: as many geometry requests reached the
-    // server as the page loaded distinct files.
+    // server as the page loaded distinct files (counted before a second
+    // page opened the link below).
     assert!(f(&out["finalGlbBytes"]) > 0.0);
-    assert_eq!(geometry_requests(base), f(&out["finalGlbFiles"]));
+    assert_eq!(
+        geometry_requests(out["metrics"].as_str().unwrap()),
+        f(&out["finalGlbFiles"])
+    );
 
     // The address follows the view, so a view can be shared.
     let address = out["address"].as_str().unwrap();
@@ -193,9 +197,153 @@ fn the_viewer_draws_the_schedule_in_chromium() {
         "{address}"
     );
 
+    identity(&server, &out);
+
     let message = out["missingSceneMessage"].as_str().unwrap();
     assert!(
         message.contains("no-such-scene") && message.contains(SCENE),
         "{message}"
     );
+}
+
+/// The object under `index` at `time`, as the server says.
+fn object_at(server: &Server, index: &Value, time: f64) -> Value {
+    server.get_json(&format!(
+        "/api/v1/scenes/{SCENE}/objects/{index}?by=index&time={time}"
+    ))
+}
+
+fn text(v: &Value) -> String {
+    match v {
+        Value::Null => "-".to_owned(),
+        Value::String(s) => s.clone(),
+        other => other.to_string(),
+    }
+}
+
+/// Picking, the panel, exact presence, search and the link, against what
+/// the server says of the objects.
+fn identity(server: &Server, out: &Value) {
+    // (a) The clicked pixel: one pick pass, and the panel names the object
+    // the server has at the picked index, present at that time, with its
+    // class, storey and tasks; the pixel took the selection tint (orange).
+    let pick = &out["pick"];
+    assert!(
+        pick["target"].is_object(),
+        "no object under the middle: {pick}"
+    );
+    let index = &pick["target"]["index"];
+    assert_eq!(pick["selection"]["index"], *index, "{pick}");
+    assert_eq!(f(&pick["picks"]), 1.0, "{pick}");
+    let object = object_at(server, index, f(&pick["time"]));
+    let panel = &pick["panel"];
+    assert_eq!(panel["id"], object["id"], "{panel} {object}");
+    assert_eq!(pick["selection"]["id"], object["id"]);
+    assert_eq!(panel["name"].as_str().unwrap(), text(&object["name"]));
+    assert_eq!(panel["class"].as_str().unwrap(), text(&object["class"]));
+    assert_eq!(
+        panel["storey"].as_str().unwrap(),
+        text(&object["properties"]["storey"])
+    );
+    assert_eq!(object["present"], true);
+    assert_eq!(panel["present"], "present");
+    let tasks: Vec<&Value> = object["tasks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| &t["id"])
+        .collect();
+    assert_eq!(
+        pick["tasks"].as_array().unwrap().iter().collect::<Vec<_>>(),
+        tasks
+    );
+    let (before, after) = (&pick["before"], &pick["after"]);
+    assert_ne!(before, after);
+    assert!(f(&after[0]) > f(&after[2]) + 40.0, "{before} -> {after}");
+    // The panel follows the time: at the start, the server's state then.
+    let start = &pick["atStart"];
+    assert_eq!(f(&start["panel"]["time"]), 0.0, "{start}");
+    let then = object_at(server, index, 0.0);
+    assert_eq!(start["panel"]["present"], then["present"]);
+    let word = if then["present"] == true {
+        "present"
+    } else {
+        "absent"
+    };
+    assert_eq!(start["present"], word);
+
+    // (b) A drawn cluster holds objects absent at that time: without the
+    // state texture they cover pixels, with it none is shown (the server
+    // agrees on both sides) and the picture changed.
+    let p = &out["presence"];
+    assert!(
+        p.is_object(),
+        "no drawn cluster with an absent object: {out:#}"
+    );
+    let t = f(&p["time"]);
+    for id in p["absentShownWithoutState"].as_array().unwrap() {
+        assert_eq!(
+            object_at(server, id, t)["present"],
+            false,
+            "object {id} at {t}"
+        );
+    }
+    assert!(f(&p["absentPixelsWithoutState"]) > 0.0);
+    assert_eq!(p["absentShownWithState"], serde_json::json!([]), "{p}");
+    for id in p["shownWithState"].as_array().unwrap() {
+        assert_eq!(
+            object_at(server, id, t)["present"],
+            true,
+            "object {id} at {t}"
+        );
+    }
+    assert!(f(&p["pixels"]["differ"]) > 0.0, "{p}");
+    // The state texture is uploaded again only when something changed.
+    assert_eq!(p["stateUploads"], p["stateUploadsLater"], "{p}");
+
+    // (c) Search: as many matches as the server counts; isolating leaves
+    // only matches pickable and drawn solid (fewer pixels off the
+    // background), hiding leaves none of them; clearing restores the view.
+    let search = &out["search"];
+    let q = search["q"].as_str().unwrap();
+    let page: Value = server.get_json(&format!(
+        "/api/v1/scenes/{SCENE}/objects?q={}&limit=1",
+        q.replace(' ', "%20")
+    ));
+    assert_eq!(search["matches"], page["total"], "{search}");
+    assert!(f(&search["matches"]) > 0.0 && f(&search["matches"]) < f(&out["objects"]));
+    assert_eq!(search["state"]["mode"], "isolate");
+    assert!(f(&search["plainMatchesPickable"]) > 0.0, "{search}");
+    assert!(f(&search["isolatedPickable"]) > 0.0, "{search}");
+    assert_eq!(f(&search["isolatedOutsideMatches"]), 0.0, "{search}");
+    assert_eq!(f(&search["hiddenPickable"]), 0.0, "{search}");
+    for mode in ["highlight", "isolate", "hide"] {
+        assert!(f(&search[mode]["differ"]) > 0.0, "{mode}: {search}");
+    }
+    let isolate = &search["isolate"];
+    assert!(f(&isolate["offB"]) < f(&isolate["offA"]), "{isolate}");
+    assert_eq!(f(&search["cleared"]["differ"]), 0.0, "{search}");
+
+    // (d) The link reproduces the time, camera, selection and isolation,
+    // and the picture.
+    let link = &out["roundTrip"];
+    let (a, b) = (&link["a"], &link["b"]);
+    assert!(a.is_object(), "{out:#}");
+    let url = link["url"].as_str().unwrap();
+    for key in ["position=", "target=", "selected=", "q=", "mode=isolate"] {
+        assert!(url.contains(key), "{key} in {url}");
+    }
+    let scale = f(&a["distance"]);
+    for key in ["eye", "target"] {
+        for i in 0..3 {
+            let d = (f(&a[key][i]) - f(&b[key][i])).abs();
+            assert!(d < 1e-4 * scale, "{key}: {a} {b}");
+        }
+    }
+    assert_eq!(a["selection"], b["selection"]);
+    assert_eq!(a["search"], b["search"]);
+    assert!((f(&a["time"]) - f(&b["time"])).abs() < 60.0, "{a} {b}");
+    let px = &link["pixels"];
+    assert!(f(&px["differ"]) < 0.005 * f(&px["pixels"]), "{px}");
+    assert!(f(&px["offA"]) > 0.0);
 }

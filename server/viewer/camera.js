@@ -56,6 +56,19 @@ export class Camera {
     this.home = this.distance;
   }
 
+  // The eye at `position` looking at `target` (a shared link's view).
+  lookFrom(position, target) {
+    const v = position.map((x, i) => x - target[i]);
+    const d = Math.hypot(...v);
+    if (!(d > 0)) return;
+    const dot = (a) => (v[0] * a[0] + v[1] * a[1] + v[2] * a[2]) / d;
+    this.target = target.slice();
+    this.distance = d;
+    this.elevation = Math.asin(Math.max(-1, Math.min(1, dot(this.u))));
+    this.azimuth = Math.atan2(dot(this.e2), dot(this.e1));
+    this.clampElevation();
+  }
+
   nearFar() {
     // The far plane holds the whole scene from wherever the eye is; the near
     // plane is a fixed share of it so the depth buffer keeps its precision.

@@ -1,6 +1,7 @@
 // A minimal GLB reader for what the server's tree writer emits
 // (hdlod/src/io/glb.rs): one mesh of triangle primitives with POSITION,
-// NORMAL and COLOR_0 (optional), and indices. Written here rather than
+// NORMAL and COLOR_0 (optional), the scene object of each vertex as
+// `_FEATURE_ID_0` (EXT_mesh_features; optional), and indices. Written here rather than
 // bundling a glTF library: the viewer has no build step and this subset is
 // about a hundred lines. Nodes are ignored: cluster GLBs hold one mesh in
 // the cluster's frame, and the cut's `transform` places dynamic ones.
@@ -55,7 +56,18 @@ function readAccessor(gltf, bin, index, what) {
   return { data: out, components: n, count };
 }
 
-// -> {positions, normals|null, colors|null (RGBA), indices (Uint32Array), triangles}
+// Feature ids as floats (exact up to 2^24, the writer's limit): FLOAT as our
+// writer stores them, or unsigned integers as other writers may.
+function readFeatureIds(gltf, bin, index, what) {
+  const type = gltf.accessors?.[index]?.componentType;
+  if (![5121, 5123, 5125, 5126].includes(type)) throw new GlbError(`${what}: component type ${type} is not FLOAT or unsigned`);
+  const { data, components } = readAccessor(gltf, bin, index, what);
+  if (components !== 1) throw new GlbError(`${what}: not SCALAR`);
+  return data instanceof Float32Array ? data : Float32Array.from(data);
+}
+
+// -> {positions, normals|null, colors|null (RGBA), features|null (one per
+// vertex, -1 for none), indices (Uint32Array), triangles}
 export function parseGlb(buffer) {
   const dv = new DataView(buffer);
   if (buffer.byteLength < 20 || dv.getUint32(0, true) !== MAGIC) throw new GlbError("not a GLB file");
@@ -82,10 +94,12 @@ export function parseGlb(buffer) {
       const pos = readAccessor(gltf, bin, a.POSITION, `${what} POSITION`);
       const nor = a.NORMAL !== undefined ? readAccessor(gltf, bin, a.NORMAL, `${what} NORMAL`) : null;
       const col = a.COLOR_0 !== undefined ? readAccessor(gltf, bin, a.COLOR_0, `${what} COLOR_0`) : null;
+      const fid = a._FEATURE_ID_0 !== undefined ? readFeatureIds(gltf, bin, a._FEATURE_ID_0, `${what} _FEATURE_ID_0`) : null;
       const idx = prim.indices !== undefined
         ? readAccessor(gltf, bin, prim.indices, `${what} indices`).data
         : Uint32Array.from({ length: pos.count }, (_, i) => i);
-      parts.push({ pos, nor, col, idx });
+      if (fid && fid.length !== pos.count) throw new GlbError(`${what}: ${fid.length} feature ids for ${pos.count} vertices`);
+      parts.push({ pos, nor, col, fid, idx });
     }
   }
   if (!parts.length) throw new GlbError("no triangle primitive");
@@ -97,12 +111,15 @@ export function parseGlb(buffer) {
   const normals = hasNormals ? new Float32Array(vertices * 3) : null;
   const hasColors = parts.some((p) => p.col);
   const colors = hasColors ? new Float32Array(vertices * 4).fill(1) : null;
+  // A primitive without feature ids is not pickable: -1 marks its vertices.
+  const features = parts.some((p) => p.fid) ? new Float32Array(vertices).fill(-1) : null;
   const indices = new Uint32Array(indexCount);
   let v = 0;
   let i = 0;
   for (const p of parts) {
     positions.set(p.pos.data, v * 3);
     if (normals) normals.set(p.nor.data, v * 3);
+    if (features && p.fid) features.set(p.fid, v);
     if (colors && p.col) {
       for (let k = 0; k < p.col.count; k++) {
         for (let c = 0; c < p.col.components; c++) colors[(v + k) * 4 + c] = p.col.data[k * p.col.components + c];
@@ -115,5 +132,5 @@ export function parseGlb(buffer) {
     v += p.pos.count;
     i += p.idx.length;
   }
-  return { positions, normals, colors, indices, triangles: indexCount / 3 };
+  return { positions, normals, colors, features, indices, triangles: indexCount / 3 };
 }

@@ -2,12 +2,17 @@
 // clusters to draw) comes from the server's stream for the current time,
 // camera and pixel error; this page fetches the clusters' GLBs once, draws
 // them, moves dynamic ones to their transforms and shows what it costs
-// against drawing every present object (docs/viewer.md).
+// against drawing every present object (docs/viewer.md). A click picks the
+// scene object under the cursor (its properties and tasks in a panel); a
+// search highlights, isolates or hides objects; objects absent at the
+// current time are hidden even inside a drawn cluster.
 
 import { Camera, FOV_Y_DEG } from "./camera.js";
 import { Renderer, classColour, levelColour } from "./renderer.js";
 import { CutConnection, GeometryCache } from "./stream.js";
 import { project } from "./mat4.js";
+import { FeatureState } from "./featurestate.js";
+import { ObjectPanel, searchObjects } from "./objects.js";
 
 const $ = (id) => document.getElementById(id);
 const DAY = 86400;
@@ -16,11 +21,18 @@ const ui = {
   canvas: $("view"), scene: $("scene"), play: $("play"), speed: $("speed"), time: $("time"),
   date: $("date"), pixelError: $("pixel-error"), pixelErrorValue: $("pixel-error-value"),
   colour: $("colour"), mode: $("mode"), stats: $("stats"), legend: $("legend"), message: $("message"),
+  panel: $("panel"), search: $("search"), query: $("query"), searchMode: $("search-mode"),
+  isolate: $("isolate"), hide: $("hide"), clear: $("clear"), matches: $("matches"),
 };
+
+// A press that moves less than this (CSS pixels) is a click, not a drag.
+const CLICK_SLOP = 4;
+const MODES = ["highlight", "isolate", "hide"];
 
 const viewer = {
   ready: false,
   scene: null, // the scene's metadata (GET /api/v1/scenes/{scene})
+  sceneUrl: null, // that path, the base of the scene's routes
   t: 0,
   pixelError: 1,
   colourMode: "vertex",
@@ -35,6 +47,12 @@ const viewer = {
   needsDraw: true,
   matrices: null,
   error: null,
+  features: new FeatureState(),
+  panel: null, // ObjectPanel
+  objectsError: null, // why the scene has no object table, if it has none
+  selection: null, // {index, id}
+  search: { q: "", mode: "highlight", matches: [], pending: false },
+  picks: 0,
 };
 
 let renderer;
@@ -91,6 +109,8 @@ function setTime(t) {
   viewer.t = Math.max(0, Math.min(span(), t));
   ui.time.value = String(Math.round((viewer.t / Math.max(span(), 1e-9)) * 10000));
   ui.date.textContent = formatDate(viewer.t);
+  viewer.features.setTime(viewer.t);
+  if (viewer.panel) viewer.panel.setTime(viewer.t);
   viewer.needsDraw = true;
 }
 
@@ -199,11 +219,25 @@ function tint(c) {
   return null;
 }
 
-function draw(width, height) {
-  const start = performance.now();
+function drawItems() {
   const items = [];
   for (const c of viewer.clusters.values()) items.push({ gpu: c.gpu, transform: c.transform, tint: tint(c) });
-  renderer.draw(items, viewer.matrices, width, height);
+  return items;
+}
+
+// The state texture follows the time and the flags: uploaded only when
+// one of them changed since the last upload.
+function uploadFeatureState() {
+  const f = viewer.features;
+  if (!f.dirty) return;
+  f.dirty = false;
+  renderer.setState(f.bytes(renderer.stateRowBytes()), f.count);
+}
+
+function draw(width, height) {
+  const start = performance.now();
+  uploadFeatureState();
+  renderer.draw(drawItems(), viewer.matrices, width, height, viewer.features.isolating());
   const ms = performance.now() - start;
   viewer.frameMs = viewer.frameMs ? viewer.frameMs * 0.8 + ms * 0.2 : ms;
 }
@@ -248,6 +282,13 @@ function updateUrl(now) {
   params.set("time", formatDate(viewer.t).replace(" ", "T") + "Z");
   params.set("pixel_error", String(viewer.pixelError));
   params.set("colour", viewer.colourMode);
+  const coords = (v) => v.map((x) => String(Number(x.toPrecision(9)))).join(",");
+  params.set("position", coords(camera.eye()));
+  params.set("target", coords(camera.target));
+  const set = (name, value) => (value ? params.set(name, value) : params.delete(name));
+  set("selected", viewer.selection && viewer.selection.id);
+  set("q", viewer.search.q);
+  set("mode", viewer.search.q && viewer.search.mode !== "highlight" ? viewer.search.mode : null);
   history.replaceState(null, "", `?${params}`);
 }
 
@@ -277,6 +318,7 @@ function frame(now) {
     urlDirty = true;
   }
   updateUrl(now);
+  if (viewer.features.dirty) viewer.needsDraw = true;
   if (viewer.needsDraw) {
     viewer.needsDraw = false;
     draw(width, height);
@@ -294,7 +336,7 @@ function bindInput() {
   ui.canvas.addEventListener("pointerdown", (e) => {
     ui.canvas.focus();
     ui.canvas.setPointerCapture(e.pointerId);
-    drag = { x: e.clientX, y: e.clientY, pan: e.button === 2 || e.shiftKey || e.button === 1 };
+    drag = { x: e.clientX, y: e.clientY, x0: e.clientX, y0: e.clientY, button: e.button, pan: e.button === 2 || e.shiftKey || e.button === 1 };
   });
   ui.canvas.addEventListener("pointermove", (e) => {
     if (!drag) return;
@@ -305,7 +347,11 @@ function bindInput() {
     if (drag.pan) camera.pan(dx, dy, ui.canvas.clientHeight);
     else camera.rotate(dx, dy);
   });
-  ui.canvas.addEventListener("pointerup", () => (drag = null));
+  ui.canvas.addEventListener("pointerup", (e) => {
+    const click = drag && drag.button === 0 && Math.hypot(e.clientX - drag.x0, e.clientY - drag.y0) < CLICK_SLOP;
+    drag = null;
+    if (click) selectAt(e.clientX, e.clientY);
+  });
   ui.canvas.addEventListener("wheel", (e) => {
     e.preventDefault();
     camera.zoom(Math.exp(e.deltaY * 0.0015));
@@ -328,10 +374,74 @@ function bindInput() {
   ui.pixelError.addEventListener("input", () => setPixelError(sliderToPixelError(Number(ui.pixelError.value))));
   ui.colour.addEventListener("change", () => setColourMode(ui.colour.value));
   ui.mode.addEventListener("click", () => setMode(camera.mode === "fly" ? "orbit" : "fly"));
+  ui.search.addEventListener("submit", (e) => {
+    e.preventDefault();
+    search(ui.query.value.trim(), viewer.search.mode);
+  });
+  ui.isolate.addEventListener("click", () => search(ui.query.value.trim(), "isolate"));
+  ui.hide.addEventListener("click", () => search(ui.query.value.trim(), "hide"));
+  ui.clear.addEventListener("click", () => search("", "highlight"));
+  ui.panel.addEventListener("click", (e) => {
+    if (e.target.closest(".close")) select(null);
+  });
   ui.scene.addEventListener("change", () => {
     const params = new URLSearchParams({ scene: ui.scene.value });
     location.search = `?${params}`;
   });
+}
+
+// The feature under the CSS pixel (x, y) of the canvas: one pick pass,
+// scissored to that pixel, of the view on screen.
+function pickAt(x, y) {
+  if (!viewer.matrices) return null;
+  const r = ui.canvas.getBoundingClientRect();
+  const dpr = ui.canvas.width / Math.max(r.width, 1);
+  const [width, height] = [ui.canvas.width, ui.canvas.height];
+  uploadFeatureState();
+  viewer.picks++;
+  return renderer.pick(drawItems(), viewer.matrices, width, height, Math.floor((x - r.left) * dpr), Math.floor((y - r.top) * dpr));
+}
+
+function selectAt(x, y) {
+  const index = pickAt(x, y);
+  select(index === null ? null : { index, id: null });
+}
+
+// selection: {index, id (null until the panel knows it)} or null.
+function select(selection) {
+  viewer.selection = selection;
+  viewer.features.select(selection && selection.index);
+  viewer.panel.show(selection && selection.index, viewer.t);
+  urlDirty = true;
+  viewer.needsDraw = true;
+}
+
+// q: the text (empty clears); mode: what the matches do.
+async function search(q, mode) {
+  const s = viewer.search;
+  s.q = q;
+  s.mode = MODES.includes(mode) ? mode : "highlight";
+  ui.query.value = q;
+  ui.searchMode.textContent = q && s.mode !== "highlight" ? s.mode : "";
+  urlDirty = true;
+  if (!q) {
+    s.matches = [];
+    ui.matches.textContent = "";
+    viewer.features.setMatches([], s.mode);
+    return;
+  }
+  s.pending = true;
+  try {
+    const matches = await searchObjects(viewer.sceneUrl, q, getJson);
+    if (s.q !== q) return;
+    s.matches = matches;
+    ui.matches.textContent = `${matches.length} found`;
+    viewer.features.setMatches(matches, s.mode);
+  } catch (e) {
+    if (s.q === q) ui.matches.textContent = e.message;
+  } finally {
+    if (s.q === q) s.pending = false;
+  }
 }
 
 // The read-only test hook (docs/viewer.md): the browser tests drive the
@@ -376,6 +486,16 @@ function testHook() {
         seq: viewer.seq,
         settled: this.settled(),
         dynamicScreenPositions,
+        target: camera && camera.target.slice(),
+        selection: viewer.selection && { ...viewer.selection },
+        panel: viewer.panel && viewer.panel.shown && {
+          index: viewer.panel.shown.index, id: viewer.panel.shown.id, time: viewer.panel.shownTime, present: viewer.panel.shown.present,
+        },
+        search: { q: viewer.search.q, mode: viewer.search.mode, matches: viewer.search.matches.length, pending: viewer.search.pending },
+        objects: viewer.features.count,
+        objectsError: viewer.objectsError,
+        stateUploads: renderer ? renderer.stateUploads : 0,
+        picks: viewer.picks,
       };
     },
     // True when the drawn cut answers the current view and nothing loads.
@@ -384,7 +504,26 @@ function testHook() {
       const [width, height] = viewportSize();
       return JSON.stringify(viewer.lastRequest) === JSON.stringify(cutRequest(width, height));
     },
+    // The panel shows the selection at the current time, and no search is pending.
+    panelSettled: () => !!viewer.panel && viewer.panel.settled() && !viewer.search.pending,
     lastRequest: () => viewer.lastRequest,
+    pickAt: (x, y) => pickAt(x, y),
+    matches: () => viewer.search.matches.slice(),
+    select: (index) => select(index === null ? null : { index, id: null }),
+    search: (q, mode) => search(q, mode),
+    // Off draws every feature of the drawn clusters (no presence, no flags):
+    // what the cut alone shows, for the tests' pixel comparisons.
+    setFeatureState: (on) => viewer.features.setEnabled(on),
+    // Test only: the feature id of every device pixel of the canvas (-1 none),
+    // as counts by id; a click reads one pixel of the same pass.
+    featureCoverage: () => {
+      const [width, height] = viewportSize();
+      uploadFeatureState();
+      const ids = renderer.pickRect(drawItems(), viewer.matrices, width, height, 0, 0, width, height);
+      const counts = {};
+      for (const id of ids) if (id >= 0) counts[id] = (counts[id] || 0) + 1;
+      return counts;
+    },
     setTime: (t) => setTime(t),
     setPixelError: (p) => setPixelError(p),
     setColourMode: (m) => setColourMode(m),
@@ -406,6 +545,36 @@ function testHook() {
     },
     pause: () => setPlaying(false),
   };
+}
+
+function coordinates(text) {
+  const v = (text || "").split(",").map(Number);
+  return v.length === 3 && v.every(Number.isFinite) ? v : null;
+}
+
+// Every object's presence, once per scene, then the link's selection and
+// search. A tree without an object table still draws: nothing is pickable
+// by name then, and nothing is hidden by time beyond the cut.
+async function loadObjects(params) {
+  try {
+    viewer.features.setPresence((await getJson(`${viewer.sceneUrl}/presence`)).presence);
+    viewer.features.setTime(viewer.t);
+  } catch (e) {
+    viewer.objectsError = e.message;
+    ui.search.hidden = true;
+    return;
+  }
+  const id = params.get("selected");
+  if (id) {
+    try {
+      const o = await getJson(`${viewer.sceneUrl}/objects/${encodeURIComponent(id)}`);
+      select({ index: o.index, id: o.id });
+    } catch (e) {
+      showMessage(`The link's selection: ${e.message}`);
+    }
+  }
+  const q = params.get("q");
+  if (q) search(q, params.get("mode") || "highlight");
 }
 
 async function start() {
@@ -440,6 +609,7 @@ async function start() {
   }
   try {
     viewer.scene = await getJson(chosen.url);
+    viewer.sceneUrl = chosen.url;
   } catch (e) {
     showMessage(e.status === 404 ? `The scene "${chosen.name}" is gone from the server.` : e.message);
     return;
@@ -454,6 +624,16 @@ async function start() {
   setPixelError(p > 0 ? p : 1);
   setColourMode(["vertex", "class", "level"].includes(params.get("colour")) ? params.get("colour") : "vertex");
   setMode("orbit");
+  const position = coordinates(params.get("position"));
+  const target = coordinates(params.get("target"));
+  if (position && target) camera.lookFrom(position, target);
+  viewer.panel = new ObjectPanel(ui.panel, viewer.sceneUrl, getJson, formatDate, (o) => {
+    if (viewer.selection && viewer.selection.index === o.index && viewer.selection.id !== o.id) {
+      viewer.selection.id = o.id;
+      urlDirty = true;
+    }
+  });
+  await loadObjects(params);
   bindInput();
   const wsUrl = `${location.protocol === "https:" ? "wss" : "ws"}://${location.host}${viewer.scene.stream}`;
   connection = new CutConnection(wsUrl, {

@@ -1,41 +1,94 @@
 // WebGL2 drawing: one vertex array and one draw call per cluster, a
 // headlight Lambert over vertex colours (or a colour per class or level).
-// Dynamic clusters get their cut transform as the model matrix.
+// Dynamic clusters get their cut transform as the model matrix. Picking is
+// one more pass of the same clusters into an offscreen framebuffer with
+// feature ids as colours, scissored to the pixel under the cursor, read
+// back as that one pixel.
 
+// Each vertex carries its scene object (the feature id, -1 for none). The
+// per-feature state texture (featurestate.js: present, ghosted, selected,
+// matched) is read by feature id: a feature that is absent or hidden has
+// its vertices moved outside the clip volume, so its triangles (whose three
+// corners share the id) are dropped before rasterisation.
 const VERTEX = `#version 300 es
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aColor;
+layout(location = 3) in float aFeature;
 uniform mat4 uViewProj;
 uniform mat4 uModel;
+uniform sampler2D uState;
+uniform bool uHasState;
+uniform int uStateWidth;
+uniform int uStateCount;
+uniform bool uIsolating;
+// 0: opaque, 1: ghosts, 2: feature ids (picking)
+uniform int uPass;
 out vec3 vWorld;
 out vec3 vNormal;
 out vec4 vColor;
+flat out float vFeature;
+flat out vec4 vState;
 void main() {
+  // r present, g ghosted, b selected, a matched
+  vec4 state = vec4(1.0, 0.0, 0.0, 0.0);
+  bool hasFeature = aFeature >= 0.0;
+  int id = int(aFeature + 0.5);
+  if (hasFeature && uHasState && id < uStateCount) {
+    state = texelFetch(uState, ivec2(id % uStateWidth, id / uStateWidth), 0);
+  } else if (uIsolating) {
+    state.g = 1.0;
+  }
+  bool ghost = state.g > 0.5;
+  bool keep = state.r > 0.5 && (uPass == 1 ? ghost : !ghost) && (uPass != 2 || hasFeature);
+  if (!keep) {
+    gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
+    return;
+  }
   vec4 world = uModel * vec4(aPosition, 1.0);
   vWorld = world.xyz;
   vNormal = mat3(uModel) * aNormal;
   vColor = aColor;
+  vFeature = aFeature;
+  vState = state;
   gl_Position = uViewProj * world;
 }`;
 
 const FRAGMENT = `#version 300 es
 precision highp float;
+precision highp int;
 in vec3 vWorld;
 in vec3 vNormal;
 in vec4 vColor;
+flat in float vFeature;
+flat in vec4 vState;
 uniform vec3 uEye;
 uniform vec4 uTint;
 uniform bool uHasNormals;
+uniform int uPass;
 out vec4 outColor;
 void main() {
+  if (uPass == 2) {
+    // The feature id plus one in 24 bits of colour; 0 is nothing.
+    uint v = uint(vFeature + 0.5) + 1u;
+    outColor = vec4(float(v & 255u), float((v >> 8) & 255u), float((v >> 16) & 255u), 255.0) / 255.0;
+    return;
+  }
   // Polygon soup may lack or flip normals: the face normal from screen
   // derivatives stands in, and both sides are lit.
   vec3 n = uHasNormals ? normalize(vNormal) : normalize(cross(dFdx(vWorld), dFdy(vWorld)));
   vec3 l = normalize(uEye - vWorld);
   float lambert = abs(dot(n, l));
   vec3 base = uTint.a > 0.0 ? uTint.rgb : vColor.rgb;
-  outColor = vec4(base * (0.3 + 0.7 * lambert), 1.0);
+  if (vState.a > 0.5) base = mix(base, vec3(0.1, 0.75, 0.95), 0.6);
+  if (vState.b > 0.5) base = mix(base, vec3(1.0, 0.45, 0.0), 0.75);
+  vec3 lit = base * (0.3 + 0.7 * lambert);
+  if (uPass == 1) {
+    float grey = dot(lit, vec3(0.3, 0.59, 0.11));
+    outColor = vec4(vec3(grey), 0.12);
+  } else {
+    outColor = vec4(lit, 1.0);
+  }
 }`;
 
 export const BACKGROUND = [0.86, 0.89, 0.93];
@@ -81,10 +134,39 @@ export class Renderer {
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
     this.program = program;
     this.u = {};
-    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals"]) {
+    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uPass"]) {
       this.u[name] = gl.getUniformLocation(program, name);
     }
     gl.enable(gl.DEPTH_TEST);
+    this.stateTexture = gl.createTexture();
+    this.stateWidth = Math.min(4096, gl.getParameter(gl.MAX_TEXTURE_SIZE));
+    this.stateHeight = 0;
+    this.stateCount = 0;
+    this.stateUploads = 0;
+    this.pickTarget = null;
+  }
+
+  // The per-feature state, RGBA bytes of feature i at 4 * i (the length a
+  // multiple of stateRowBytes()); null draws every feature plainly.
+  setState(bytes, count) {
+    const gl = this.gl;
+    this.stateCount = bytes ? count : 0;
+    if (!bytes) return;
+    const height = bytes.length / (4 * this.stateWidth);
+    gl.bindTexture(gl.TEXTURE_2D, this.stateTexture);
+    if (height !== this.stateHeight) {
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.stateWidth, height, 0, gl.RGBA, gl.UNSIGNED_BYTE, bytes);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
+      this.stateHeight = height;
+    } else {
+      gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.stateWidth, height, gl.RGBA, gl.UNSIGNED_BYTE, bytes);
+    }
+    this.stateUploads++;
+  }
+
+  stateRowBytes() {
+    return 4 * this.stateWidth;
   }
 
   // GPU buffers of a parsed GLB: {vao, count, hasNormals}.
@@ -104,33 +186,112 @@ export class Renderer {
     attribute(0, mesh.positions, 3);
     if (mesh.normals) attribute(1, mesh.normals, 3);
     if (mesh.colors) attribute(2, mesh.colors, 4);
-    else gl.vertexAttrib4f(2, 0.75, 0.75, 0.75, 1);
+    if (mesh.features) attribute(3, mesh.features, 1);
     const ib = gl.createBuffer();
     buffers.push(ib);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.indices, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
-    return { vao, buffers, count: mesh.indices.length, hasNormals: !!mesh.normals, hasColors: !!mesh.colors };
+    return {
+      vao, buffers, count: mesh.indices.length,
+      hasNormals: !!mesh.normals, hasColors: !!mesh.colors, hasFeatures: !!mesh.features,
+    };
   }
 
-  // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null)}]
-  draw(items, camera, width, height) {
+  // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null)}];
+  // isolating: features not flagged as isolated are drawn as ghosts.
+  draw(items, camera, width, height, isolating) {
     const gl = this.gl;
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     gl.viewport(0, 0, width, height);
     gl.clearColor(...BACKGROUND, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    this.pass(items, camera, 0, isolating);
+    if (isolating) {
+      // Faint and behind nothing: blended over the opaque picture without
+      // writing depth, so the isolated features show through them.
+      gl.enable(gl.BLEND);
+      gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
+      gl.depthMask(false);
+      this.pass(items, camera, 1, isolating);
+      gl.depthMask(true);
+      gl.disable(gl.BLEND);
+    }
+  }
+
+  pass(items, camera, which, isolating) {
+    const gl = this.gl;
     gl.useProgram(this.program);
     gl.uniformMatrix4fv(this.u.uViewProj, false, camera.viewProj);
     gl.uniform3fv(this.u.uEye, camera.eye);
+    gl.uniform1i(this.u.uPass, which);
+    gl.uniform1i(this.u.uIsolating, isolating ? 1 : 0);
+    gl.uniform1i(this.u.uHasState, this.stateCount > 0 ? 1 : 0);
+    gl.uniform1i(this.u.uStateWidth, this.stateWidth);
+    gl.uniform1i(this.u.uStateCount, this.stateCount);
+    gl.activeTexture(gl.TEXTURE0);
+    gl.bindTexture(gl.TEXTURE_2D, this.stateTexture);
+    gl.uniform1i(this.u.uState, 0);
     for (const item of items) {
       const g = item.gpu;
+      if (which === 2 && !g.hasFeatures) continue;
       gl.uniformMatrix4fv(this.u.uModel, false, item.transform || IDENTITY);
       gl.uniform4f(this.u.uTint, ...(item.tint || [0, 0, 0]), item.tint ? 1 : 0);
       gl.uniform1i(this.u.uHasNormals, g.hasNormals ? 1 : 0);
       gl.bindVertexArray(g.vao);
+      // Constant attributes are context state, not the vertex array's.
       if (!g.hasColors) gl.vertexAttrib4f(2, 0.75, 0.75, 0.75, 1);
+      if (!g.hasFeatures) gl.vertexAttrib1f(3, -1);
       gl.drawElements(gl.TRIANGLES, g.count, gl.UNSIGNED_INT, 0);
     }
     gl.bindVertexArray(null);
+  }
+
+  // Feature ids of the drawn items in the device-pixel rectangle
+  // (x, y from the top left, w x h), row by row from the bottom: -1 where
+  // no feature is. A click reads one pixel.
+  pickRect(items, camera, width, height, x, y, w, h) {
+    const gl = this.gl;
+    const t = this.pickTarget;
+    if (!t || t.width !== width || t.height !== height) {
+      if (t) {
+        gl.deleteFramebuffer(t.fb);
+        gl.deleteRenderbuffer(t.colour);
+        gl.deleteRenderbuffer(t.depth);
+      }
+      const fb = gl.createFramebuffer();
+      const colour = gl.createRenderbuffer();
+      const depth = gl.createRenderbuffer();
+      gl.bindRenderbuffer(gl.RENDERBUFFER, colour);
+      gl.renderbufferStorage(gl.RENDERBUFFER, gl.RGBA8, width, height);
+      gl.bindRenderbuffer(gl.RENDERBUFFER, depth);
+      gl.renderbufferStorage(gl.RENDERBUFFER, gl.DEPTH_COMPONENT24, width, height);
+      gl.bindFramebuffer(gl.FRAMEBUFFER, fb);
+      gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.COLOR_ATTACHMENT0, gl.RENDERBUFFER, colour);
+      gl.framebufferRenderbuffer(gl.FRAMEBUFFER, gl.DEPTH_ATTACHMENT, gl.RENDERBUFFER, depth);
+      this.pickTarget = { fb, colour, depth, width, height };
+    }
+    gl.bindFramebuffer(gl.FRAMEBUFFER, this.pickTarget.fb);
+    gl.viewport(0, 0, width, height);
+    const y0 = height - y - h;
+    gl.enable(gl.SCISSOR_TEST);
+    gl.scissor(x, y0, w, h);
+    gl.clearColor(0, 0, 0, 0);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    this.pass(items, camera, 2, false);
+    const px = new Uint8Array(4 * w * h);
+    gl.readPixels(x, y0, w, h, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    gl.disable(gl.SCISSOR_TEST);
+    gl.bindFramebuffer(gl.FRAMEBUFFER, null);
+    const ids = new Int32Array(w * h);
+    for (let i = 0; i < ids.length; i++) ids[i] = (px[4 * i] | (px[4 * i + 1] << 8) | (px[4 * i + 2] << 16)) - 1;
+    return ids;
+  }
+
+  // The feature under device pixel (x, y) from the top left, or null.
+  pick(items, camera, width, height, x, y) {
+    if (x < 0 || y < 0 || x >= width || y >= height) return null;
+    const id = this.pickRect(items, camera, width, height, x, y, 1, 1)[0];
+    return id >= 0 ? id : null;
   }
 }

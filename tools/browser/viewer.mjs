@@ -27,15 +27,16 @@ try {
     if (m.type() === "error" && !faults) out.errors.push(`console: ${m.text()}`);
   });
 
-  const settle = async () => {
-    await page.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.settled(), null, {
+  const settleOn = async (p) => {
+    await p.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.settled() && window.hdlodViewer.panelSettled(), null, {
       timeout: 20000,
       polling: 50,
     });
     // One more frame so the canvas shows what the state says.
-    await page.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-    return page.evaluate(() => window.hdlodViewer.state());
+    await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
+    return p.evaluate(() => window.hdlodViewer.state());
   };
+  const settle = () => settleOn(page);
   // The server's own cut for the request the viewer's drawn cut answers.
   const serverCut = (request) =>
     page.evaluate(async ([sceneName, body]) => {
@@ -78,6 +79,200 @@ try {
       };
     }, png.toString("base64"));
   };
+  const hook = (f, arg) => page.evaluate(([body, a]) => new Function("v", "a", `return (${body})(v, a)`)(window.hdlodViewer, a), [f.toString(), arg]);
+  const api = (p, path) => p.evaluate(async (u) => (await fetch(u)).json(), path);
+  const sceneApi = `/api/v1/scenes/${encodeURIComponent(scene)}`;
+  // The RGB of one CSS pixel of the page as shown.
+  const pixel = async (p, x, y) => {
+    const png = await p.screenshot({ clip: { x, y, width: 1, height: 1 } });
+    return p.evaluate(async (data) => {
+      const img = await createImageBitmap(await (await fetch(`data:image/png;base64,${data}`)).blob());
+      const c = new OffscreenCanvas(1, 1);
+      const g = c.getContext("2d");
+      g.drawImage(img, 0, 0);
+      return [...g.getImageData(0, 0, 1, 1).data.slice(0, 3)];
+    }, png.toString("base64"));
+  };
+  // Two screenshots of the canvas compared: pixels that differ, and the
+  // pixels off the background in each.
+  const compare = async (name, a, b) => {
+    const clip = { x: 0, y: 0, width: WIDTH, height: HEIGHT };
+    for (const [suffix, png] of [["a", a], ["b", b]]) writeFileSync(join(outDir, `${name}-${suffix}.png`), png);
+    return page.evaluate(async ([da, db, clip]) => {
+      const load = async (d) => {
+        const img = await createImageBitmap(await (await fetch(`data:image/png;base64,${d}`)).blob());
+        const c = new OffscreenCanvas(img.width, img.height);
+        const g = c.getContext("2d");
+        g.drawImage(img, 0, 0);
+        return g.getImageData(clip.x, clip.y, clip.width, clip.height).data;
+      };
+      const [pa, pb] = [await load(da), await load(db)];
+      const bg = [219, 227, 237];
+      const off = (px, i) => Math.abs(px[i] - bg[0]) + Math.abs(px[i + 1] - bg[1]) + Math.abs(px[i + 2] - bg[2]) > 12;
+      let differ = 0;
+      let offA = 0;
+      let offB = 0;
+      for (let i = 0; i < pa.length; i += 4) {
+        if (Math.abs(pa[i] - pb[i]) + Math.abs(pa[i + 1] - pb[i + 1]) + Math.abs(pa[i + 2] - pb[i + 2]) > 24) differ++;
+        if (off(pa, i)) offA++;
+        if (off(pb, i)) offB++;
+      }
+      return { pixels: pa.length / 4, differ, offA, offB };
+    }, [a.toString("base64"), b.toString("base64"), clip]);
+  };
+  // The canvas alone: the overlays (toolbar, panel, stats) hidden for the shot.
+  const canvasShot = async (p = page) => {
+    const overlays = "#bar, #panel, #stats, #legend, #help";
+    await p.evaluate((sel) => document.querySelectorAll(sel).forEach((e) => (e.style.visibility = "hidden")), overlays);
+    const png = await p.screenshot();
+    await p.evaluate((sel) => document.querySelectorAll(sel).forEach((e) => (e.style.visibility = "")), overlays);
+    return png;
+  };
+  const coverage = () => hook((v) => v.featureCoverage());
+
+  async function identity() {
+    const presence = (await api(page, `${sceneApi}/presence`)).presence;
+    const presentAt = (i, t) => presence[i].some(([a, b]) => (a === null || a <= t) && (b === null || t < b));
+    out.objects = presence.length;
+
+    // (a) A click on the site at the end of the period: a pixel in the
+    // middle of some object (its neighbours pick the same), clicked with
+    // the mouse; the panel names it and the pixel takes the selection tint.
+    await hook((v) => { v.setDistanceFactor(1); v.setPixelError(1); v.setColourMode("vertex"); v.setTime(v.state().span); });
+    await settle();
+    let target = null;
+    for (let dy = 0; dy < 200 && !target; dy += 6) {
+      for (const sy of [1, -1]) {
+        const [x, y] = [Math.round(WIDTH / 2) - 100, Math.round(HEIGHT / 2) + sy * dy];
+        const ids = await hook((v, [x, y]) => [[0, 0], [3, 0], [-3, 0], [0, 3], [0, -3]].map(([a, b]) => v.pickAt(x + a, y + b)), [x, y]);
+        if (ids[0] !== null && ids.every((i) => i === ids[0])) {
+          target = { x, y, index: ids[0] };
+          break;
+        }
+      }
+    }
+    out.pick = { target };
+    if (!target) return;
+    const before = await pixel(page, target.x, target.y);
+    const picksBefore = (await hook((v) => v.state())).picks;
+    await page.mouse.click(target.x, target.y);
+    let s = await settle();
+    const field = (name) => page.evaluate((n) => document.querySelector(`#panel [data-field="${n}"]`)?.textContent ?? null, name);
+    out.pick = {
+      ...out.pick,
+      time: s.time,
+      selection: s.selection,
+      picks: s.picks - picksBefore,
+      panel: { id: await field("id"), name: await field("name"), class: await field("class"), storey: await field("storey"), present: await field("present") },
+      tasks: await page.evaluate(() => [...document.querySelectorAll("#panel [data-task]")].map((e) => e.dataset.task)),
+      before,
+      after: await pixel(page, target.x, target.y),
+    };
+    // The panel follows the time: at the start of the period.
+    await hook((v) => v.setTime(0));
+    s = await settle();
+    out.pick.atStart = { time: s.time, panel: s.panel, present: await field("present") };
+    await hook((v) => v.setTime(v.state().span));
+    await settle();
+
+    // (b) Exact presence: a time and pixel error where the cut draws a
+    // cluster holding an object absent then; with the state texture off the
+    // absent object shows, with it on it does not.
+    await hook((v) => v.select(null));
+    const span = out.span;
+    let found = null;
+    for (const pe of [16, 4]) {
+      for (let i = 0; i < 24 && !found; i++) {
+        const t = (span * (i + 0.5)) / 24;
+        await hook((v, [t, pe]) => { v.setTime(t); v.setPixelError(pe); v.setFeatureState(false); }, [t, pe]);
+        await settle();
+        const off = await coverage();
+        const absent = Object.keys(off).map(Number).filter((id) => !presentAt(id, t));
+        if (absent.length) found = { t, pixelError: pe, absent, offShot: await canvasShot(), off };
+      }
+      if (found) break;
+    }
+    if (found) {
+      await hook((v) => v.setFeatureState(true));
+      s = await settle();
+      const on = await coverage();
+      const onShot = await canvasShot();
+      out.presence = {
+        time: found.t,
+        pixelError: found.pixelError,
+        clusters: s.ids,
+        absentShownWithoutState: found.absent.slice(0, 50),
+        absentPixelsWithoutState: found.absent.reduce((n, id) => n + found.off[id], 0),
+        shownWithState: Object.keys(on).map(Number).slice(0, 200),
+        absentShownWithState: Object.keys(on).map(Number).filter((id) => !presentAt(id, found.t)),
+        pixels: await compare("presence", found.offShot, onShot),
+        stateUploads: s.stateUploads,
+      };
+      // Nothing changes, nothing is uploaded again.
+      await page.waitForTimeout(200);
+      out.presence.stateUploadsLater = (await hook((v) => v.state())).stateUploads;
+    }
+    await hook((v) => { v.setFeatureState(true); v.setPixelError(1); v.setTime(v.state().span); });
+
+    // (c) Search by the picked object's storey (or class), then isolate,
+    // hide, clear: what is drawn and pickable follows the matches.
+    const q = [out.pick.panel.storey, out.pick.panel.class].find((x) => x && x !== "-");
+    const plainShot = (await settle(), await canvasShot());
+    const run = async (mode) => {
+      await hook((v, [q, mode]) => v.search(q, mode), [q, mode]);
+      const st = await settle();
+      return { state: st.search, shot: await canvasShot(), coverage: Object.keys(await coverage()).map(Number) };
+    };
+    const highlight = await run("highlight");
+    const matches = await hook((v) => v.matches());
+    const isolate = await run("isolate");
+    const hide = await run("hide");
+    await hook((v) => v.search("", "highlight"));
+    await settle();
+    const clearedShot = await canvasShot();
+    const matchSet = new Set(matches);
+    out.search = {
+      q,
+      matches: matches.length,
+      state: isolate.state,
+      highlight: await compare("highlight", plainShot, highlight.shot),
+      isolate: await compare("isolate", plainShot, isolate.shot),
+      hide: await compare("hide", plainShot, hide.shot),
+      cleared: await compare("cleared", plainShot, clearedShot),
+      isolatedPickable: isolate.coverage.length,
+      isolatedOutsideMatches: isolate.coverage.filter((i) => !matchSet.has(i)).length,
+      hiddenPickable: hide.coverage.filter((i) => matchSet.has(i)).length,
+      plainMatchesPickable: highlight.coverage.filter((i) => matchSet.has(i)).length,
+    };
+  }
+
+  // (d) The link: a camera, a selection and an isolation set, the address
+  // opened in a second page, which shows the same.
+  async function roundTrip() {
+    if (!out.pick || !out.pick.target || !out.search) return;
+    await hook((v, [index, q]) => {
+      v.setTime(v.state().span);
+      v.setPixelError(1);
+      v.setCamera({ azimuth: 0.9, elevation: 0.45 });
+      v.setDistanceFactor(1.1);
+      v.select(index);
+      v.search(q, "isolate");
+    }, [out.pick.target.index, out.search.q]);
+    const a = await settle();
+    await page.waitForTimeout(700);
+    const url = await page.evaluate(() => location.href);
+    const shotA = await canvasShot();
+    const second = await browser.newPage({ viewport: { width: WIDTH, height: HEIGHT } });
+    second.on("pageerror", (e) => out.errors.push(`second page error: ${e.message}`));
+    await second.goto(url);
+    await second.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.state().search.matches > 0, null, { timeout: 20000 });
+    const b = await settleOn(second);
+    const shotB = await canvasShot(second);
+    const pick = (st) => ({ time: st.time, eye: st.eye, target: st.target, selection: st.selection, search: st.search, distance: st.distance });
+    out.roundTrip = { url, a: pick(a), b: pick(b), pixels: await compare("link", shotA, shotB) };
+    await second.close();
+  }
+
   const summary = (s) => ({ time: s.time, clusters: s.clusters, triangles: s.triangles, baseline: s.baseline, ids: s.ids });
 
   const started = Date.now();
@@ -163,11 +358,17 @@ try {
     out.dynamic = { before: at(before), after: at(after), timeBefore: before.time, timeAfter: after.time };
   }
 
+  // Object identity: picking, the panel, exact presence, search, the link.
+  await identity();
+
   const last = await page.evaluate(() => window.hdlodViewer.state());
   out.finalGlbFiles = last.glbFiles;
   await page.waitForTimeout(600);
   out.address = await page.evaluate(() => location.search);
   out.finalGlbBytes = last.glbBytes;
+  // The server's counters before a second page loads the link's view.
+  out.metrics = await page.evaluate(async () => (await fetch("/metrics")).text());
+  await roundTrip();
 
   // Readable messages: an unknown scene, then a server that is not there.
   faults = true;

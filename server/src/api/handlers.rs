@@ -48,7 +48,7 @@ pub async fn metrics(State(state): State<Arc<AppState>>) -> impl IntoResponse {
 pub fn openapi_document() -> &'static Value {
     static DOC: OnceLock<Value> = OnceLock::new();
     DOC.get_or_init(|| {
-        let files: [(&str, &str); 11] = [
+        let files: [(&str, &str); 12] = [
             (
                 "error.schema.json",
                 include_str!("../../../schemas/api/error.schema.json"),
@@ -92,6 +92,10 @@ pub fn openapi_document() -> &'static Value {
             (
                 "task.schema.json",
                 include_str!("../../../schemas/api/task.schema.json"),
+            ),
+            (
+                "presence.schema.json",
+                include_str!("../../../schemas/api/presence.schema.json"),
             ),
         ];
         let mut doc: Value =

@@ -7,6 +7,7 @@ pub mod error;
 mod handlers;
 pub mod metrics;
 mod objects;
+mod presence;
 mod stream;
 mod tiles;
 mod viewer;
@@ -147,6 +148,7 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/v1/scenes/{scene}/stream", get(stream::stream))
         .route("/api/v1/scenes/{scene}/objects", get(objects::objects))
         .route("/api/v1/scenes/{scene}/objects/{id}", get(objects::object))
+        .route("/api/v1/scenes/{scene}/presence", get(presence::presence))
         .route("/api/v1/scenes/{scene}/tasks", get(objects::tasks))
         .route("/api/v1/scenes/{scene}/tasks/{id}", get(objects::task))
         .route(

@@ -137,7 +137,7 @@ fn path<T>(path: Result<Path<T>, PathRejection>) -> Result<T, ApiError> {
 }
 
 /// The scene's tables: a tree built without them is a 404 that says so.
-fn tables(s: &LoadedScene) -> Result<&ObjectTables, ApiError> {
+pub(super) fn tables(s: &LoadedScene) -> Result<&ObjectTables, ApiError> {
     s.tree.objects.as_ref().ok_or_else(|| {
         ApiError::not_found(
             "scene",

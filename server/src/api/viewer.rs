@@ -13,7 +13,7 @@ const JS: &str = "text/javascript; charset=utf-8";
 const CSS: &str = "text/css; charset=utf-8";
 
 /// Name, content type, bytes of every file under `/viewer/`.
-const FILES: [(&str, &str, &str); 8] = [
+const FILES: [(&str, &str, &str); 10] = [
     ("index.html", HTML, include_str!("../../viewer/index.html")),
     ("viewer.css", CSS, include_str!("../../viewer/viewer.css")),
     ("main.js", JS, include_str!("../../viewer/main.js")),
@@ -22,6 +22,12 @@ const FILES: [(&str, &str, &str); 8] = [
     ("camera.js", JS, include_str!("../../viewer/camera.js")),
     ("renderer.js", JS, include_str!("../../viewer/renderer.js")),
     ("stream.js", JS, include_str!("../../viewer/stream.js")),
+    (
+        "featurestate.js",
+        JS,
+        include_str!("../../viewer/featurestate.js"),
+    ),
+    ("objects.js", JS, include_str!("../../viewer/objects.js")),
 ];
 
 fn file(name: &str) -> Option<Response> {

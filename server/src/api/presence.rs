@@ -1,0 +1,57 @@
+//! `GET /api/v1/scenes/{scene}/presence`: when every object of the scene is
+//! present, in one answer, by object index (the feature id its vertices
+//! carry in the cluster geometry). The viewer fetches it once per scene and
+//! hides, at any time and with no further request, the features of a drawn
+//! cluster that are absent then (docs/viewer.md). A tree without
+//! `objects.json` answers 404, as the object routes do.
+
+use std::sync::Arc;
+
+use axum::Json;
+use axum::extract::rejection::{PathRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::response::{IntoResponse, Response};
+use serde::Serialize;
+
+use super::AppState;
+use super::error::ApiError;
+use super::handlers::find;
+use super::objects::tables;
+
+#[derive(Serialize)]
+struct PresenceAnswer<'a> {
+    scene: &'a str,
+    /// `presence[i]` is object `i`'s half-open intervals `[start, end)` in
+    /// seconds since the scene's start, sorted and apart; null is an open
+    /// end; empty for an object never present.
+    presence: Vec<Vec<[Option<f64>; 2]>>,
+}
+
+pub async fn presence(
+    State(state): State<Arc<AppState>>,
+    scene: Result<Path<String>, PathRejection>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+) -> Result<Response, ApiError> {
+    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
+    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
+    if let Some((key, _)) = pairs.first() {
+        return Err(ApiError::bad(key, "unknown query parameter"));
+    }
+    let s = find(&state, &scene)?;
+    let open = |x: f64| x.is_finite().then_some(x);
+    let answer = PresenceAnswer {
+        scene: &s.tree.scene,
+        presence: tables(&s)?
+            .objects()
+            .iter()
+            .map(|o| {
+                o.presence
+                    .intervals()
+                    .iter()
+                    .map(|&(a, b)| [open(a), open(b)])
+                    .collect()
+            })
+            .collect(),
+    };
+    Ok(Json(answer).into_response())
+}
