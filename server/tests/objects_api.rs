@@ -237,3 +237,41 @@ fn a_tree_without_tables_answers_404() {
     let scene = server.get_json("/api/v1/scenes/sample-1");
     assert!(scene["clusters"].as_u64().unwrap() > 0);
 }
+
+/// A dynamic cluster's GLB is shared by every instance of its model and
+/// carries no feature ids: the cut answer names its object, a moving one.
+#[test]
+fn dynamic_clusters_name_their_object() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(&build_tree(dir.path()));
+    let doc = server.get_json("/api/v1/openapi.json");
+    let scene = server.get_json(&scene_path(""));
+    let (lo, hi) = (&scene["bounds"]["min"], &scene["bounds"]["max"]);
+    let at = |k: usize| (lo[k].as_f64().unwrap() + hi[k].as_f64().unwrap()) / 2.0;
+    let size = (0..3)
+        .map(|k| hi[k].as_f64().unwrap() - lo[k].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let seconds = scene["time"]["seconds"].as_f64().unwrap();
+    let mut named = 0;
+    for k in 1..20 {
+        let body = serde_json::json!({
+            "time": seconds * f64::from(k) / 20.0,
+            "camera": {"position": [at(0) + size, at(1) + size, at(2) + size], "target": [at(0), at(1), at(2)]},
+            "pixel_error": 1.0
+        });
+        let cut = server.post_json(&scene_path("/cut"), &body);
+        assert_component(&doc, "CutResponse", &cut);
+        for c in cut["clusters"].as_array().unwrap() {
+            let object = &c["object"];
+            if c["class"] != "dynamic" {
+                assert!(object.is_null(), "{c}");
+                continue;
+            }
+            let index = object.as_u64().expect("a dynamic cluster names its object");
+            let entry = server.get_json(&scene_path(&format!("/objects/{index}?by=index")));
+            assert_eq!(entry["visibility_class"], "dynamic", "{c} -> {entry}");
+            named += 1;
+        }
+    }
+    assert!(named > 0, "no dynamic cluster in any cut");
+}

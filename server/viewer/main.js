@@ -225,7 +225,11 @@ function tint(c) {
 
 function drawItems() {
   const items = [];
-  for (const c of viewer.clusters.values()) items.push({ gpu: c.gpu, transform: c.transform, tint: tint(c) });
+  for (const c of viewer.clusters.values()) {
+    // A dynamic cluster's GLB (shared by the model's instances) has no
+    // feature ids; the answer names its object.
+    items.push({ gpu: c.gpu, transform: c.transform, tint: tint(c), feature: c.info.object ?? null });
+  }
   return items;
 }
 

@@ -198,7 +198,8 @@ export class Renderer {
     };
   }
 
-  // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null)}];
+  // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null),
+  // feature (the whole item's feature id where its GLB has none, or null)}];
   // isolating: features not flagged as isolated are drawn as ghosts.
   draw(items, camera, width, height, isolating) {
     const gl = this.gl;
@@ -234,14 +235,14 @@ export class Renderer {
     gl.uniform1i(this.u.uState, 0);
     for (const item of items) {
       const g = item.gpu;
-      if (which === 2 && !g.hasFeatures) continue;
+      if (which === 2 && !g.hasFeatures && item.feature == null) continue;
       gl.uniformMatrix4fv(this.u.uModel, false, item.transform || IDENTITY);
       gl.uniform4f(this.u.uTint, ...(item.tint || [0, 0, 0]), item.tint ? 1 : 0);
       gl.uniform1i(this.u.uHasNormals, g.hasNormals ? 1 : 0);
       gl.bindVertexArray(g.vao);
       // Constant attributes are context state, not the vertex array's.
       if (!g.hasColors) gl.vertexAttrib4f(2, 0.75, 0.75, 0.75, 1);
-      if (!g.hasFeatures) gl.vertexAttrib1f(3, -1);
+      if (!g.hasFeatures) gl.vertexAttrib1f(3, item.feature ?? -1);
       gl.drawElements(gl.TRIANGLES, g.count, gl.UNSIGNED_INT, 0);
     }
     gl.bindVertexArray(null);

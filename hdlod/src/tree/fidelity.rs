@@ -3,7 +3,8 @@
 //! stored error `eps_c`. A viewer that picks or hides an object inside a
 //! coarse cluster acts on those triangles, so they should stand for that
 //! object and no other: within `eps_c` of it, as the whole cluster is
-//! within `eps_c` of all its objects.
+//! within `eps_c` of all its objects. A dynamic cluster's GLB has no
+//! feature ids: it is all one object, its chain's.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -53,15 +54,22 @@ pub fn feature_distances(
             continue;
         };
         let file = dir.join(GEOMETRY_DIR).join(format!("{hash}.glb"));
-        let mesh = read_mesh(&file)?;
-        if mesh.features.is_empty() {
-            return Err(Error::invalid(
-                &file,
-                "_FEATURE_ID_0",
-                "the cluster's geometry has no feature ids",
-            ));
-        }
+        let mut mesh = read_mesh(&file)?;
         let own_frame = cluster.class == ClusterClass::Dynamic;
+        if mesh.features.is_empty() {
+            // A dynamic cluster is one object, which the tree names.
+            let object = own_frame
+                .then(|| dynamic_object(tree, scene, id))
+                .flatten()
+                .ok_or_else(|| {
+                    Error::invalid(
+                        &file,
+                        "_FEATURE_ID_0",
+                        "the cluster's geometry has no feature ids",
+                    )
+                })?;
+            mesh.features = vec![object; mesh.positions.len()];
+        }
         for (feature, part) in by_feature(&mesh) {
             let object = scene.objects.get(feature as usize).ok_or_else(|| {
                 Error::invalid(
@@ -106,6 +114,21 @@ pub fn feature_distances(
         }
     }
     Ok(out)
+}
+
+/// The scene index of the object dynamic cluster `id` is: its chain's
+/// leaf's (with or without the tree's object tables).
+fn dynamic_object(tree: &Tree, scene: &Scene, id: u32) -> Option<u32> {
+    let mut c = &tree.clusters[id as usize];
+    while let [child] = c.children[..] {
+        c = &tree.clusters[child as usize];
+    }
+    let object = c.objects.first()?;
+    scene
+        .objects
+        .iter()
+        .position(|o| &o.id == object)
+        .map(|i| i as u32)
 }
 
 /// The triangles of each feature of `mesh`, by feature.

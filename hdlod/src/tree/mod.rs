@@ -240,6 +240,22 @@ impl Tree {
             .get_or_init(|| presence::Presence::new(self))
     }
 
+    /// The object (its index in the scene and the object table) whose
+    /// geometry a dynamic cluster is: its chain shares one GLB among every
+    /// instance of a model, so the GLB carries no feature ids and the tree
+    /// names the object (its chain's leaf). `None` for the other clusters,
+    /// whose GLBs carry them, and for a tree without object tables.
+    pub fn dynamic_object(&self, cluster: u32) -> Option<u32> {
+        let mut c = self.clusters.get(cluster as usize)?;
+        if c.class != ClusterClass::Dynamic {
+            return None;
+        }
+        while let [child] = c.children[..] {
+            c = &self.clusters[child as usize];
+        }
+        self.objects.as_ref()?.object_index(c.objects.first()?)
+    }
+
     pub(crate) fn nodes(&self) -> &nodes::Nodes {
         self.nodes.0.get_or_init(|| nodes::Nodes::new(self))
     }

@@ -18,6 +18,10 @@ pub struct ClusterOut<'a> {
     pub level: u32,
     /// The geometry's URL path (content-addressed, immutable).
     pub geometry: GeometryUrl<'a>,
+    /// The object a dynamic cluster is (its GLB, shared by the model's
+    /// instances, carries no feature ids); `Tree::dynamic_object`.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub object: Option<u32>,
     /// Column-major 4x4 pose at the requested time (dynamic clusters).
     pub transform: Option<[f32; 16]>,
     pub triangles: u64,
@@ -102,6 +106,7 @@ fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a
             scene: &tree.scene,
             hash: c.geometry.as_deref().unwrap_or_default(),
         },
+        object: tree.dynamic_object(c.id),
         transform: item.transform.map(|m| m.to_cols_array()),
         triangles: c.triangles,
         error: item.error,
