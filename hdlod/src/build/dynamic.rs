@@ -1,14 +1,13 @@
-//! Dynamic objects: one cluster per object, its geometry in its own frame,
-//! and above it a discrete LOD chain of its model: coarser versions, each
-//! with its measured Hausdorff error to the original and the object's own
-//! visibility and motion. Identical instances share the chain's geometry:
-//! a dynamic cluster is one object, named by the tree (its chain's leaf),
-//! so its GLB carries no feature ids (a copy per instance to carry them
-//! would be most of a site's geometry bytes: 321 MB against 634 MB for the
-//! rest of the paper scene).
+//! Dynamic objects: one cluster per object, its geometry in its own frame
+//! and shared by content hash among identical instances, and above it a
+//! discrete LOD chain of its model: coarser versions, each with its
+//! measured Hausdorff error to the original and the object's own
+//! visibility and motion. A dynamic cluster is one object, named by the
+//! tree (its chain's leaf), so its shared GLB carries no feature ids (a
+//! copy per instance to carry them measured 321 MB on the paper scene,
+//! against 634 MB for the rest of its geometry).
 
 use std::collections::HashMap;
-use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
 use rayon::prelude::*;
@@ -22,10 +21,10 @@ use crate::geometry::{self, Mesh, Part};
 use crate::scene::{Scene, Visibility};
 use crate::tree::{Cluster, ClusterClass};
 
-/// One version of a model: its geometry and what the tree records.
+/// One version of a model: its stored geometry and what the tree records.
 #[derive(Clone)]
 struct Version {
-    mesh: Arc<Mesh>,
+    hash: String,
     triangles: u64,
     eps: f64,
     bounds: (Vec3, Vec3),
@@ -38,15 +37,14 @@ struct Version {
 /// when it has at most `min_reduction` of the triangles of the version
 /// below. The cut takes a coarser version once its error is small enough
 /// on screen, so the chain is made by error, not by triangle count.
-fn chain(ctx: &Context, mesh: Mesh) -> Vec<Version> {
+fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
     let bounds = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let mut out = vec![Version {
+        hash: ctx.sink.put(mesh)?,
         triangles: mesh.triangle_count() as u64,
         eps: 0.0,
         bounds,
-        mesh: Arc::new(mesh),
     }];
-    let mesh = out[0].mesh.clone();
     let size = f64::from((bounds.1 - bounds.0).length());
     for &share in &ctx.config.dynamic_budgets {
         let previous = out.last().expect("chain starts with the original");
@@ -57,7 +55,7 @@ fn chain(ctx: &Context, mesh: Mesh) -> Vec<Version> {
         let tolerance = (budget * ctx.config.hausdorff_fraction) as f32;
         // Measured against the original model directly: a tighter bound
         // than a recursive sum, and still a bound. Kept monotone.
-        let Some((reduced, h)) = reduce_within(&mesh, budget as f32, tolerance) else {
+        let Some((reduced, h)) = reduce_within(mesh, budget as f32, tolerance) else {
             continue;
         };
         if reduced.triangle_count() as f64 > previous.triangles as f64 * ctx.config.min_reduction {
@@ -67,13 +65,13 @@ fn chain(ctx: &Context, mesh: Mesh) -> Vec<Version> {
         // Contains the finer versions' boxes, as a parent's box must.
         let (lo, hi) = reduced.bounds().unwrap_or(bounds);
         out.push(Version {
+            hash: ctx.sink.put(&reduced)?,
             triangles: reduced.triangle_count() as u64,
             eps,
             bounds: (lo.min(previous.bounds.0), hi.max(previous.bounds.1)),
-            mesh: Arc::new(reduced),
         });
     }
-    out
+    Ok(out)
 }
 
 /// Adds the clusters of the dynamic objects; answers the tops of their
@@ -94,7 +92,7 @@ pub(super) fn dynamic_chains(
     let mut models: Vec<(usize, [u32; 4])> = objects.iter().map(|&(i, _)| key(i)).collect();
     models.sort_unstable();
     models.dedup();
-    let chains: Vec<Vec<Version>> = models
+    let chains: Vec<Result<Vec<Version>>> = models
         .par_iter()
         .map(|&(mesh, color)| {
             let coloured = geometry::merge(
@@ -106,15 +104,12 @@ pub(super) fn dynamic_chains(
                 }],
                 0.0,
             );
-            chain(ctx, coloured)
+            chain(ctx, &coloured)
         })
         .collect();
-    let by_model: HashMap<(usize, [u32; 4]), Vec<Version>> =
-        models.into_iter().zip(chains).collect();
-    let mut hashes: HashMap<(usize, [u32; 4]), Vec<String>> = HashMap::new();
-    for (model, versions) in &by_model {
-        let stored: Result<Vec<String>> = versions.iter().map(|v| ctx.sink.put(&v.mesh)).collect();
-        hashes.insert(*model, stored?);
+    let mut by_model: HashMap<(usize, [u32; 4]), Vec<Version>> = HashMap::new();
+    for (m, c) in models.into_iter().zip(chains) {
+        by_model.insert(m, c?);
     }
 
     let mut stats: Vec<LevelStats> = Vec::new();
@@ -123,15 +118,14 @@ pub(super) fn dynamic_chains(
         let i = *i;
         let o = &scene.objects[i];
         let versions = &by_model[&key(i)];
-        let hashes = hashes[&key(i)].clone();
         let visibility = StepFunction::of_visibility(visibility, ctx.span);
         let mut below: Option<u32> = None;
-        for (level, (v, hash)) in versions.iter().zip(hashes).enumerate() {
+        for (level, v) in versions.iter().enumerate() {
             let node = Node {
                 eps: v.eps,
                 children: below.into_iter().collect(),
                 motion: o.motion.clone(),
-                geometry: Some((hash, v.triangles)),
+                geometry: Some((v.hash.clone(), v.triangles)),
                 objects: if level == 0 {
                     vec![o.id.clone()]
                 } else {

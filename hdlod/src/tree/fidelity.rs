@@ -58,9 +58,9 @@ pub fn feature_distances(
         let own_frame = cluster.class == ClusterClass::Dynamic;
         if mesh.features.is_empty() {
             // A dynamic cluster is one object, which the tree names.
-            let object = own_frame
-                .then(|| dynamic_object(tree, scene, id))
-                .flatten()
+            let object = tree
+                .dynamic_object_id(id)
+                .and_then(|object| scene.objects.iter().position(|o| o.id == object))
                 .ok_or_else(|| {
                     Error::invalid(
                         &file,
@@ -68,7 +68,7 @@ pub fn feature_distances(
                         "the cluster's geometry has no feature ids",
                     )
                 })?;
-            mesh.features = vec![object; mesh.positions.len()];
+            mesh.features = vec![object as u32; mesh.positions.len()];
         }
         for (feature, part) in by_feature(&mesh) {
             let object = scene.objects.get(feature as usize).ok_or_else(|| {
@@ -114,21 +114,6 @@ pub fn feature_distances(
         }
     }
     Ok(out)
-}
-
-/// The scene index of the object dynamic cluster `id` is: its chain's
-/// leaf's (with or without the tree's object tables).
-fn dynamic_object(tree: &Tree, scene: &Scene, id: u32) -> Option<u32> {
-    let mut c = &tree.clusters[id as usize];
-    while let [child] = c.children[..] {
-        c = &tree.clusters[child as usize];
-    }
-    let object = c.objects.first()?;
-    scene
-        .objects
-        .iter()
-        .position(|o| &o.id == object)
-        .map(|i| i as u32)
 }
 
 /// The triangles of each feature of `mesh`, by feature.

@@ -246,6 +246,15 @@ impl Tree {
     /// names the object (its chain's leaf). `None` for the other clusters,
     /// whose GLBs carry them, and for a tree without object tables.
     pub fn dynamic_object(&self, cluster: u32) -> Option<u32> {
+        self.objects
+            .as_ref()?
+            .object_index(self.dynamic_object_id(cluster)?)
+    }
+
+    /// The id of the object dynamic cluster `cluster` is: its chain's
+    /// leaf's (each level of a chain has one child). `None` for the other
+    /// clusters.
+    pub fn dynamic_object_id(&self, cluster: u32) -> Option<&str> {
         let mut c = self.clusters.get(cluster as usize)?;
         if c.class != ClusterClass::Dynamic {
             return None;
@@ -253,7 +262,7 @@ impl Tree {
         while let [child] = c.children[..] {
             c = &self.clusters[child as usize];
         }
-        self.objects.as_ref()?.object_index(c.objects.first()?)
+        c.objects.first().map(String::as_str)
     }
 
     pub(crate) fn nodes(&self) -> &nodes::Nodes {

@@ -46,6 +46,19 @@ pub struct ObjectEntry {
     pub clusters: Vec<u32>,
 }
 
+impl ObjectEntry {
+    /// Its presence as the files and the API write it: `[start, end)`,
+    /// `None` for an open end.
+    pub fn open_presence(&self) -> Vec<[Option<f64>; 2]> {
+        let open = |x: f64| x.is_finite().then_some(x);
+        self.presence
+            .intervals()
+            .iter()
+            .map(|&(a, b)| [open(a), open(b)])
+            .collect()
+    }
+}
+
 /// One schedule task, times in seconds since the scene's start.
 #[derive(Debug, Clone, PartialEq)]
 pub struct TaskEntry {
@@ -366,7 +379,6 @@ impl ObjectTables {
 
     /// The on-disk record; `time` gives the tasks' dates.
     pub fn to_record(&self, time: &TimeSpan) -> ObjectsRecord {
-        let end = |x: f64| x.is_finite().then_some(x);
         ObjectsRecord {
             format: FORMAT.into(),
             objects: self
@@ -379,12 +391,7 @@ impl ObjectTables {
                     properties: o.properties.clone(),
                     visibility_class: o.visibility_class,
                     tasks: o.tasks.clone(),
-                    presence: o
-                        .presence
-                        .intervals()
-                        .iter()
-                        .map(|&(a, b)| [end(a), end(b)])
-                        .collect(),
+                    presence: o.open_presence(),
                     clusters: o.clusters.clone(),
                 })
                 .collect(),

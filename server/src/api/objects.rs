@@ -362,17 +362,11 @@ pub async fn object(
     let o = &tables.objects()[i as usize];
     let at = at(&s, &lookup.time)?;
     let t = at.as_ref().map(|a| a.time);
-    let open = |x: f64| x.is_finite().then_some(x);
     json(&ObjectAnswer {
         scene: &s.tree.scene,
         item: ObjectItem::of(&s.tree.scene, i, o),
         properties: &o.properties,
-        presence: o
-            .presence
-            .intervals()
-            .iter()
-            .map(|&(a, b)| [open(a), open(b)])
-            .collect(),
+        presence: o.open_presence(),
         clusters: &o.clusters,
         tasks: o
             .tasks

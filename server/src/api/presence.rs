@@ -38,19 +38,12 @@ pub async fn presence(
         return Err(ApiError::bad(key, "unknown query parameter"));
     }
     let s = find(&state, &scene)?;
-    let open = |x: f64| x.is_finite().then_some(x);
     let answer = PresenceAnswer {
         scene: &s.tree.scene,
         presence: tables(&s)?
             .objects()
             .iter()
-            .map(|o| {
-                o.presence
-                    .intervals()
-                    .iter()
-                    .map(|&(a, b)| [open(a), open(b)])
-                    .collect()
-            })
+            .map(|o| o.open_presence())
             .collect(),
     };
     Ok(Json(answer).into_response())

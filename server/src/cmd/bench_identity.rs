@@ -135,12 +135,7 @@ pub fn features(args: FeaturesArgs) -> anyhow::Result<()> {
         .map(|d| d.distance / d.eps)
         .collect();
     ratios.sort_by(f64::total_cmp);
-    let at = |p: f64| {
-        ratios
-            .get(((ratios.len().max(1) - 1) as f64 * p).round() as usize)
-            .copied()
-            .unwrap_or(0.0)
-    };
+    let at = |p: f64| paper::percentile(&ratios, p);
     let report = FeaturesReport {
         clusters: ids.len(),
         pairs: distances.len(),
