@@ -62,14 +62,14 @@ fn paper_sized() -> Scene {
         );
         objects.push(object(format!("E-{i}"), meshes.len() - 1, at));
         if i % 100 == 0 {
-            tasks.push(Task {
-                id: format!("T{}", i / 100),
-                name: String::new(),
-                kind: TaskType::Construct,
-                start: (i / 100) as f64 * year / 401.0,
-                finish: (i / 100 + 1) as f64 * year / 401.0,
-                objects: Vec::new(),
-            });
+            tasks.push(Task::planned(
+                format!("T{}", i / 100),
+                "",
+                TaskType::Construct,
+                (i / 100) as f64 * year / 401.0,
+                (i / 100 + 1) as f64 * year / 401.0,
+                Vec::new(),
+            ));
         }
         tasks.last_mut().unwrap().objects.push(format!("E-{i}"));
     }
@@ -115,6 +115,7 @@ fn paper_sized() -> Scene {
         objects,
         tasks,
         schedule_options: ScheduleOptions::default(),
+        appearance: None,
     };
     scene.apply_schedule();
     scene

@@ -9,8 +9,9 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use hdlod::build::{BuildConfig, Silent, build_to};
+use hdlod::scene::status::{Dates, Progress};
 use hdlod::scene::{Class, Scene, format};
-use hdlod::tree::objects::{ObjectTables, ObjectsRecord, TaskState};
+use hdlod::tree::objects::{ObjectTables, ObjectsRecord};
 use hdlod::tree::{Tree, load};
 
 struct Built {
@@ -105,10 +106,7 @@ fn every_task_with_its_objects() {
         assert_eq!(row.id, task.id);
         assert_eq!(t.task_index(&task.id), Some(k as u32));
         assert_eq!(row.name.as_deref(), Some(task.name.as_str()));
-        assert_eq!(
-            (row.kind, row.start, row.finish),
-            (task.kind, task.start, task.finish)
-        );
+        assert_eq!((row.kind, row.dates), (task.kind, task.dates()));
         let ids: Vec<&str> = row
             .objects
             .iter()
@@ -117,10 +115,11 @@ fn every_task_with_its_objects() {
         let mut expected: Vec<&str> = task.objects.iter().map(String::as_str).collect();
         expected.sort_by_key(|id| t.object_index(id));
         assert_eq!(ids, expected, "task {}", task.id);
-        assert_eq!(row.state(row.start - 1.0), TaskState::NotStarted);
-        assert_eq!(row.state(row.finish), TaskState::Finished);
-        if row.finish > row.start {
-            assert_eq!(row.state(row.start), TaskState::InProgress);
+        let (d, plan) = (&row.dates, Dates::Planned);
+        assert_eq!(d.progress(d.start - 1.0, plan), Progress::NotStarted);
+        assert_eq!(d.progress(d.finish, plan), Progress::Finished);
+        if d.finish > d.start {
+            assert_eq!(d.progress(d.start, plan), Progress::Active);
         }
     }
     let record = t.to_record(&b.tree.time);

@@ -308,14 +308,14 @@ pub fn import(
             id = format!("{}:{}", t.id, type_name(kind));
             ids.insert(id.clone());
         }
-        tasks.push(Task {
+        tasks.push(Task::planned(
             id,
-            name: t.name.clone(),
+            t.name.clone(),
             kind,
-            start: time.seconds_of(t.start),
-            finish: time.seconds_of(t.finish),
+            time.seconds_of(t.start),
+            time.seconds_of(t.finish),
             objects,
-        });
+        ));
     }
     report.scene_tasks = tasks.len();
 
@@ -327,6 +327,7 @@ pub fn import(
         objects,
         tasks,
         schedule_options: ScheduleOptions::default(),
+        appearance: None,
     };
     scene.apply_schedule();
     report.seconds = clock.elapsed().as_secs_f64();

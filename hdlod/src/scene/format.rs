@@ -14,7 +14,10 @@ use std::path::{Path, PathBuf};
 use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
-use super::{Keyframe, Motion, Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility};
+use super::appearance::{Profile, ProfileFile};
+use super::{
+    Actual, Keyframe, Motion, Object, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
+};
 use crate::error::{Error, Result};
 use crate::io::glb::GlbBuilder;
 use crate::io::gltf::read_model;
@@ -47,6 +50,9 @@ struct SceneFile {
     motion: BTreeMap<String, Vec<KeyframeFile>>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     schedule_options: Option<ScheduleOptions>,
+    /// The scene's appearance profile (`hdlod-appearance/1`).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    appearance: Option<ProfileFile>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -76,6 +82,17 @@ struct TaskFile {
     kind: String,
     start: TimeValue,
     finish: TimeValue,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    actual_start: Option<TimeValue>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    actual_finish: Option<TimeValue>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    baseline_start: Option<TimeValue>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    baseline_finish: Option<TimeValue>,
+    /// The id of its summary task.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    parent: Option<String>,
     objects: Vec<String>,
 }
 
@@ -218,15 +235,85 @@ impl Loader<'_> {
             for id in &t.objects {
                 lookup(id, &format!("{at}.objects"))?;
             }
+            let opt = |v: &Option<TimeValue>, field: &str| {
+                v.as_ref()
+                    .map(|v| self.time(&time, v, &format!("{at}.{field}")))
+                    .transpose()
+            };
+            let actual = Actual {
+                start: opt(&t.actual_start, "actual_start")?,
+                finish: opt(&t.actual_finish, "actual_finish")?,
+            };
+            match (actual.start, actual.finish) {
+                (None, Some(_)) => {
+                    return Err(self.err(
+                        format!("{at}.actual_finish"),
+                        "an actual finish needs an actual start",
+                    ));
+                }
+                (Some(a), Some(b)) if b < a => {
+                    return Err(
+                        self.err(format!("{at}.actual_finish"), "is before the actual start")
+                    );
+                }
+                _ => {}
+            }
+            let baseline = match (
+                opt(&t.baseline_start, "baseline_start")?,
+                opt(&t.baseline_finish, "baseline_finish")?,
+            ) {
+                (None, None) => None,
+                (Some(start), Some(finish)) if finish >= start => Some(Span { start, finish }),
+                (Some(_), Some(_)) => {
+                    return Err(self.err(
+                        format!("{at}.baseline_finish"),
+                        "is before the baseline start",
+                    ));
+                }
+                _ => {
+                    return Err(self.err(
+                        at,
+                        "a baseline needs both baseline_start and baseline_finish",
+                    ));
+                }
+            };
             tasks.push(Task {
                 id: t.id.clone(),
                 name: t.name.clone(),
                 kind,
                 start,
                 finish,
+                actual,
+                baseline,
+                parent: t.parent.clone(),
                 objects: t.objects.clone(),
             });
         }
+        // Parents name tasks, and no task is its own ancestor.
+        for (i, t) in f.tasks.iter().enumerate() {
+            let mut seen = 0;
+            let mut at = t.parent.as_deref();
+            while let Some(p) = at {
+                let Some(&k) = task_ids.get(p) else {
+                    return Err(self.err(
+                        format!("tasks[{i}] {:?}.parent", t.id),
+                        format!("{p:?} is not the id of a task"),
+                    ));
+                };
+                seen += 1;
+                if seen > f.tasks.len() {
+                    return Err(self.err(
+                        format!("tasks[{i}] {:?}.parent", t.id),
+                        "the parents form a cycle",
+                    ));
+                }
+                at = f.tasks[k].parent.as_deref();
+            }
+        }
+        let appearance = f
+            .appearance
+            .map(|p| Profile::from_file(p, self.file, "appearance."))
+            .transpose()?;
 
         for (id, keys) in &f.motion {
             let at = format!("motion.{id:?}");
@@ -254,6 +341,7 @@ impl Loader<'_> {
             objects,
             tasks,
             schedule_options: f.schedule_options.unwrap_or_default(),
+            appearance,
         };
         scene.apply_schedule();
         Ok(scene)
@@ -455,6 +543,32 @@ fn check(scene: &Scene) -> Result<()> {
         if !(in_range(t.start) && in_range(t.finish) && t.start <= t.finish) {
             return bad(at, format!("start {} and finish {}", t.start, t.finish));
         }
+        let a = t.actual;
+        let actual_ok = match (a.start, a.finish) {
+            (None, None) => true,
+            (Some(s), None) => in_range(s),
+            (Some(s), Some(f)) => in_range(s) && in_range(f) && s <= f,
+            (None, Some(_)) => false,
+        };
+        if !actual_ok {
+            return bad(
+                at,
+                format!("actual start {:?} and finish {:?}", a.start, a.finish),
+            );
+        }
+        if let Some(b) = t.baseline
+            && !(in_range(b.start) && in_range(b.finish) && b.start <= b.finish)
+        {
+            return bad(
+                at,
+                format!("baseline start {} and finish {}", b.start, b.finish),
+            );
+        }
+        if let Some(p) = &t.parent
+            && !scene.tasks.iter().any(|o| &o.id == p)
+        {
+            return bad(at, format!("parent {p:?} is not a task"));
+        }
         if let Some(id) = t.objects.iter().find(|id| !ids.contains_key(id.as_str())) {
             return bad(at, format!("object {id:?} does not exist"));
         }
@@ -543,6 +657,11 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
                 kind: t.kind.name().into(),
                 start: time(t.start),
                 finish: time(t.finish),
+                actual_start: t.actual.start.map(time),
+                actual_finish: t.actual.finish.map(time),
+                baseline_start: t.baseline.map(|b| time(b.start)),
+                baseline_finish: t.baseline.map(|b| time(b.finish)),
+                parent: t.parent.clone(),
                 objects: t.objects.clone(),
             })
             .collect(),
@@ -560,5 +679,6 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
             })
             .collect(),
         schedule_options: Some(scene.schedule_options),
+        appearance: scene.appearance.as_ref().map(Profile::to_file),
     }
 }

@@ -3,9 +3,11 @@
 //! schedule that drives visibility, and the classification of docs/method.md
 //! section 1.
 
+pub mod appearance;
 pub mod format;
 mod motion;
 mod schedule;
+pub mod status;
 mod summary;
 mod visibility;
 
@@ -17,8 +19,10 @@ use serde::{Deserialize, Serialize};
 use crate::geometry::Mesh;
 use crate::time::TimeSpan;
 
+pub use appearance::Profile;
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
+pub use status::{Actual, Dates, Span, TaskDates};
 pub use summary::{Bounds, Counts, SceneSummary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
 
@@ -81,10 +85,50 @@ pub struct Task {
     pub id: String,
     pub name: String,
     pub kind: TaskType,
+    /// The planned start and finish.
     pub start: f64,
     pub finish: f64,
+    /// What was recorded of its execution.
+    pub actual: Actual,
+    /// An earlier plan's dates.
+    pub baseline: Option<Span>,
+    /// The id of its summary task in the work breakdown, if any.
+    pub parent: Option<String>,
     /// Ids of the objects the task acts on.
     pub objects: Vec<String>,
+}
+
+impl Task {
+    /// A planned task with no actual or baseline dates and no parent.
+    pub fn planned(
+        id: impl Into<String>,
+        name: impl Into<String>,
+        kind: TaskType,
+        start: f64,
+        finish: f64,
+        objects: Vec<String>,
+    ) -> Task {
+        Task {
+            id: id.into(),
+            name: name.into(),
+            kind,
+            start,
+            finish,
+            actual: Actual::default(),
+            baseline: None,
+            parent: None,
+            objects,
+        }
+    }
+
+    pub fn dates(&self) -> TaskDates {
+        TaskDates {
+            start: self.start,
+            finish: self.finish,
+            actual: self.actual,
+            baseline: self.baseline,
+        }
+    }
 }
 
 /// One object of the scene.
@@ -134,11 +178,14 @@ pub struct Scene {
     pub objects: Vec<Object>,
     pub tasks: Vec<Task>,
     pub schedule_options: ScheduleOptions,
+    /// The scene's own appearance profile, if it has one.
+    pub appearance: Option<Profile>,
 }
 
 impl Scene {
-    /// Recomputes every object's visibility from the tasks. Objects without
-    /// a task are present throughout.
+    /// Recomputes every object's visibility from the tasks, on the dates
+    /// the schedule options choose. Objects without a task are present
+    /// throughout.
     pub fn apply_schedule(&mut self) {
         let index: BTreeMap<&str, usize> = self
             .objects
@@ -150,10 +197,11 @@ impl Scene {
         for task in &self.tasks {
             for id in &task.objects {
                 if let Some(&i) = index.get(id.as_str()) {
+                    let (start, finish) = task.dates().running(self.schedule_options.dates);
                     actions[i].push(Action {
                         kind: task.kind,
-                        start: task.start,
-                        finish: task.finish,
+                        start,
+                        finish,
                     });
                 }
             }

@@ -4,6 +4,7 @@
 
 use serde::{Deserialize, Serialize};
 
+use super::status::Dates;
 use super::visibility::Visibility;
 
 /// What a task does to the objects it acts on.
@@ -34,6 +35,18 @@ impl TaskType {
         })
     }
 
+    pub const ALL: [TaskType; 4] = [
+        TaskType::Construct,
+        TaskType::Demolish,
+        TaskType::Temporary,
+        TaskType::Maintain,
+    ];
+
+    /// Its place in [`TaskType::ALL`].
+    pub fn index(self) -> usize {
+        self as usize
+    }
+
     /// The name files use (`construct`, ...).
     pub fn name(self) -> &'static str {
         match self {
@@ -58,13 +71,16 @@ pub enum Instant {
     Finish,
 }
 
-/// Build options of the schedule: when a constructed element appears and
-/// when a demolished one disappears. Defaults follow docs/method.md section 1: present from
+/// Build options of the schedule: which dates it follows, when a
+/// constructed element appears and when a demolished one disappears.
+/// Defaults follow docs/method.md section 1: the planned dates, present from
 /// the start of its construct task, present until the finish of its
-/// demolish task.
+/// demolish task. Written as an object of these fields (each optional) or,
+/// for the dates alone, as `"planned"` or `"actual"`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
-#[serde(deny_unknown_fields)]
+#[serde(from = "OptionsFile")]
 pub struct ScheduleOptions {
+    pub dates: Dates,
     pub construct_at: Instant,
     pub demolish_at: Instant,
 }
@@ -72,8 +88,51 @@ pub struct ScheduleOptions {
 impl Default for ScheduleOptions {
     fn default() -> Self {
         ScheduleOptions {
+            dates: Dates::Planned,
             construct_at: Instant::Start,
             demolish_at: Instant::Finish,
+        }
+    }
+}
+
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum OptionsFile {
+    Dates(Dates),
+    Fields(OptionFields),
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct OptionFields {
+    #[serde(default)]
+    dates: Dates,
+    #[serde(default = "start")]
+    construct_at: Instant,
+    #[serde(default = "finish")]
+    demolish_at: Instant,
+}
+
+fn start() -> Instant {
+    Instant::Start
+}
+
+fn finish() -> Instant {
+    Instant::Finish
+}
+
+impl From<OptionsFile> for ScheduleOptions {
+    fn from(f: OptionsFile) -> Self {
+        match f {
+            OptionsFile::Dates(dates) => ScheduleOptions {
+                dates,
+                ..ScheduleOptions::default()
+            },
+            OptionsFile::Fields(f) => ScheduleOptions {
+                dates: f.dates,
+                construct_at: f.construct_at,
+                demolish_at: f.demolish_at,
+            },
         }
     }
 }
@@ -200,6 +259,7 @@ mod tests {
             &ScheduleOptions {
                 construct_at: Instant::Finish,
                 demolish_at: Instant::Start,
+                ..ScheduleOptions::default()
             },
         );
         assert_eq!(v.intervals(), &[(20.0, 30.0)]);

@@ -15,6 +15,8 @@ use serde::{Deserialize, Serialize};
 
 use super::Cluster;
 use crate::error::{Error, Result};
+use crate::scene::appearance::{Profile, ProfileFile};
+use crate::scene::status::{Actual, Dates, Span, TaskDates};
 use crate::scene::{Class, Scene, TaskType, Visibility, property};
 use crate::time::{TimeSpan, format_date};
 
@@ -65,33 +67,12 @@ pub struct TaskEntry {
     pub id: String,
     pub name: Option<String>,
     pub kind: TaskType,
-    pub start: f64,
-    pub finish: f64,
+    /// Planned, actual and baseline dates.
+    pub dates: TaskDates,
+    /// The index of its summary task, if any.
+    pub parent: Option<u32>,
     /// Indices of the objects it acts on, increasing.
     pub objects: Vec<u32>,
-}
-
-/// Where a task stands at a time.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
-#[serde(rename_all = "snake_case")]
-pub enum TaskState {
-    NotStarted,
-    InProgress,
-    Finished,
-}
-
-impl TaskEntry {
-    /// Not started before its start, in progress until its finish, finished
-    /// from it on (a task of no duration is finished from its start).
-    pub fn state(&self, t: f64) -> TaskState {
-        if t < self.start {
-            TaskState::NotStarted
-        } else if t < self.finish {
-            TaskState::InProgress
-        } else {
-            TaskState::Finished
-        }
-    }
 }
 
 /// The tables, and what answers a look-up or a search without a scan of
@@ -101,6 +82,10 @@ impl TaskEntry {
 pub struct ObjectTables {
     objects: Vec<ObjectEntry>,
     tasks: Vec<TaskEntry>,
+    /// The dates the build's presence followed.
+    dates: Dates,
+    /// The scene's own appearance profile, if it has one.
+    appearance: Option<Profile>,
     object_ids: ById,
     task_ids: ById,
     object_text: SearchText,
@@ -119,7 +104,12 @@ pub struct Page {
 }
 
 impl ObjectTables {
-    pub fn new(objects: Vec<ObjectEntry>, tasks: Vec<TaskEntry>) -> ObjectTables {
+    pub fn new(
+        objects: Vec<ObjectEntry>,
+        tasks: Vec<TaskEntry>,
+        dates: Dates,
+        appearance: Option<Profile>,
+    ) -> ObjectTables {
         let object_ids = ById::new(|i| &objects[i as usize].id, objects.len());
         let task_ids = ById::new(|k| &tasks[k as usize].id, tasks.len());
         let object_text = SearchText::new(objects.iter().map(|o| {
@@ -137,6 +127,8 @@ impl ObjectTables {
         ObjectTables {
             objects,
             tasks,
+            dates,
+            appearance,
             object_ids,
             task_ids,
             object_text,
@@ -162,6 +154,12 @@ impl ObjectTables {
             }
         }
         let mut acting: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
+        let task_index: HashMap<&str, u32> = scene
+            .tasks
+            .iter()
+            .enumerate()
+            .map(|(k, t)| (t.id.as_str(), k as u32))
+            .collect();
         let tasks = scene
             .tasks
             .iter()
@@ -181,8 +179,8 @@ impl ObjectTables {
                     id: t.id.clone(),
                     name: Some(t.name.clone()).filter(|n| !n.is_empty()),
                     kind: t.kind,
-                    start: t.start,
-                    finish: t.finish,
+                    dates: t.dates(),
+                    parent: t.parent.as_deref().and_then(|p| task_index.get(p).copied()),
                     objects,
                 }
             })
@@ -210,7 +208,12 @@ impl ObjectTables {
                 }
             })
             .collect();
-        ObjectTables::new(objects, tasks)
+        ObjectTables::new(
+            objects,
+            tasks,
+            scene.schedule_options.dates,
+            scene.appearance.clone(),
+        )
     }
 
     /// Every object of the scene, in scene order.
@@ -220,6 +223,16 @@ impl ObjectTables {
 
     pub fn tasks(&self) -> &[TaskEntry] {
         &self.tasks
+    }
+
+    /// The dates the build's presence followed.
+    pub fn dates(&self) -> Dates {
+        self.dates
+    }
+
+    /// The scene's own appearance profile, if it has one.
+    pub fn appearance(&self) -> Option<&Profile> {
+        self.appearance.as_ref()
     }
 
     /// The index of the object with this id.
@@ -324,13 +337,39 @@ impl ObjectTables {
         let mut pairs = 0usize;
         for (k, t) in self.tasks.iter().enumerate() {
             let at = |field: &str| format!("tasks[{k}].{field}");
-            if !t.start.is_finite() || !t.finish.is_finite() || t.finish < t.start {
+            let d = &t.dates;
+            let ordered = |a: f64, b: f64| a.is_finite() && b.is_finite() && a <= b;
+            if !ordered(d.start, d.finish) {
                 return Err(bad(
                     at("finish"),
                     format!(
                         "start {} and finish {} must be finite, the finish not before the start",
-                        t.start, t.finish
+                        d.start, d.finish
                     ),
+                ));
+            }
+            let actual_ok = match (d.actual.start, d.actual.finish) {
+                (None, None) => true,
+                (Some(a), None) => a.is_finite(),
+                (Some(a), Some(b)) => ordered(a, b),
+                (None, Some(_)) => false,
+            };
+            if !actual_ok {
+                return Err(bad(
+                    at("actual_finish"),
+                    "an actual finish needs an actual start, finite and not after it".into(),
+                ));
+            }
+            if d.baseline.is_some_and(|b| !ordered(b.start, b.finish)) {
+                return Err(bad(
+                    at("baseline_finish"),
+                    "the baseline must be finite, its finish not before its start".into(),
+                ));
+            }
+            if t.parent.is_some_and(|p| p as usize >= m || p as usize == k) {
+                return Err(bad(
+                    at("parent"),
+                    format!("must be the index of another task, below {m}"),
                 ));
             }
             if !increasing(&t.objects, n) {
@@ -398,17 +437,27 @@ impl ObjectTables {
             tasks: self
                 .tasks
                 .iter()
-                .map(|t| TaskRecord {
-                    id: t.id.clone(),
-                    name: t.name.clone(),
-                    kind: t.kind,
-                    start: t.start,
-                    finish: t.finish,
-                    start_date: format_date(time.date_at(t.start)),
-                    finish_date: format_date(time.date_at(t.finish)),
-                    objects: t.objects.clone(),
+                .map(|t| {
+                    let d = &t.dates;
+                    TaskRecord {
+                        id: t.id.clone(),
+                        name: t.name.clone(),
+                        kind: t.kind,
+                        start: d.start,
+                        finish: d.finish,
+                        start_date: format_date(time.date_at(d.start)),
+                        finish_date: format_date(time.date_at(d.finish)),
+                        actual_start: d.actual.start,
+                        actual_finish: d.actual.finish,
+                        baseline_start: d.baseline.map(|b| b.start),
+                        baseline_finish: d.baseline.map(|b| b.finish),
+                        parent: t.parent,
+                        objects: t.objects.clone(),
+                    }
                 })
                 .collect(),
+            dates: self.dates,
+            appearance: self.appearance.as_ref().map(Profile::to_file),
         }
     }
 
@@ -456,12 +505,27 @@ impl ObjectTables {
                 id: r.id,
                 name: r.name,
                 kind: r.kind,
-                start: r.start,
-                finish: r.finish,
+                dates: TaskDates {
+                    start: r.start,
+                    finish: r.finish,
+                    actual: Actual {
+                        start: r.actual_start,
+                        finish: r.actual_finish,
+                    },
+                    baseline: r
+                        .baseline_start
+                        .zip(r.baseline_finish)
+                        .map(|(start, finish)| Span { start, finish }),
+                },
+                parent: r.parent,
                 objects: r.objects,
             })
             .collect();
-        let tables = ObjectTables::new(objects, tasks);
+        let appearance = record
+            .appearance
+            .map(|p| Profile::from_file(p, file, "appearance."))
+            .transpose()?;
+        let tables = ObjectTables::new(objects, tasks, record.dates, appearance);
         tables.validate(clusters, file)?;
         Ok(tables)
     }
@@ -582,6 +646,12 @@ pub struct ObjectsRecord {
     pub format: String,
     pub objects: Vec<ObjectRecord>,
     pub tasks: Vec<TaskRecord>,
+    /// The dates the build's presence followed (planned when absent: trees
+    /// written before the field).
+    #[serde(default)]
+    pub dates: Dates,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub appearance: Option<ProfileFile>,
 }
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
@@ -607,5 +677,15 @@ pub struct TaskRecord {
     pub finish: f64,
     pub start_date: String,
     pub finish_date: String,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actual_start: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub actual_finish: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline_start: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub baseline_finish: Option<f64>,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub parent: Option<u32>,
     pub objects: Vec<u32>,
 }

@@ -104,35 +104,37 @@ pub fn sample_scene() -> Scene {
         meshes: vec![unit_box(), coloured_tetra()],
         objects: vec![column, beam, truck, scaffold],
         tasks: vec![
-            Task {
-                id: "T1".into(),
-                name: "Level 1 columns".into(),
-                kind: TaskType::Construct,
-                start: day,
-                finish: 2.0 * day + 0.25,
-                objects: vec!["C-1".into()],
-            },
-            Task {
-                id: "T2".into(),
-                name: "Beams".into(),
-                kind: TaskType::Construct,
-                start: 3.0 * day,
-                finish: 4.0 * day,
-                objects: vec!["B-1".into()],
-            },
-            Task {
-                id: "T3".into(),
-                name: "Scaffolding".into(),
-                kind: TaskType::Temporary,
-                start: 0.5,
-                finish: 6.0 * day,
-                objects: vec!["S-1".into()],
-            },
+            Task::planned(
+                "T1",
+                "Level 1 columns",
+                TaskType::Construct,
+                day,
+                2.0 * day + 0.25,
+                vec!["C-1".into()],
+            ),
+            Task::planned(
+                "T2",
+                "Beams",
+                TaskType::Construct,
+                3.0 * day,
+                4.0 * day,
+                vec!["B-1".into()],
+            ),
+            Task::planned(
+                "T3",
+                "Scaffolding",
+                TaskType::Temporary,
+                0.5,
+                6.0 * day,
+                vec!["S-1".into()],
+            ),
         ],
         schedule_options: ScheduleOptions {
             construct_at: Instant::Finish,
             demolish_at: Instant::Start,
+            ..ScheduleOptions::default()
         },
+        appearance: None,
     };
     scene.apply_schedule();
     scene
@@ -244,12 +246,33 @@ pub fn assert_valid(v: &jsonschema::Validator, value: &serde_json::Value, what: 
     assert!(errors.is_empty(), "{what}: {errors:?}");
 }
 
-/// The validator of `schemas/NAME` of the repository.
+/// The validator of `schemas/NAME` of the repository; the schemas it
+/// refers to by relative name are read from the same folder.
 pub fn schema(name: &str) -> jsonschema::Validator {
     let path = repo().join("schemas").join(name);
     let schema: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(&path).unwrap()).unwrap();
-    jsonschema::validator_for(&schema).unwrap()
+    jsonschema::options()
+        .with_retriever(SchemaFolder)
+        .build(&schema)
+        .unwrap()
+}
+
+/// Resolves `https://hdlod.invalid/schemas/NAME` to `schemas/NAME`.
+struct SchemaFolder;
+
+impl jsonschema::Retrieve for SchemaFolder {
+    fn retrieve(
+        &self,
+        uri: &jsonschema::Uri<String>,
+    ) -> Result<serde_json::Value, Box<dyn std::error::Error + Send + Sync>> {
+        let name = uri
+            .as_str()
+            .strip_prefix("https://hdlod.invalid/schemas/")
+            .ok_or_else(|| format!("{uri} is not one of our schemas"))?;
+        let text = std::fs::read_to_string(repo().join("schemas").join(name))?;
+        Ok(serde_json::from_str(&text)?)
+    }
 }
 
 /// Asserts that `value` follows `schemas/NAME` of the repository.

@@ -19,8 +19,9 @@ use axum::extract::{FromRequestParts, Path, Query, State};
 use axum::http::request::Parts;
 use axum::response::{IntoResponse, Response};
 use hdlod::scene::Class;
+use hdlod::scene::status::{Deviation, Progress};
 use hdlod::time::{TimeValue, format_date};
-use hdlod::tree::objects::{ObjectEntry, ObjectTables, TaskEntry, TaskState};
+use hdlod::tree::objects::{ObjectEntry, ObjectTables, TaskEntry};
 use serde::Serialize;
 
 use super::error::ApiError;
@@ -228,26 +229,54 @@ struct TaskItem<'a> {
     finish: f64,
     start_date: String,
     finish_date: String,
-    url: String,
-    /// Where it stands at the request's time, when one is given.
     #[serde(skip_serializing_if = "Option::is_none")]
-    state: Option<TaskState>,
+    actual_start: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    actual_finish: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    baseline_start: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    baseline_finish: Option<f64>,
+    /// The index of its summary task.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    parent: Option<u32>,
+    url: String,
+    /// Where it stands at the request's time, when one is given, on the
+    /// dates the tree was built on.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    state: Option<Progress>,
+    /// Against its plan at that time, when it has actual dates.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    deviation: Option<Deviation>,
 }
 
 impl<'a> TaskItem<'a> {
-    fn of(s: &LoadedScene, index: u32, t: &'a TaskEntry, at: Option<f64>) -> Self {
+    fn of(
+        s: &LoadedScene,
+        tables: &ObjectTables,
+        index: u32,
+        t: &'a TaskEntry,
+        at: Option<f64>,
+    ) -> Self {
         let date = |x: f64| format_date(s.tree.time.date_at(x));
+        let d = &t.dates;
         TaskItem {
             index,
             id: &t.id,
             name: t.name.as_deref(),
             kind: t.kind.name(),
-            start: t.start,
-            finish: t.finish,
-            start_date: date(t.start),
-            finish_date: date(t.finish),
+            start: d.start,
+            finish: d.finish,
+            start_date: date(d.start),
+            finish_date: date(d.finish),
+            actual_start: d.actual.start,
+            actual_finish: d.actual.finish,
+            baseline_start: d.baseline.map(|b| b.start),
+            baseline_finish: d.baseline.map(|b| b.finish),
+            parent: t.parent,
             url: task_url(&s.tree.scene, &t.id),
-            state: at.map(|x| t.state(x)),
+            state: at.map(|x| d.progress(x, tables.dates())),
+            deviation: at.and_then(|x| d.deviation(x)),
         }
     }
 }
@@ -298,7 +327,7 @@ pub async fn tasks(
         items: page
             .items
             .iter()
-            .map(|&i| TaskItem::of(&s, i, &tables.tasks()[i as usize], None))
+            .map(|&i| TaskItem::of(&s, tables, i, &tables.tasks()[i as usize], None))
             .collect(),
         scene: s.tree.scene.clone(),
         q: listing.q,
@@ -371,7 +400,7 @@ pub async fn object(
         tasks: o
             .tasks
             .iter()
-            .map(|&k| TaskItem::of(&s, k, &tables.tasks()[k as usize], t))
+            .map(|&k| TaskItem::of(&s, tables, k, &tables.tasks()[k as usize], t))
             .collect(),
         present: t.map(|t| o.presence.at(t)),
         at,
@@ -413,7 +442,7 @@ pub async fn task(
     let at = at(&s, &lookup.time)?;
     json(&TaskAnswer {
         scene: &s.tree.scene,
-        item: TaskItem::of(&s, k, task, at.as_ref().map(|a| a.time)),
+        item: TaskItem::of(&s, tables, k, task, at.as_ref().map(|a| a.time)),
         objects: task
             .objects
             .iter()
