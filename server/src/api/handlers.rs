@@ -48,7 +48,7 @@ pub async fn metrics(State(state): State<Arc<AppState>>) -> impl IntoResponse {
 pub fn openapi_document() -> &'static Value {
     static DOC: OnceLock<Value> = OnceLock::new();
     DOC.get_or_init(|| {
-        let files: [(&str, &str); 12] = [
+        let files: [(&str, &str); 14] = [
             (
                 "error.schema.json",
                 include_str!("../../../schemas/api/error.schema.json"),
@@ -96,6 +96,14 @@ pub fn openapi_document() -> &'static Value {
             (
                 "presence.schema.json",
                 include_str!("../../../schemas/api/presence.schema.json"),
+            ),
+            (
+                "schedule.schema.json",
+                include_str!("../../../schemas/api/schedule.schema.json"),
+            ),
+            (
+                "../appearance.schema.json",
+                include_str!("../../../schemas/appearance.schema.json"),
             ),
         ];
         let mut doc: Value =

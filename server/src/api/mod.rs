@@ -8,13 +8,14 @@ mod handlers;
 pub mod metrics;
 mod objects;
 mod presence;
+mod schedule;
 mod stream;
 mod tiles;
 mod viewer;
 
 use std::collections::BTreeMap;
 use std::path::PathBuf;
-use std::sync::{Arc, RwLock};
+use std::sync::{Arc, OnceLock, RwLock};
 use std::time::Instant;
 
 use axum::Router;
@@ -37,6 +38,9 @@ pub struct LoadedScene {
     pub summary: TreeSummary,
     pub baseline: Baseline,
     pub fragments: Fragments,
+    /// The schedule and appearance answers, made on first request.
+    pub schedule: OnceLock<schedule::Cached>,
+    pub appearance: OnceLock<schedule::Cached>,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;
@@ -58,6 +62,8 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
         baseline,
         dir: dir.clone(),
         summary,
+        schedule: OnceLock::new(),
+        appearance: OnceLock::new(),
     })
 }
 
@@ -149,6 +155,11 @@ pub fn router(state: Arc<AppState>) -> Router {
         .route("/api/v1/scenes/{scene}/objects", get(objects::objects))
         .route("/api/v1/scenes/{scene}/objects/{id}", get(objects::object))
         .route("/api/v1/scenes/{scene}/presence", get(presence::presence))
+        .route("/api/v1/scenes/{scene}/schedule", get(schedule::schedule))
+        .route(
+            "/api/v1/scenes/{scene}/appearance",
+            get(schedule::appearance),
+        )
         .route("/api/v1/scenes/{scene}/tasks", get(objects::tasks))
         .route("/api/v1/scenes/{scene}/tasks/{id}", get(objects::task))
         .route(

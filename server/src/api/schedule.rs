@@ -1,0 +1,184 @@
+//! The schedule of a scene in one answer, for a 4D review (docs/api.md):
+//!
+//! - `GET /api/v1/scenes/{scene}/schedule`: every task with its planned,
+//!   actual and baseline dates, its summary task and its objects' feature
+//!   indices. The viewer works each feature's status and look out from it
+//!   at every frame, so scrubbing time costs no request beyond the cut.
+//! - `GET /api/v1/scenes/{scene}/appearance`: the scene's appearance
+//!   profile (`hdlod-appearance/1`), or the default one.
+//!
+//! Both bodies are made once per loaded tree and sent with an ETag: a
+//! reload makes new ones, a client that has the current one gets 304.
+
+use std::sync::Arc;
+
+use axum::body::{Body, Bytes};
+use axum::extract::rejection::{PathRejection, QueryRejection};
+use axum::extract::{Path, Query, State};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use hdlod::scene::status::Dates;
+use hdlod::time::format_date;
+use hdlod::tree::ObjectTables;
+use serde::Serialize;
+
+use super::error::ApiError;
+use super::handlers::find;
+use super::objects::tables;
+use super::{AppState, LoadedScene};
+
+/// A JSON body made once, and its ETag.
+pub struct Cached {
+    body: Bytes,
+    etag: HeaderValue,
+}
+
+impl Cached {
+    fn of(value: &impl Serialize) -> Cached {
+        let body = serde_json::to_vec(value).expect("plain data serialises");
+        let etag = format!("\"{}\"", blake3::hash(&body).to_hex());
+        Cached {
+            body: body.into(),
+            etag: HeaderValue::from_str(&etag).expect("hex in quotes"),
+        }
+    }
+
+    /// The body, or 304 when the request already has it. Clients revalidate
+    /// each time (`no-cache`): a reload may change it under the same URL.
+    fn answer(&self, headers: &HeaderMap) -> Response {
+        let cache = HeaderValue::from_static("no-cache");
+        let matches = headers
+            .get(header::IF_NONE_MATCH)
+            .and_then(|v| v.to_str().ok())
+            .is_some_and(|v| {
+                v.split(',')
+                    .any(|t| t.trim().as_bytes() == self.etag.as_bytes() || t.trim() == "*")
+            });
+        if matches {
+            return (
+                StatusCode::NOT_MODIFIED,
+                [
+                    (header::ETAG, self.etag.clone()),
+                    (header::CACHE_CONTROL, cache),
+                ],
+            )
+                .into_response();
+        }
+        (
+            [
+                (
+                    header::CONTENT_TYPE,
+                    HeaderValue::from_static("application/json"),
+                ),
+                (header::ETAG, self.etag.clone()),
+                (header::CACHE_CONTROL, cache),
+            ],
+            Body::from(self.body.clone()),
+        )
+            .into_response()
+    }
+}
+
+#[derive(Serialize)]
+struct ScheduleAnswer<'a> {
+    scene: &'a str,
+    /// The scene's start date; every time is in seconds since it.
+    start: String,
+    /// The span's length in seconds.
+    seconds: f64,
+    /// The dates the tree's presence follows.
+    dates: Dates,
+    tasks: Vec<TaskRow<'a>>,
+}
+
+#[derive(Serialize)]
+struct TaskRow<'a> {
+    id: &'a str,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    name: Option<&'a str>,
+    #[serde(rename = "type")]
+    kind: &'static str,
+    start: f64,
+    finish: f64,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    actual_start: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    actual_finish: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    baseline_start: Option<f64>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    baseline_finish: Option<f64>,
+    /// The index of its summary task.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    parent: Option<u32>,
+    /// Its objects' indices (the feature ids of their vertices).
+    objects: &'a [u32],
+}
+
+fn schedule_of(s: &LoadedScene, tables: &ObjectTables) -> Cached {
+    let time = &s.tree.time;
+    Cached::of(&ScheduleAnswer {
+        scene: &s.tree.scene,
+        start: format_date(time.start),
+        seconds: time.seconds,
+        dates: tables.dates(),
+        tasks: tables
+            .tasks()
+            .iter()
+            .map(|t| {
+                let d = &t.dates;
+                TaskRow {
+                    id: &t.id,
+                    name: t.name.as_deref(),
+                    kind: t.kind.name(),
+                    start: d.start,
+                    finish: d.finish,
+                    actual_start: d.actual.start,
+                    actual_finish: d.actual.finish,
+                    baseline_start: d.baseline.map(|b| b.start),
+                    baseline_finish: d.baseline.map(|b| b.finish),
+                    parent: t.parent,
+                    objects: &t.objects,
+                }
+            })
+            .collect(),
+    })
+}
+
+fn no_query(query: Result<Query<Vec<(String, String)>>, QueryRejection>) -> Result<(), ApiError> {
+    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
+    match pairs.first() {
+        Some((key, _)) => Err(ApiError::bad(key, "unknown query parameter")),
+        None => Ok(()),
+    }
+}
+
+pub async fn schedule(
+    State(state): State<Arc<AppState>>,
+    scene: Result<Path<String>, PathRejection>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
+    no_query(query)?;
+    let s = find(&state, &scene)?;
+    let tables = tables(&s)?;
+    Ok(s.schedule
+        .get_or_init(|| schedule_of(&s, tables))
+        .answer(&headers))
+}
+
+pub async fn appearance(
+    State(state): State<Arc<AppState>>,
+    scene: Result<Path<String>, PathRejection>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
+    no_query(query)?;
+    let s = find(&state, &scene)?;
+    let own = s.tree.objects.as_ref().and_then(ObjectTables::appearance);
+    Ok(s.appearance
+        .get_or_init(|| Cached::of(&own.cloned().unwrap_or_default().to_file()))
+        .answer(&headers))
+}
