@@ -54,19 +54,21 @@ fn served_slices_follow_the_schemas() {
         let tileset: Value = answer.json().unwrap();
         assert_valid(&validator, &tileset, time);
         assert_eq!(tileset["root"]["refine"], "REPLACE");
-        // Content resolves to the geometry endpoint, which serves it.
+        // Content resolves to the slice's own content, which is served.
         let mut content = Vec::new();
         uris(&tileset["root"], &mut content);
         if time != "0" {
             assert!(!content.is_empty(), "time {time}: the site has content");
         }
         for uri in content.iter().take(3) {
-            let hash = uri.strip_prefix("../geometry/").expect("a geometry URI");
+            let seconds = tileset["extras"]["time"].as_f64().unwrap();
+            assert!(uri.starts_with(&format!("{seconds}/content/")), "{uri}");
             let glb = http
-                .get(server.url(&format!("/api/v1/scenes/{SCENE}/geometry/{hash}")))
+                .get(server.url(&format!("/api/v1/scenes/{SCENE}/tiles/{uri}")))
                 .send()
                 .unwrap();
             assert_eq!(glb.status(), StatusCode::OK, "{uri}");
+            assert_content_type(&glb, "model/gltf-binary");
         }
     }
 }
@@ -161,8 +163,8 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     }
     glbs.sort();
     glbs.dedup();
-    let written = std::fs::read_dir(split.join("geometry")).unwrap().count();
-    assert_eq!(glbs.len(), written, "exactly the content GLBs are copied");
+    let written = std::fs::read_dir(split.join("content")).unwrap().count();
+    assert_eq!(glbs.len(), written, "exactly the content GLBs are written");
     assert!(written > 100);
     for report in assert_no_gltf_errors(&glbs) {
         assert!(report["info"]["drawCallCount"].as_u64().unwrap() >= 1);
@@ -174,9 +176,10 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let server = Server::start(&tree);
     let served = server.get_json(&tiles_path(&format!("?time={time}")));
     let on_disk = read_json(&whole.join("tileset.json"));
+    let seconds = served["extras"]["time"].as_f64().unwrap();
     let served = serde_json::to_string(&served)
         .unwrap()
-        .replace("\"../geometry/", "\"geometry/");
+        .replace(&format!("\"{seconds}/content/"), "\"content/");
     assert_eq!(served, serde_json::to_string(&on_disk).unwrap());
 
     // A second export replaces the first whole, leaving nothing beside it.
@@ -203,4 +206,143 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let missing = export(&dir.path().join("no-tree"), "0", &whole, None);
     assert!(!missing.status.success());
     assert!(String::from_utf8_lossy(&missing.stderr).contains("no-tree"));
+}
+
+/// The JSON and binary chunks of a GLB.
+fn glb_chunks(bytes: &[u8]) -> (Value, Vec<u8>) {
+    let u32_at = |i: usize| u32::from_le_bytes(bytes[i..i + 4].try_into().unwrap()) as usize;
+    let json_len = u32_at(12);
+    let json: Value = serde_json::from_slice(&bytes[20..20 + json_len]).unwrap();
+    let bin_at = 20 + json_len;
+    let bin = if bin_at < bytes.len() {
+        let len = u32_at(bin_at);
+        bytes[bin_at + 8..bin_at + 8 + len].to_vec()
+    } else {
+        Vec::new()
+    };
+    (json, bin)
+}
+
+/// Column `name` of the GLB's property table, as strings (numbers and
+/// booleans printed).
+fn column(json: &Value, bin: &[u8], name: &str) -> Vec<String> {
+    let ext = &json["extensions"]["EXT_structural_metadata"];
+    let table = &ext["propertyTables"][0];
+    let count = table["count"].as_u64().unwrap() as usize;
+    let class = table["class"].as_str().unwrap();
+    let kind = &ext["schema"]["classes"][class]["properties"][name];
+    let view = |i: &Value| {
+        let v = &json["bufferViews"][i.as_u64().unwrap() as usize];
+        let at = v["byteOffset"].as_u64().unwrap_or(0) as usize;
+        assert_eq!(at % 8, 0, "property values start 8-byte aligned");
+        &bin[at..at + v["byteLength"].as_u64().unwrap() as usize]
+    };
+    let p = &table["properties"][name];
+    let values = view(&p["values"]);
+    let word = |b: &[u8], i: usize| u32::from_le_bytes(b[4 * i..4 * i + 4].try_into().unwrap());
+    (0..count)
+        .map(|i| {
+            match (
+                kind["type"].as_str().unwrap(),
+                kind["componentType"].as_str(),
+            ) {
+                ("STRING", _) => {
+                    let offsets = view(&p["stringOffsets"]);
+                    let (a, b) = (word(offsets, i) as usize, word(offsets, i + 1) as usize);
+                    String::from_utf8(values[a..b].to_vec()).unwrap()
+                }
+                ("SCALAR", Some("UINT32")) => word(values, i).to_string(),
+                ("SCALAR", Some("FLOAT32")) => f32::from_bits(word(values, i)).to_string(),
+                ("BOOLEAN", _) => ((values[i / 8] >> (i % 8)) & 1 == 1).to_string(),
+                other => panic!("unexpected property type {other:?}"),
+            }
+        })
+        .collect()
+}
+
+/// A slice's content carries each element's task status and look at its
+/// time, renumbered per tile with the scene-wide index kept, as the task
+/// answers give them.
+#[test]
+fn slice_content_carries_the_elements_task_status() {
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(&build_tree(dir.path()));
+    let http = client();
+    // A time inside a construct task on its planned dates.
+    let schedule = server.get_json(&format!("/api/v1/scenes/{SCENE}/schedule"));
+    let task = schedule["tasks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["type"] == "construct" && t["objects"].as_array().unwrap().len() > 3)
+        .unwrap();
+    let t = (task["start"].as_f64().unwrap() + task["finish"].as_f64().unwrap()) / 2.0;
+    let tileset = server.get_json(&tiles_path(&format!("?time={t}")));
+    let mut content = Vec::new();
+    uris(&tileset["root"], &mut content);
+    let (mut rows, mut active) = (0, 0);
+    for uri in &content {
+        let bytes = http
+            .get(server.url(&format!("/api/v1/scenes/{SCENE}/tiles/{uri}")))
+            .send()
+            .unwrap()
+            .bytes()
+            .unwrap();
+        let (json, bin) = glb_chunks(&bytes);
+        assert!(
+            json["extensionsUsed"]
+                .as_array()
+                .unwrap()
+                .contains(&"EXT_structural_metadata".into())
+        );
+        let ids =
+            &json["meshes"][0]["primitives"][0]["extensions"]["EXT_mesh_features"]["featureIds"][0];
+        assert_eq!(ids["propertyTable"], 0);
+        let index = column(&json, &bin, "index");
+        assert_eq!(ids["featureCount"].as_u64().unwrap() as usize, index.len());
+        let (status, task_ids, color) = (
+            column(&json, &bin, "status"),
+            column(&json, &bin, "task"),
+            column(&json, &bin, "color"),
+        );
+        let (transparency, show) = (
+            column(&json, &bin, "transparency"),
+            column(&json, &bin, "show"),
+        );
+        for r in 0..index.len() {
+            rows += 1;
+            if task_ids[r] != task["id"].as_str().unwrap() {
+                continue;
+            }
+            active += 1;
+            // The default profile: construct in progress is green, half
+            // transparent.
+            assert_eq!(status[r], "in_progress", "{uri} row {r}");
+            assert_eq!(
+                (
+                    color[r].as_str(),
+                    transparency[r].as_str(),
+                    show[r].as_str()
+                ),
+                ("#2fb344", "0.5", "true")
+            );
+            let object = server.get_json(&format!(
+                "/api/v1/scenes/{SCENE}/objects/{}?by=index&time={t}",
+                index[r]
+            ));
+            let listed: Vec<&Value> = object["tasks"]
+                .as_array()
+                .unwrap()
+                .iter()
+                .map(|k| &k["id"])
+                .collect();
+            assert!(
+                listed.contains(&&task["id"]),
+                "object {} is the task's",
+                index[r]
+            );
+        }
+    }
+    assert!(rows > 50, "{rows} elements in the slice");
+    assert!(active > 0, "the task's elements are in the slice");
 }

@@ -36,6 +36,17 @@ compile_error!("the GLB writer copies memory as little-endian bytes");
 /// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
 /// an empty scene.
 pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
+    glb_with_features(mesh, None)
+}
+
+/// [`mesh_to_glb`] with a property table (`EXT_structural_metadata`) whose
+/// rows are the mesh's feature ids: feature `i` of the mesh is row `i`, so
+/// the ids must run over `0..table.count`.
+pub fn mesh_to_glb_with_table(mesh: &Mesh, table: &PropertyTable) -> Vec<u8> {
+    glb_with_features(mesh, Some(table))
+}
+
+fn glb_with_features(mesh: &Mesh, table: Option<&PropertyTable>) -> Vec<u8> {
     let mesh = &*unit_normals(mesh);
     let mut glb = GlbBuilder::new();
     let mut nodes = Vec::new();
@@ -50,13 +61,103 @@ pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
     let Some((m, count)) = features else {
         return glb.finish(nodes);
     };
-    // EXT_mesh_features (3D Tiles 1.1): the gltf crate does not model it.
+    let metadata = table.map(|t| t.write(&mut glb));
+    // EXT_mesh_features and EXT_structural_metadata (3D Tiles 1.1): the
+    // gltf crate models neither.
     glb.finish_with(nodes, |json| {
-        json["extensionsUsed"] = serde_json::json!([MESH_FEATURES]);
+        let mut ids = serde_json::json!({ "featureCount": count, "attribute": 0 });
+        let mut used = vec![MESH_FEATURES];
+        if let Some(metadata) = metadata {
+            ids["propertyTable"] = 0.into();
+            json["extensions"] = serde_json::json!({ STRUCTURAL_METADATA: metadata });
+            used.push(STRUCTURAL_METADATA);
+        }
+        json["extensionsUsed"] = serde_json::json!(used);
         json["meshes"][m]["primitives"][0]["extensions"] = serde_json::json!({
-            MESH_FEATURES: { "featureIds": [{ "featureCount": count, "attribute": 0 }] }
+            MESH_FEATURES: { "featureIds": [ids] }
         });
     })
+}
+
+/// <https://github.com/CesiumGS/glTF/tree/3d-tiles-next/extensions/2.0/Vendor/EXT_structural_metadata>.
+const STRUCTURAL_METADATA: &str = "EXT_structural_metadata";
+
+/// One class of features and its values, a column per property, a row per
+/// feature: what [`mesh_to_glb_with_table`] writes.
+#[derive(Debug, Clone, PartialEq)]
+pub struct PropertyTable {
+    /// The class's name in the schema (and the schema's id).
+    pub class: String,
+    pub count: usize,
+    pub columns: Vec<(String, Column)>,
+}
+
+#[derive(Debug, Clone, PartialEq)]
+pub enum Column {
+    Strings(Vec<String>),
+    U32(Vec<u32>),
+    F32(Vec<f32>),
+    Bool(Vec<bool>),
+}
+
+impl PropertyTable {
+    /// Appends the values to the buffer (each view 8-byte aligned, as the
+    /// extension asks) and gives the extension's JSON.
+    fn write(&self, glb: &mut GlbBuilder) -> serde_json::Value {
+        let mut classes = serde_json::Map::new();
+        let mut values = serde_json::Map::new();
+        for (name, column) in &self.columns {
+            let (kind, value) = match column {
+                Column::Strings(strings) => {
+                    let mut offsets = Vec::with_capacity(strings.len() + 1);
+                    let mut bytes = Vec::new();
+                    offsets.push(0u32);
+                    for s in strings {
+                        bytes.extend_from_slice(s.as_bytes());
+                        offsets.push(bytes.len() as u32);
+                    }
+                    let v = glb.raw_view(&bytes);
+                    let o = glb.raw_view(bytemuck::cast_slice(&offsets));
+                    (
+                        serde_json::json!({ "type": "STRING" }),
+                        serde_json::json!({ "values": v, "stringOffsets": o, "stringOffsetType": "UINT32" }),
+                    )
+                }
+                Column::U32(v) => (
+                    serde_json::json!({ "type": "SCALAR", "componentType": "UINT32" }),
+                    serde_json::json!({ "values": glb.raw_view(bytemuck::cast_slice(v)) }),
+                ),
+                Column::F32(v) => (
+                    serde_json::json!({ "type": "SCALAR", "componentType": "FLOAT32" }),
+                    serde_json::json!({ "values": glb.raw_view(bytemuck::cast_slice(v)) }),
+                ),
+                Column::Bool(v) => {
+                    // A bitstream, least significant bit first.
+                    let mut bits = vec![0u8; v.len().div_ceil(8)];
+                    for (i, _) in v.iter().enumerate().filter(|(_, b)| **b) {
+                        bits[i / 8] |= 1 << (i % 8);
+                    }
+                    (
+                        serde_json::json!({ "type": "BOOLEAN" }),
+                        serde_json::json!({ "values": glb.raw_view(&bits) }),
+                    )
+                }
+            };
+            classes.insert(name.clone(), kind);
+            values.insert(name.clone(), value);
+        }
+        serde_json::json!({
+            "schema": {
+                "id": self.class,
+                "classes": { self.class.clone(): { "properties": classes } }
+            },
+            "propertyTables": [{
+                "class": self.class,
+                "count": self.count,
+                "properties": values
+            }]
+        })
+    }
 }
 
 /// <https://github.com/CesiumGS/glTF/tree/3d-tiles-next/extensions/2.0/Vendor/EXT_mesh_features>:
@@ -337,6 +438,30 @@ impl GlbBuilder {
             }],
             weights: None,
         })
+    }
+
+    /// A buffer view of raw bytes (no accessor, no target), starting 8-byte
+    /// aligned; its index.
+    fn raw_view(&mut self, bytes: &[u8]) -> usize {
+        // A view has at least one byte: an all-empty string column has one
+        // unused one.
+        let bytes = if bytes.is_empty() { &[0u8][..] } else { bytes };
+        self.bin.resize(self.bin.len().next_multiple_of(8), 0);
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        let view = self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target: None,
+            extensions: None,
+            extras: None,
+        });
+        // Later attributes start 4-byte aligned again.
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        view.value()
     }
 
     /// The material of a linear RGBA base colour (components in `[0, 1]`),

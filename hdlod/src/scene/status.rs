@@ -82,6 +82,27 @@ pub enum Deviation {
     Late,
 }
 
+impl Progress {
+    /// The name files and answers use.
+    pub fn name(self) -> &'static str {
+        match self {
+            Progress::NotStarted => "not_started",
+            Progress::Active => "in_progress",
+            Progress::Finished => "finished",
+        }
+    }
+}
+
+impl Deviation {
+    pub fn name(self) -> &'static str {
+        match self {
+            Deviation::Early => "early",
+            Deviation::OnTime => "on_time",
+            Deviation::Late => "late",
+        }
+    }
+}
+
 impl TaskDates {
     /// The interval the task runs over under `dates`: `[start, finish)`,
     /// the finish infinite while a recorded task is still running, both

@@ -16,11 +16,12 @@
 //! the tileset's z is the scene's y), `Y_UP_TO_Z_UP^-1` for a scene that is
 //! already z-up (whose GLB content holds z-up coordinates).
 
+pub mod content;
 mod split;
 pub mod tileset;
 
 pub use tileset::{
-    Asset, BoundingVolume, Content, DEFAULT_MAX_BYTES, MIN_MAX_BYTES, Options, ROOT_ERROR_FACTOR,
-    Refine, Tile, TileExtras, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform, tileset,
-    time_slice,
+    Asset, BoundingVolume, Content, ContentNames, DEFAULT_MAX_BYTES, MIN_MAX_BYTES, Options,
+    ROOT_ERROR_FACTOR, Refine, Tile, TileExtras, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform,
+    tileset, time_slice,
 };

@@ -69,6 +69,19 @@ pub struct Options {
     /// tilesets. A file may pass it only when one tile and its direct
     /// children alone do.
     pub max_bytes: usize,
+    /// How content files are named in `content_dir`.
+    pub content: ContentNames,
+}
+
+/// How a slice names its content files.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ContentNames {
+    /// `{hash}.glb`: the cluster's own geometry, the same at every time.
+    #[default]
+    Geometry,
+    /// `{cluster}.glb`: content made for the slice, with its elements'
+    /// state at the slice's time (`tiles::content`).
+    Cluster,
 }
 
 impl Options {
@@ -77,6 +90,7 @@ impl Options {
             content_dir: content_dir.into(),
             subtileset_dir: subtileset_dir.into(),
             max_bytes: DEFAULT_MAX_BYTES,
+            content: ContentNames::Geometry,
         }
     }
 }
@@ -197,6 +211,7 @@ struct Slice<'a> {
     tree: &'a Tree,
     t: f64,
     content_dir: &'a str,
+    names: ContentNames,
 }
 
 impl Slice<'_> {
@@ -240,7 +255,10 @@ impl Slice<'_> {
             .fold(delta, f64::max);
         let content = match &c.geometry {
             Some(hash) if v >= 0.5 => Some(Content {
-                uri: format!("{}/{hash}.glb", self.content_dir),
+                uri: match self.names {
+                    ContentNames::Geometry => format!("{}/{hash}.glb", self.content_dir),
+                    ContentNames::Cluster => format!("{}/{id}.glb", self.content_dir),
+                },
             }),
             _ => None,
         };
@@ -260,8 +278,9 @@ impl Slice<'_> {
 }
 
 /// The whole tree at `t` (seconds since the scene's start) as one tileset,
-/// content URIs under `content_dir` (relative to the tileset's directory).
-pub fn tileset(tree: &Tree, t: f64, content_dir: &str) -> Result<Tileset> {
+/// content URIs under `content_dir` (relative to the tileset's directory)
+/// named by `names`.
+pub fn tileset(tree: &Tree, t: f64, content_dir: &str, names: ContentNames) -> Result<Tileset> {
     if !t.is_finite() {
         return Err(Error::argument(
             "time",
@@ -272,6 +291,7 @@ pub fn tileset(tree: &Tree, t: f64, content_dir: &str) -> Result<Tileset> {
         tree,
         t,
         content_dir: content_dir.trim_end_matches('/'),
+        names,
     };
     let root = tree.root();
     let v = root.visibility.at(t);
@@ -335,7 +355,7 @@ pub fn time_slice(tree: &Tree, t: f64, options: &Options) -> Result<TimeSlice> {
             format!("must be at least {MIN_MAX_BYTES} (room for a tile and its children's stubs)"),
         ));
     }
-    let mut root = tileset(tree, t, &options.content_dir)?;
+    let mut root = tileset(tree, t, &options.content_dir, options.content)?;
     let external = super::split::split(&mut root, options, &asset(tree, t));
     Ok(TimeSlice {
         time: t,

@@ -15,8 +15,8 @@ use serde::{Deserialize, Serialize};
 
 use super::Cluster;
 use crate::error::{Error, Result};
-use crate::scene::appearance::{Profile, ProfileFile};
-use crate::scene::status::{Actual, Dates, Span, TaskDates};
+use crate::scene::appearance::{Look, Profile, ProfileFile};
+use crate::scene::status::{Actual, Dates, Deviation, Progress, Span, TaskDates};
 use crate::scene::{Class, Scene, TaskType, Visibility, property};
 use crate::time::{TimeSpan, format_date};
 
@@ -73,6 +73,16 @@ pub struct TaskEntry {
     pub parent: Option<u32>,
     /// Indices of the objects it acts on, increasing.
     pub objects: Vec<u32>,
+}
+
+/// An element at a time: the task that governs its look, where that task
+/// stands and how it runs against its plan, and the look.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct ElementState {
+    pub task: Option<u32>,
+    pub progress: Option<Progress>,
+    pub deviation: Option<Deviation>,
+    pub look: Look,
 }
 
 /// The tables, and what answers a look-up or a search without a scan of
@@ -233,6 +243,66 @@ impl ObjectTables {
     /// The scene's own appearance profile, if it has one.
     pub fn appearance(&self) -> Option<&Profile> {
         self.appearance.as_ref()
+    }
+
+    /// The task that governs how object `i` looks at `t`, on the tables'
+    /// dates: of its tasks, the one in progress that started last; else the
+    /// finished one that finished last; else the one to start first (ties:
+    /// the later task). The viewer applies the same rule
+    /// (`server/viewer/appearance.js`).
+    pub fn governing_task(&self, i: u32, t: f64) -> Option<u32> {
+        let tasks = &self.objects[i as usize].tasks;
+        let of = |k: u32| (k, &self.tasks[k as usize].dates);
+        let by = |progress: Progress| {
+            tasks
+                .iter()
+                .map(|&k| of(k))
+                .filter(move |(_, d)| d.progress(t, self.dates) == progress)
+        };
+        let latest = |key: fn(&TaskDates, Dates) -> f64, progress| {
+            by(progress)
+                .max_by(|a, b| {
+                    key(a.1, self.dates)
+                        .total_cmp(&key(b.1, self.dates))
+                        .then(a.0.cmp(&b.0))
+                })
+                .map(|(k, _)| k)
+        };
+        latest(|d, dates| d.running(dates).0, Progress::Active)
+            .or_else(|| latest(|d, dates| d.running(dates).1, Progress::Finished))
+            .or_else(|| {
+                by(Progress::NotStarted)
+                    .min_by(|a, b| {
+                        a.1.running(self.dates)
+                            .0
+                            .total_cmp(&b.1.running(self.dates).0)
+                            .then(b.0.cmp(&a.0))
+                    })
+                    .map(|(k, _)| k)
+            })
+    }
+
+    /// Object `i` at `t` under `profile`: its governing task's state and
+    /// the look that gives; the model's own look for an object with no
+    /// task.
+    pub fn state_at(&self, i: u32, t: f64, profile: &Profile) -> ElementState {
+        let Some(k) = self.governing_task(i, t) else {
+            return ElementState {
+                task: None,
+                progress: None,
+                deviation: None,
+                look: Look::Model,
+            };
+        };
+        let task = &self.tasks[k as usize];
+        let progress = task.dates.progress(t, self.dates);
+        let deviation = task.dates.deviation(t);
+        ElementState {
+            task: Some(k),
+            progress: Some(progress),
+            deviation,
+            look: profile.look(task.kind, progress, deviation),
+        }
     }
 
     /// The index of the object with this id.

@@ -170,6 +170,10 @@ pub fn router(state: Arc<AppState>) -> Router {
             "/api/v1/scenes/{scene}/tiles/{time}/{file}",
             get(tiles::external),
         )
+        .route(
+            "/api/v1/scenes/{scene}/tiles/{time}/content/{file}",
+            get(tiles::content),
+        )
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
         .layer(axum::middleware::from_fn_with_state(state.clone(), record))

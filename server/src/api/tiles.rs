@@ -6,15 +6,24 @@
 //!   tilesets, which the root file names relatively (`{seconds}/{id}.json`),
 //!   so a client follows them without knowing this layout.
 //!
-//! Content URIs point at the geometry endpoint (`../geometry/HASH.glb` from
-//! the root file), whose GLBs are content-addressed and cached forever.
+//! - `GET /api/v1/scenes/{scene}/tiles/{seconds}/content/{cluster}.glb`:
+//!   a tile's content at that time, the cluster's geometry with its
+//!   elements' task status and look as per-feature properties
+//!   (`hdlod::tiles::content`).
+//!
+//! A tree with object tables names that content; one without them points
+//! at the geometry endpoint (`../geometry/HASH.glb` from the root file),
+//! whose GLBs are content-addressed and cached forever.
 
 use std::sync::Arc;
 
 use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Path, Query, State};
-use hdlod::tiles::{DEFAULT_MAX_BYTES, Options, Tileset, time_slice};
+use axum::http::{HeaderValue, StatusCode, header};
+use axum::response::{IntoResponse, Response};
+use hdlod::scene::Profile;
+use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Options, Tileset, content, time_slice};
 use hdlod::time::TimeValue;
 use hdlod::tree::Tree;
 
@@ -24,18 +33,25 @@ use super::handlers::find;
 use crate::protocol::{parse_time_query, resolve_time, within_period};
 
 /// The options of a slice at `t` served from `.../tiles/tileset.json`: the
-/// external tilesets sit in `.../tiles/{t}/`, the GLBs in `.../geometry/`.
-fn options(t: f64, max_bytes: usize) -> Options {
+/// external tilesets sit in `.../tiles/{t}/`; the content in
+/// `.../tiles/{t}/content/` when the tree has object tables, else the GLBs
+/// in `.../geometry/`.
+fn options(tree: &Tree, t: f64, max_bytes: usize) -> Options {
+    let (dir, content) = match tree.objects {
+        Some(_) => (format!("{t}/content"), ContentNames::Cluster),
+        None => ("../geometry".to_owned(), ContentNames::Geometry),
+    };
     Options {
         max_bytes,
-        ..Options::new("../geometry", format!("{t}"))
+        content,
+        ..Options::new(dir, format!("{t}"))
     }
 }
 
 /// The root file for the query's `time`.
 fn root_file(tree: &Tree, time: &TimeValue, max_bytes: usize) -> Result<Tileset, ApiError> {
     let t = resolve_time(tree, "time", time)?;
-    Ok(time_slice(tree, t, &options(t, max_bytes))?.root)
+    Ok(time_slice(tree, t, &options(tree, t, max_bytes))?.root)
 }
 
 /// The external file `{time}/{file}` that a root file names.
@@ -45,6 +61,22 @@ fn external_file(
     file: &str,
     max_bytes: usize,
 ) -> Result<Tileset, ApiError> {
+    let t = seconds(time)?;
+    let id: u32 = file
+        .strip_suffix(".json")
+        .and_then(|id| id.parse().ok())
+        .ok_or_else(|| ApiError::not_found("subtree", format!("{file:?} is not ID.json")))?;
+    let mut slice = time_slice(tree, t, &options(tree, t, max_bytes))?;
+    slice.external.remove(&id).ok_or_else(|| {
+        ApiError::not_found(
+            "subtree",
+            format!("no external tileset {id} in the slice at {t} s"),
+        )
+    })
+}
+
+/// The `{seconds}` segment of a slice's paths.
+fn seconds(time: &str) -> Result<f64, ApiError> {
     let t = time
         .parse::<f64>()
         .ok()
@@ -52,18 +84,53 @@ fn external_file(
         .ok_or_else(|| {
             ApiError::not_found("time", format!("{time:?} is not a number of seconds"))
         })?;
-    let t = within_period("time", t)?;
+    Ok(within_period("time", t)?)
+}
+
+/// `{seconds}/content/{cluster}.glb`.
+pub async fn content(
+    State(state): State<Arc<AppState>>,
+    Path((name, time, file)): Path<(String, String, String)>,
+) -> Result<Response, ApiError> {
+    let s = find(&state, &name)?;
+    let t = seconds(&time)?;
+    let tree = &s.tree;
     let id: u32 = file
-        .strip_suffix(".json")
+        .strip_suffix(".glb")
         .and_then(|id| id.parse().ok())
-        .ok_or_else(|| ApiError::not_found("subtree", format!("{file:?} is not ID.json")))?;
-    let mut slice = time_slice(tree, t, &options(t, max_bytes))?;
-    slice.external.remove(&id).ok_or_else(|| {
-        ApiError::not_found(
-            "subtree",
-            format!("no external tileset {id} in the slice at {t} s"),
-        )
+        .ok_or_else(|| ApiError::not_found("cluster", format!("{file:?} is not CLUSTER.glb")))?;
+    let hash = tree
+        .clusters
+        .get(id as usize)
+        .and_then(|c| c.geometry.clone())
+        .ok_or_else(|| ApiError::not_found("cluster", format!("no cluster {id} with geometry")))?;
+    let path = s.dir.join("geometry").join(format!("{hash}.glb"));
+    let scene = s.clone();
+    // Reading and writing a GLB is blocking work.
+    let glb = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, ApiError> {
+        let mesh = hdlod::io::read_mesh(&path)?;
+        let tree = &scene.tree;
+        let Some(tables) = &tree.objects else {
+            return Err(ApiError::not_found(
+                "scene",
+                "the tree has no object tables: its tiles point at geometry/",
+            ));
+        };
+        let default = Profile::default();
+        let profile = tables.appearance().unwrap_or(&default);
+        let object = tree.dynamic_object(id);
+        Ok(content::content(&mesh, object, tables, profile, t))
     })
+    .await
+    .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, None, e.to_string()))??;
+    Ok((
+        [(
+            header::CONTENT_TYPE,
+            HeaderValue::from_static("model/gltf-binary"),
+        )],
+        glb,
+    )
+        .into_response())
 }
 
 pub async fn tileset(

@@ -1,7 +1,9 @@
 //! `hdlod export-tiles TREE --time T --out DIR [--max-bytes N]`: the time
 //! slice that `GET .../tiles/tileset.json?time=T` serves, on disk:
 //! `DIR/tileset.json`, `DIR/tilesets/{id}.json` (external tilesets) and
-//! `DIR/geometry/{hash}.glb` (the content, copied from the tree). Written
+//! the content: `DIR/content/{cluster}.glb` with each element's task
+//! status and look at T as per-feature properties when the tree has object
+//! tables, else `DIR/geometry/{hash}.glb` copied from the tree. Written
 //! into a temporary sibling directory first and renamed into place, so DIR
 //! is either the old export or the whole new one.
 
@@ -10,12 +12,16 @@ use std::fs;
 use std::path::{Path, PathBuf};
 
 use anyhow::Context;
-use hdlod::tiles::{DEFAULT_MAX_BYTES, Options, Tile, Tileset, time_slice};
+use hdlod::scene::Profile;
+use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Options, Tile, Tileset, content, time_slice};
+use hdlod::tree::Tree;
 use hdlod::tree::format::GEOMETRY_DIR;
 
 use crate::protocol::{parse_time, resolve_time};
 
 const SUBTILESETS: &str = "tilesets";
+/// The slice's own content, when the tree has object tables.
+const CONTENT: &str = "content";
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -51,9 +57,15 @@ fn write_json(path: &Path, tileset: &Tileset) -> anyhow::Result<()> {
 }
 
 /// Writes everything into `tmp`.
-fn write(tmp: &Path, tree_dir: &Path, slice: &hdlod::tiles::TimeSlice) -> anyhow::Result<()> {
+fn write(
+    tmp: &Path,
+    tree_dir: &Path,
+    tree: &Tree,
+    slice: &hdlod::tiles::TimeSlice,
+) -> anyhow::Result<()> {
     let sub = tmp.join(SUBTILESETS);
-    let geometry = tmp.join(GEOMETRY_DIR);
+    let own = tree.objects.is_some();
+    let geometry = tmp.join(if own { CONTENT } else { GEOMETRY_DIR });
     for dir in [&sub, &geometry] {
         fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
     }
@@ -65,9 +77,31 @@ fn write(tmp: &Path, tree_dir: &Path, slice: &hdlod::tiles::TimeSlice) -> anyhow
         write_json(&sub.join(format!("{id}.json")), tileset)?;
         collect(&tileset.root, &mut hashes, &mut tiles);
     }
+    let default = Profile::default();
     for file in &hashes {
-        let from = tree_dir.join(GEOMETRY_DIR).join(file);
-        fs::copy(&from, geometry.join(file)).with_context(|| from.display().to_string())?;
+        let to = geometry.join(file);
+        match &tree.objects {
+            Some(tables) => {
+                let id: u32 = file
+                    .trim_end_matches(".glb")
+                    .parse()
+                    .context("content files are named by cluster")?;
+                let hash = tree.clusters[id as usize]
+                    .geometry
+                    .as_ref()
+                    .context("a tile with content has geometry")?;
+                let mesh =
+                    hdlod::io::read_mesh(&tree_dir.join(GEOMETRY_DIR).join(format!("{hash}.glb")))?;
+                let profile = tables.appearance().unwrap_or(&default);
+                let glb =
+                    content::content(&mesh, tree.dynamic_object(id), tables, profile, slice.time);
+                fs::write(&to, glb).with_context(|| to.display().to_string())?;
+            }
+            None => {
+                let from = tree_dir.join(GEOMETRY_DIR).join(file);
+                fs::copy(&from, &to).with_context(|| from.display().to_string())?;
+            }
+        }
     }
     println!(
         "{} tiles, {} external tilesets, {} content files",
@@ -81,9 +115,14 @@ fn write(tmp: &Path, tree_dir: &Path, slice: &hdlod::tiles::TimeSlice) -> anyhow
 pub fn run(args: Args) -> anyhow::Result<()> {
     let tree = hdlod::tree::load(&args.tree)?;
     let t = resolve_time(&tree, "--time", &parse_time(&args.time))?;
+    let (dir, names) = match tree.objects {
+        Some(_) => (CONTENT, ContentNames::Cluster),
+        None => (GEOMETRY_DIR, ContentNames::Geometry),
+    };
     let options = Options {
         max_bytes: args.max_bytes,
-        ..Options::new(GEOMETRY_DIR, SUBTILESETS)
+        content: names,
+        ..Options::new(dir, SUBTILESETS)
     };
     let slice = time_slice(&tree, t, &options)?;
 
@@ -99,7 +138,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pid = std::process::id();
     let tmp = out.with_file_name(format!(".{name}.tmp-{pid}"));
     let old = out.with_file_name(format!(".{name}.old-{pid}"));
-    if let Err(e) = write(&tmp, &args.tree, &slice) {
+    if let Err(e) = write(&tmp, &args.tree, &tree, &slice) {
         let _ = fs::remove_dir_all(&tmp);
         return Err(e);
     }
