@@ -357,3 +357,102 @@ fn failed_save_writes_nothing() {
         .collect();
     assert_eq!(names, vec![std::ffi::OsString::from("existing")]);
 }
+
+#[test]
+fn bad_actual_and_baseline_dates_and_parents_are_named() {
+    let e = Site::new().error_after(|j| {
+        j["tasks"][0]
+            .as_object_mut()
+            .unwrap()
+            .remove("actual_start");
+    });
+    assert_names(
+        &e,
+        &[
+            "scene.json",
+            "tasks[0] \"T1\".actual_finish",
+            "needs an actual start",
+        ],
+    );
+    let e = Site::new().error_after(|j| {
+        j["tasks"][0]["actual_start"] = json!(86400 * 3);
+        j["tasks"][0]["actual_finish"] = json!(86400 * 2);
+    });
+    assert_names(
+        &e,
+        &["tasks[0] \"T1\".actual_finish", "before the actual start"],
+    );
+    let e = Site::new().error_after(|j| {
+        j["tasks"][1]
+            .as_object_mut()
+            .unwrap()
+            .remove("baseline_finish");
+    });
+    assert_names(
+        &e,
+        &["tasks[1] \"T2\"", "both baseline_start and baseline_finish"],
+    );
+    let e = Site::new().error_after(|j| j["tasks"][1]["parent"] = json!("T9"));
+    assert_names(
+        &e,
+        &["tasks[1] \"T2\".parent", "\"T9\" is not the id of a task"],
+    );
+    let e = Site::new().error_after(|j| {
+        j["tasks"][1]["parent"] = json!("T1");
+        j["tasks"][0]["parent"] = json!("T2");
+    });
+    assert_names(&e, &["parent", "cycle"]);
+    let e = Site::new().error_after(|j| j["tasks"][0]["actual_start"] = json!("soon"));
+    assert_names(&e, &["tasks[0] \"T1\".actual_start"]);
+}
+
+#[test]
+fn a_bad_appearance_profile_is_named() {
+    let e =
+        Site::new().error_after(|j| j["appearance"]["types"]["construct"]["after"] = json!("gone"));
+    assert_names(
+        &e,
+        &["scene.json", "appearance.types.construct.after", "\"gone\""],
+    );
+    let e = Site::new().error_after(|j| {
+        j["appearance"]["types"]["construct"]["active"] =
+            json!({"color": "#00ff00", "transparency": 2});
+    });
+    assert_names(&e, &["appearance.types.construct.active", "transparency 2"]);
+    let e = Site::new().error_after(|j| j["appearance"]["format"] = json!("hdlod-appearance/9"));
+    assert_names(&e, &["appearance.format", "hdlod-appearance/1"]);
+}
+
+#[test]
+fn actual_dates_drive_presence_when_the_schedule_follows_them() {
+    let site = Site::new();
+    let day = 86400.0;
+    let mut json = site.json();
+    json["schedule_options"] = json!({"construct_at": "start"});
+    site.write_json(&json);
+    let planned = load(&site.dir).unwrap();
+    // The dates alone, the instants at their defaults.
+    json["schedule_options"] = json!("actual");
+    site.write_json(&json);
+    let actual = load(&site.dir).unwrap();
+    let beam = |s: &hdlod::scene::Scene| {
+        s.objects
+            .iter()
+            .find(|o| o.id == "B-1")
+            .unwrap()
+            .visibility
+            .clone()
+    };
+    // Planned: the beams appear at their task's planned start; on the
+    // record, a day later (the sample builds at the start).
+    assert!(beam(&planned).at(3.5 * day) && !beam(&actual).at(3.5 * day));
+    assert!(beam(&actual).at(4.5 * day));
+    // A task the record never started never acts.
+    json["tasks"][1]
+        .as_object_mut()
+        .unwrap()
+        .remove("actual_start");
+    site.write_json(&json);
+    let unstarted = load(&site.dir).unwrap();
+    assert!(!beam(&unstarted).at(9.0 * day));
+}

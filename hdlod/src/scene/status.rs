@@ -1,6 +1,6 @@
 //! Where a task stands at a time, and how its execution compares with its
 //! plan: the status a 4D review colours elements by (docs/method.md
-//! section 8). Planned dates are the task's `start` and `finish`; actual
+//! section 1, "Planned and actual dates, status, appearance"). Planned dates are the task's `start` and `finish`; actual
 //! dates are what was recorded of its execution (a start once it began, a
 //! finish once it ended); the baseline is an earlier plan, kept for
 //! reference.

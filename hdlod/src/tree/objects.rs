@@ -759,3 +759,86 @@ pub struct TaskRecord {
     pub parent: Option<u32>,
     pub objects: Vec<u32>,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// One object under three construct tasks: [0, 10), [5, 20) and
+    /// [30, 40); the second recorded as started late.
+    fn tables(dates: Dates) -> ObjectTables {
+        let task = |k: u32, start: f64, finish: f64, actual: Actual| TaskEntry {
+            id: format!("T{k}"),
+            name: None,
+            kind: TaskType::Construct,
+            dates: TaskDates {
+                start,
+                finish,
+                actual,
+                baseline: None,
+            },
+            parent: None,
+            objects: vec![0],
+        };
+        let late = Actual {
+            start: Some(8.0),
+            finish: Some(25.0),
+        };
+        ObjectTables::new(
+            vec![ObjectEntry {
+                id: "E".into(),
+                name: None,
+                class: None,
+                properties: BTreeMap::new(),
+                visibility_class: Class::PseudoDynamic,
+                tasks: vec![0, 1, 2],
+                presence: Visibility::always(),
+                clusters: vec![],
+            }],
+            vec![
+                task(0, 0.0, 10.0, Actual::default()),
+                task(1, 5.0, 20.0, late),
+                task(2, 30.0, 40.0, Actual::default()),
+            ],
+            dates,
+            None,
+        )
+    }
+
+    #[test]
+    fn the_governing_task_is_the_latest_running_then_the_latest_finished_then_the_next() {
+        let t = tables(Dates::Planned);
+        assert_eq!(t.governing_task(0, 2.0), Some(0));
+        assert_eq!(t.governing_task(0, 6.0), Some(1));
+        assert_eq!(t.governing_task(0, 25.0), Some(1));
+        assert_eq!(t.governing_task(0, 35.0), Some(2));
+        // On the record task 0 never started and task 1 started at 8: at 6
+        // task 1 is the next to start.
+        let t = tables(Dates::Actual);
+        assert_eq!(t.governing_task(0, 6.0), Some(1));
+        assert_eq!(t.governing_task(0, 9.0), Some(1));
+        assert_eq!(t.governing_task(0, 27.0), Some(1));
+    }
+
+    #[test]
+    fn an_element_takes_its_governing_tasks_look() {
+        let t = tables(Dates::Planned);
+        let mut profile = Profile::default();
+        let red = Look::Colour {
+            rgb: [255, 0, 0],
+            transparency: 0.0,
+        };
+        profile.types[TaskType::Construct.index()].late = Some(red);
+        // At 6 task 1 runs on the plan but the record has not started it.
+        let s = t.state_at(0, 6.0, &profile);
+        assert_eq!(
+            (s.task, s.progress, s.deviation, s.look),
+            (Some(1), Some(Progress::Active), Some(Deviation::Late), red)
+        );
+        let s = t.state_at(0, 12.0, &profile);
+        assert_eq!(s.deviation, Some(Deviation::OnTime));
+        assert_eq!(s.look, Profile::default().types[0].active);
+        let s = t.state_at(0, 45.0, &profile);
+        assert_eq!((s.task, s.look), (Some(2), Look::Model));
+    }
+}

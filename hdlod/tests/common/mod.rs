@@ -9,8 +9,10 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
+use hdlod::scene::appearance::Look;
 use hdlod::scene::{
-    Instant, Keyframe, Motion, Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility,
+    Actual, Instant, Keyframe, Motion, Object, Profile, Scene, ScheduleOptions, Span, Task,
+    TaskType, Up, Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 
@@ -112,14 +114,27 @@ pub fn sample_scene() -> Scene {
                 2.0 * day + 0.25,
                 vec!["C-1".into()],
             ),
-            Task::planned(
-                "T2",
-                "Beams",
-                TaskType::Construct,
-                3.0 * day,
-                4.0 * day,
-                vec!["B-1".into()],
-            ),
+            // The beams started a day late and run on; an earlier plan
+            // had them a day sooner; they belong to the columns' work.
+            Task {
+                actual: Actual {
+                    start: Some(4.0 * day),
+                    finish: None,
+                },
+                baseline: Some(Span {
+                    start: 2.0 * day,
+                    finish: 3.0 * day,
+                }),
+                parent: Some("T1".into()),
+                ..Task::planned(
+                    "T2",
+                    "Beams",
+                    TaskType::Construct,
+                    3.0 * day,
+                    4.0 * day,
+                    vec!["B-1".into()],
+                )
+            },
             Task::planned(
                 "T3",
                 "Scaffolding",
@@ -134,7 +149,11 @@ pub fn sample_scene() -> Scene {
             demolish_at: Instant::Start,
             ..ScheduleOptions::default()
         },
-        appearance: None,
+        appearance: Some(sample_profile()),
+    };
+    scene.tasks[0].actual = Actual {
+        start: Some(day),
+        finish: Some(2.0 * day),
     };
     scene.apply_schedule();
     scene
@@ -246,6 +265,19 @@ pub fn assert_valid(v: &jsonschema::Validator, value: &serde_json::Value, what: 
     assert!(errors.is_empty(), "{what}: {errors:?}");
 }
 
+/// The sample scene's appearance profile: late work red, the rest default.
+pub fn sample_profile() -> Profile {
+    let mut profile = Profile {
+        name: "sample review".into(),
+        ..Profile::default()
+    };
+    profile.types[TaskType::Construct.index()].late = Some(Look::Colour {
+        rgb: [255, 0, 0],
+        transparency: 0.0,
+    });
+    profile
+}
+
 /// The validator of `schemas/NAME` of the repository; the schemas it
 /// refers to by relative name are read from the same folder.
 pub fn schema(name: &str) -> jsonschema::Validator {
@@ -258,7 +290,8 @@ pub fn schema(name: &str) -> jsonschema::Validator {
         .unwrap()
 }
 
-/// Resolves `https://hdlod.invalid/schemas/NAME` to `schemas/NAME`.
+/// Resolves a schema's `$id` (`https://hdlod.example/schemas/NAME`, or
+/// another of the placeholder hosts the files use) to `schemas/NAME`.
 struct SchemaFolder;
 
 impl jsonschema::Retrieve for SchemaFolder {
@@ -266,9 +299,12 @@ impl jsonschema::Retrieve for SchemaFolder {
         &self,
         uri: &jsonschema::Uri<String>,
     ) -> Result<serde_json::Value, Box<dyn std::error::Error + Send + Sync>> {
-        let name = uri
-            .as_str()
-            .strip_prefix("https://hdlod.invalid/schemas/")
+        let name = ["hdlod.example", "hdlod.invalid", "hdlod.dev"]
+            .iter()
+            .find_map(|host| {
+                uri.as_str()
+                    .strip_prefix(&format!("https://{host}/schemas/"))
+            })
             .ok_or_else(|| format!("{uri} is not one of our schemas"))?;
         let text = std::fs::read_to_string(repo().join("schemas").join(name))?;
         Ok(serde_json::from_str(&text)?)
