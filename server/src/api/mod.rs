@@ -3,6 +3,7 @@
 //! `Arc` and works on that snapshot, so a reload (SIGHUP) swaps in new trees
 //! without disturbing requests in flight.
 
+mod cors;
 pub mod error;
 mod handlers;
 pub mod metrics;
@@ -26,6 +27,7 @@ use axum::routing::get;
 use hdlod::tree::{Baseline, Tree, TreeSummary};
 use tower_http::compression::CompressionLayer;
 
+pub use self::cors::Cors;
 use self::metrics::Metrics;
 use crate::protocol::Fragments;
 
@@ -134,7 +136,7 @@ async fn record(State(state): State<Arc<AppState>>, request: Request, next: Next
     response
 }
 
-pub fn router(state: Arc<AppState>) -> Router {
+pub fn router(state: Arc<AppState>, cors: &Cors) -> Router {
     Router::new()
         .route("/", get(viewer::index))
         .route("/viewer/{file}", get(viewer::asset))
@@ -179,5 +181,6 @@ pub fn router(state: Arc<AppState>) -> Router {
         .layer(axum::middleware::from_fn_with_state(state.clone(), record))
         .layer(DefaultBodyLimit::max(BODY_LIMIT))
         .layer(CompressionLayer::new())
+        .layer(cors.layer())
         .with_state(state)
 }

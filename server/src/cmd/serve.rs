@@ -12,7 +12,7 @@ use anyhow::Context;
 use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE};
 use notify::{Event, EventKind, RecommendedWatcher, RecursiveMode, Watcher};
 
-use crate::api::{self, AppState};
+use crate::api::{self, AppState, Cors};
 use crate::protocol;
 
 #[derive(clap::Args)]
@@ -28,19 +28,25 @@ pub struct Args {
     /// systems without change notification).
     #[arg(long)]
     no_watch: bool,
+    /// An origin (`https://example.com`) that may call every route from a
+    /// web page, POST cuts included; repeatable, `*` for any. Without it
+    /// any origin may use the read-only (GET) routes.
+    #[arg(long = "cors-origin", value_name = "ORIGIN")]
+    cors_origins: Vec<String>,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    serve_trees(&args.addr, args.trees, !args.no_watch)
+    let cors = Cors::from_args(&args.cors_origins)?;
+    serve_trees(&args.addr, args.trees, !args.no_watch, cors)
 }
 
 /// Serves `trees` on `addr` until Ctrl-C, reloading them when they change
 /// on disk (what `hdlod demo` runs).
 pub fn serve(addr: &str, trees: Vec<PathBuf>) -> anyhow::Result<()> {
-    serve_trees(addr, trees, true)
+    serve_trees(addr, trees, true, Cors::default())
 }
 
-fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool) -> anyhow::Result<()> {
+fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool, cors: Cors) -> anyhow::Result<()> {
     let state = AppState::load(trees.clone())?;
     if watching {
         watch(state.clone(), &trees)?;
@@ -74,7 +80,7 @@ fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool) -> anyhow::Resul
                 }
             }
         });
-        axum::serve(listener, api::router(state))
+        axum::serve(listener, api::router(state, &cors))
             .with_graceful_shutdown(async {
                 let _ = tokio::signal::ctrl_c().await;
             })
