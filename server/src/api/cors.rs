@@ -24,14 +24,7 @@ impl Cors {
     /// `https://example.com` (scheme, host and port, no path).
     pub fn from_args(origins: &[String]) -> anyhow::Result<Cors> {
         for o in origins {
-            let valid = o == "*"
-                || ((o.starts_with("http://") || o.starts_with("https://"))
-                    && !o
-                        .trim_end_matches('/')
-                        .split_once("://")
-                        .is_some_and(|(_, rest)| rest.contains('/'))
-                    && HeaderValue::from_str(o).is_ok());
-            if !valid {
+            if o != "*" && !is_origin(o) {
                 anyhow::bail!(
                     "--cors-origin {o:?}: expected * or an origin such as https://example.com (scheme, host, optional port; no path)"
                 );
