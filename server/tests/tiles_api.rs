@@ -51,9 +51,20 @@ fn served_slices_follow_the_schemas() {
             .unwrap();
         assert_eq!(answer.status(), StatusCode::OK, "time {time}");
         assert_content_type(&answer, "application/json");
+        let etag = answer.headers()["etag"].clone();
+        let again = http
+            .get(server.url(&tiles_path(&format!("?time={time}"))))
+            .header("If-None-Match", etag)
+            .send()
+            .unwrap();
+        assert_eq!(again.status(), StatusCode::NOT_MODIFIED, "time {time}");
         let tileset: Value = answer.json().unwrap();
         assert_valid(&validator, &tileset, time);
         assert_eq!(tileset["root"]["refine"], "REPLACE");
+        assert!(
+            tileset["asset"].get("tilesetVersion").is_none(),
+            "no per-date content URLs in Cesium"
+        );
         // Content resolves to the slice's own content, which is served.
         let mut content = Vec::new();
         uris(&tileset["root"], &mut content);

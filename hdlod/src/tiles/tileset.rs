@@ -320,7 +320,7 @@ pub fn tileset(tree: &Tree, t: f64, content_dir: &str, names: ContentNames) -> R
     tile.transform = (up != DMat4::IDENTITY).then(|| up.to_cols_array());
     tile.refine = Some(Refine::Replace);
     Ok(Tileset {
-        asset: asset(tree, t),
+        asset: asset(),
         geometric_error: tile.geometric_error,
         root: tile,
         extras: Some(serde_json::json!({
@@ -332,11 +332,13 @@ pub fn tileset(tree: &Tree, t: f64, content_dir: &str, names: ContentNames) -> R
     })
 }
 
-pub(super) fn asset(tree: &Tree, t: f64) -> Asset {
+/// No `tilesetVersion`: CesiumJS appends it to every content URL, which
+/// would give a GLB shared by every date another URL on each.
+pub(super) fn asset() -> Asset {
     Asset {
         version: "1.1".into(),
         generator: Some(format!("hdlod {}", env!("CARGO_PKG_VERSION"))),
-        tileset_version: Some(format_date(tree.time.date_at(t))),
+        tileset_version: None,
     }
 }
 
@@ -356,7 +358,7 @@ pub fn time_slice(tree: &Tree, t: f64, options: &Options) -> Result<TimeSlice> {
         ));
     }
     let mut root = tileset(tree, t, &options.content_dir, options.content)?;
-    let external = super::split::split(&mut root, options, &asset(tree, t));
+    let external = super::split::split(&mut root, options, &asset());
     Ok(TimeSlice {
         time: t,
         root,

@@ -3,6 +3,7 @@
 //! `Arc` and works on that snapshot, so a reload (SIGHUP) swaps in new trees
 //! without disturbing requests in flight.
 
+mod cached;
 mod cors;
 pub mod error;
 mod handlers;
@@ -41,8 +42,8 @@ pub struct LoadedScene {
     pub baseline: Baseline,
     pub fragments: Fragments,
     /// The schedule and appearance answers, made on first request.
-    pub schedule: OnceLock<schedule::Cached>,
-    pub appearance: OnceLock<schedule::Cached>,
+    pub schedule: OnceLock<cached::Cached>,
+    pub appearance: OnceLock<cached::Cached>,
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;

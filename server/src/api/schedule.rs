@@ -12,72 +12,20 @@
 
 use std::sync::Arc;
 
-use axum::body::{Body, Bytes};
 use axum::extract::rejection::{PathRejection, QueryRejection};
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
-use axum::response::{IntoResponse, Response};
+use axum::http::HeaderMap;
+use axum::response::Response;
 use hdlod::scene::status::Dates;
 use hdlod::time::format_date;
 use hdlod::tree::ObjectTables;
 use serde::Serialize;
 
+use super::cached::Cached;
 use super::error::ApiError;
 use super::handlers::find;
 use super::objects::tables;
 use super::{AppState, LoadedScene};
-
-/// A JSON body made once, and its ETag.
-pub struct Cached {
-    body: Bytes,
-    etag: HeaderValue,
-}
-
-impl Cached {
-    fn of(value: &impl Serialize) -> Cached {
-        let body = serde_json::to_vec(value).expect("plain data serialises");
-        let etag = format!("\"{}\"", blake3::hash(&body).to_hex());
-        Cached {
-            body: body.into(),
-            etag: HeaderValue::from_str(&etag).expect("hex in quotes"),
-        }
-    }
-
-    /// The body, or 304 when the request already has it. Clients revalidate
-    /// each time (`no-cache`): a reload may change it under the same URL.
-    fn answer(&self, headers: &HeaderMap) -> Response {
-        let cache = HeaderValue::from_static("no-cache");
-        let matches = headers
-            .get(header::IF_NONE_MATCH)
-            .and_then(|v| v.to_str().ok())
-            .is_some_and(|v| {
-                v.split(',')
-                    .any(|t| t.trim().as_bytes() == self.etag.as_bytes() || t.trim() == "*")
-            });
-        if matches {
-            return (
-                StatusCode::NOT_MODIFIED,
-                [
-                    (header::ETAG, self.etag.clone()),
-                    (header::CACHE_CONTROL, cache),
-                ],
-            )
-                .into_response();
-        }
-        (
-            [
-                (
-                    header::CONTENT_TYPE,
-                    HeaderValue::from_static("application/json"),
-                ),
-                (header::ETAG, self.etag.clone()),
-                (header::CACHE_CONTROL, cache),
-            ],
-            Body::from(self.body.clone()),
-        )
-            .into_response()
-    }
-}
 
 #[derive(Serialize)]
 struct ScheduleAnswer<'a> {

@@ -17,10 +17,9 @@
 
 use std::sync::Arc;
 
-use axum::Json;
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::scene::Profile;
 use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Options, Tileset, content, time_slice};
@@ -28,6 +27,7 @@ use hdlod::time::TimeValue;
 use hdlod::tree::Tree;
 
 use super::AppState;
+use super::cached::Cached;
 use super::error::ApiError;
 use super::handlers::find;
 use crate::protocol::{parse_time_query, resolve_time, within_period};
@@ -137,19 +137,23 @@ pub async fn tileset(
     State(state): State<Arc<AppState>>,
     Path(name): Path<String>,
     query: Result<Query<Vec<(String, String)>>, QueryRejection>,
-) -> Result<Json<Tileset>, ApiError> {
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let s = find(&state, &name)?;
     let time = parse_time_query(&pairs)?;
-    root_file(&s.tree, &time, DEFAULT_MAX_BYTES).map(Json)
+    let root = root_file(&s.tree, &time, DEFAULT_MAX_BYTES)?;
+    Ok(Cached::of(&root).answer(&headers))
 }
 
 pub async fn external(
     State(state): State<Arc<AppState>>,
     Path((name, time, file)): Path<(String, String, String)>,
-) -> Result<Json<Tileset>, ApiError> {
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;
-    external_file(&s.tree, &time, &file, DEFAULT_MAX_BYTES).map(Json)
+    let tileset = external_file(&s.tree, &time, &file, DEFAULT_MAX_BYTES)?;
+    Ok(Cached::of(&tileset).answer(&headers))
 }
 
 #[cfg(test)]
