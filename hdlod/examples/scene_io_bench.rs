@@ -116,6 +116,7 @@ fn paper_sized() -> Scene {
         tasks,
         schedule_options: ScheduleOptions::default(),
         appearance: None,
+        georeference: None,
     };
     scene.apply_schedule();
     scene

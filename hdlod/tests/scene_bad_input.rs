@@ -456,3 +456,11 @@ fn actual_dates_drive_presence_when_the_schedule_follows_them() {
     let unstarted = load(&site.dir).unwrap();
     assert!(!beam(&unstarted).at(9.0 * day));
 }
+
+#[test]
+fn a_bad_georeference_is_named() {
+    let e = Site::new().error_after(|j| j["georeference"]["latitude"] = json!(95.0));
+    assert_names(&e, &["scene.json", "georeference.latitude", "95"]);
+    let e = Site::new().error_after(|j| j["georeference"]["datum"] = json!("RD"));
+    assert_names(&e, &["georeference", "datum"]);
+}

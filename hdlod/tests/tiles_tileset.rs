@@ -13,7 +13,8 @@ use glam::{DMat4, DVec3};
 use hdlod::build::{BuildConfig, Silent, build_to};
 use hdlod::scene::{Up, format};
 use hdlod::tiles::{
-    DEFAULT_MAX_BYTES, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform, time_slice,
+    DEFAULT_MAX_BYTES, Frame, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform,
+    time_slice,
 };
 use hdlod::tree::{Aabb, CameraSpec, Tree, View, Viewport, cut, load};
 use rand::{Rng, SeedableRng};
@@ -240,13 +241,39 @@ impl<'a> Client<'a> {
 
 /// The scene frame to the tileset's z-up world.
 fn to_world(up: Up) -> DMat4 {
-    root_transform(up) * Y_UP_TO_Z_UP
+    root_transform(up, None) * Y_UP_TO_Z_UP
 }
 
+/// The tiny tree turned to `up`, in its local frame (not placed on Earth).
 fn tree_with_up(up: Up) -> Tree {
     let mut t = tree().clone();
     t.up = up;
+    t.georeference = None;
     t
+}
+
+/// The tiny site is placed on Earth: its root maps the local frame to ECEF
+/// at its origin, unless the local frame is asked for.
+#[test]
+fn a_georeferenced_slice_lands_on_the_globe() {
+    let tree = tree();
+    let g = tree.georeference.expect("the fixture has a site");
+    let t = tree.time.seconds / 2.0;
+    let slice = time_slice(tree, t, &disk(DEFAULT_MAX_BYTES)).unwrap();
+    let m = DMat4::from_cols_array(&slice.root.root.transform.expect("a root transform"));
+    assert!(m.abs_diff_eq(g.to_ecef(), 1e-6));
+    // The site's centre lies within its own size of the origin on Earth,
+    // some 6,365 km from the Earth's centre at that latitude.
+    let centre = (tree.bounds.min + tree.bounds.max) / 2.0;
+    let ecef = m.transform_point3(Y_UP_TO_Z_UP.transform_point3(centre));
+    assert!(ecef.distance(g.origin_ecef()) < tree.bounds.diagonal());
+    assert!((6.36e6..6.37e6).contains(&ecef.length()), "{ecef}");
+    let local = Options {
+        frame: Frame::Local,
+        ..disk(DEFAULT_MAX_BYTES)
+    };
+    let slice = time_slice(tree, t, &local).unwrap();
+    assert_eq!(slice.root.root.transform, None);
 }
 
 #[test]

@@ -120,7 +120,7 @@ fn three_js_tiles_renderer_draws_the_cut() {
     ];
     for (name, position, target) in views {
         let tileset = server.url(&format!(
-            "/api/v1/scenes/{SCENE}/tiles/tileset.json?time={time}"
+            "/api/v1/scenes/{SCENE}/tiles/tileset.json?time={time}&frame=local"
         ));
         let drawn = render(&server.base, &tileset, position, target, None);
         compare(name, &drawn, &cut(&server, time, position, target));
@@ -137,6 +137,10 @@ fn three_js_tiles_renderer_draws_the_cut() {
         split.as_os_str(),
         "--max-bytes".as_ref(),
         "16000".as_ref(),
+        // three.js works in the site's frame: ECEF's millions of metres
+        // would cost f32 precision.
+        "--frame".as_ref(),
+        "local".as_ref(),
     ]);
     assert_success(&out);
     assert!(split.join("tilesets").read_dir().unwrap().count() > 1);

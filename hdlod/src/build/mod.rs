@@ -167,6 +167,7 @@ pub fn build(
         time: scene.time,
         bounds: clusters[root as usize].bounds,
         up: scene.up,
+        georeference: scene.georeference,
         root,
         config: serde_json::to_value(config).expect("the config serialises"),
         stats: serde_json::to_value(&stats).expect("the statistics serialise"),

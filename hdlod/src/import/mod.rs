@@ -328,6 +328,7 @@ pub fn import(
         tasks,
         schedule_options: ScheduleOptions::default(),
         appearance: None,
+        georeference: None,
     };
     scene.apply_schedule();
     report.seconds = clock.elapsed().as_secs_f64();

@@ -16,7 +16,8 @@ use serde::{Deserialize, Serialize};
 
 use super::appearance::{Profile, ProfileFile};
 use super::{
-    Actual, Keyframe, Motion, Object, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
+    Actual, Georeference, Keyframe, Motion, Object, Scene, ScheduleOptions, Span, Task, TaskType,
+    Up, Visibility,
 };
 use crate::error::{Error, Result};
 use crate::io::glb::GlbBuilder;
@@ -53,6 +54,9 @@ struct SceneFile {
     /// The scene's appearance profile (`hdlod-appearance/1`).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     appearance: Option<ProfileFile>,
+    /// Its place on Earth.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    georeference: Option<Georeference>,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -310,6 +314,10 @@ impl Loader<'_> {
                 at = f.tasks[k].parent.as_deref();
             }
         }
+        if let Some(g) = &f.georeference {
+            g.validate()
+                .map_err(|(field, m)| self.err(format!("georeference.{field}"), m))?;
+        }
         let appearance = f
             .appearance
             .map(|p| Profile::from_file(p, self.file, "appearance."))
@@ -342,6 +350,7 @@ impl Loader<'_> {
             tasks,
             schedule_options: f.schedule_options.unwrap_or_default(),
             appearance,
+            georeference: f.georeference,
         };
         scene.apply_schedule();
         Ok(scene)
@@ -680,5 +689,6 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
             .collect(),
         schedule_options: Some(scene.schedule_options),
         appearance: scene.appearance.as_ref().map(Profile::to_file),
+        georeference: scene.georeference,
     }
 }

@@ -5,6 +5,7 @@
 
 pub mod appearance;
 pub mod format;
+mod georef;
 mod motion;
 mod schedule;
 pub mod status;
@@ -20,6 +21,7 @@ use crate::geometry::Mesh;
 use crate::time::TimeSpan;
 
 pub use appearance::Profile;
+pub use georef::Georeference;
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
 pub use status::{Actual, Dates, Span, TaskDates};
@@ -180,6 +182,8 @@ pub struct Scene {
     pub schedule_options: ScheduleOptions,
     /// The scene's own appearance profile, if it has one.
     pub appearance: Option<Profile>,
+    /// Its place on Earth, if known.
+    pub georeference: Option<Georeference>,
 }
 
 impl Scene {

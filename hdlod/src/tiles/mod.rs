@@ -21,7 +21,7 @@ mod split;
 pub mod tileset;
 
 pub use tileset::{
-    Asset, BoundingVolume, Content, ContentNames, DEFAULT_MAX_BYTES, MIN_MAX_BYTES, Options,
+    Asset, BoundingVolume, Content, ContentNames, DEFAULT_MAX_BYTES, Frame, MIN_MAX_BYTES, Options,
     ROOT_ERROR_FACTOR, Refine, Tile, TileExtras, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform,
     tileset, time_slice,
 };

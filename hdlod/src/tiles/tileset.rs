@@ -31,7 +31,7 @@ use glam::{DMat4, DVec3};
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
-use crate::scene::Up;
+use crate::scene::{Georeference, Up};
 use crate::time::format_date;
 use crate::tree::format::CLUSTERS_FILE;
 use crate::tree::{Aabb, Tree};
@@ -71,6 +71,22 @@ pub struct Options {
     pub max_bytes: usize,
     /// How content files are named in `content_dir`.
     pub content: ContentNames,
+    /// Whether a georeferenced scene is placed on Earth.
+    pub frame: Frame,
+}
+
+/// The frame a slice's root maps to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Frame {
+    /// ECEF for a georeferenced scene (its root transform places it on
+    /// the globe, as CesiumJS and cesium-native expect), else the local
+    /// frame.
+    #[default]
+    Earth,
+    /// The scene's own frame turned z-up, origin at its origin: for
+    /// engines that work in local coordinates (three.js), where ECEF's
+    /// millions of metres would cost `f32` precision.
+    Local,
 }
 
 /// How a slice names its content files.
@@ -91,6 +107,7 @@ impl Options {
             subtileset_dir: subtileset_dir.into(),
             max_bytes: DEFAULT_MAX_BYTES,
             content: ContentNames::Geometry,
+            frame: Frame::Earth,
         }
     }
 }
@@ -176,12 +193,14 @@ pub struct TimeSlice {
 
 /// The root tile's `transform` (see the module documentation of `tiles`):
 /// the identity for a y-up scene, the inverse of [`Y_UP_TO_Z_UP`] for a
-/// z-up one.
-pub fn root_transform(up: Up) -> DMat4 {
-    match up {
+/// z-up one; then, for a scene placed on Earth, its east-north-up frame to
+/// ECEF.
+pub fn root_transform(up: Up, georeference: Option<&Georeference>) -> DMat4 {
+    let local = match up {
         Up::Y => DMat4::IDENTITY,
         Up::Z => Y_UP_TO_Z_UP.inverse(),
-    }
+    };
+    georeference.map_or(local, |g| g.to_ecef() * local)
 }
 
 /// `x` raised by a hair: the least error strictly above a child's that
@@ -278,9 +297,9 @@ impl Slice<'_> {
 }
 
 /// The whole tree at `t` (seconds since the scene's start) as one tileset,
-/// content URIs under `content_dir` (relative to the tileset's directory)
-/// named by `names`.
-pub fn tileset(tree: &Tree, t: f64, content_dir: &str, names: ContentNames) -> Result<Tileset> {
+/// content URIs under `options.content_dir` (relative to the tileset's
+/// directory); `max_bytes` and `subtileset_dir` are [`time_slice`]'s.
+pub fn tileset(tree: &Tree, t: f64, options: &Options) -> Result<Tileset> {
     if !t.is_finite() {
         return Err(Error::argument(
             "time",
@@ -290,8 +309,8 @@ pub fn tileset(tree: &Tree, t: f64, content_dir: &str, names: ContentNames) -> R
     let slice = Slice {
         tree,
         t,
-        content_dir: content_dir.trim_end_matches('/'),
-        names,
+        content_dir: options.content_dir.trim_end_matches('/'),
+        names: options.content,
     };
     let root = tree.root();
     let v = root.visibility.at(t);
@@ -316,8 +335,12 @@ pub fn tileset(tree: &Tree, t: f64, content_dir: &str, names: ContentNames) -> R
             .geometric_error
             .max(ROOT_ERROR_FACTOR * tree.bounds.diagonal());
     }
-    let up = root_transform(tree.up);
-    tile.transform = (up != DMat4::IDENTITY).then(|| up.to_cols_array());
+    let georeference = match options.frame {
+        Frame::Earth => tree.georeference.as_ref(),
+        Frame::Local => None,
+    };
+    let root = root_transform(tree.up, georeference);
+    tile.transform = (root != DMat4::IDENTITY).then(|| root.to_cols_array());
     tile.refine = Some(Refine::Replace);
     Ok(Tileset {
         asset: asset(),
@@ -357,7 +380,7 @@ pub fn time_slice(tree: &Tree, t: f64, options: &Options) -> Result<TimeSlice> {
             format!("must be at least {MIN_MAX_BYTES} (room for a tile and its children's stubs)"),
         ));
     }
-    let mut root = tileset(tree, t, &options.content_dir, options.content)?;
+    let mut root = tileset(tree, t, options)?;
     let external = super::split::split(&mut root, options, &asset());
     Ok(TimeSlice {
         time: t,

@@ -20,6 +20,9 @@ pub struct ManifestRecord {
     pub time: TimeRecord,
     pub bounds: BoundsRecord,
     pub up: crate::scene::Up,
+    /// The scene's place on Earth, when it has one.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub georeference: Option<crate::scene::Georeference>,
     pub root: u32,
     /// The build configuration, free-form (the builder owns its shape).
     #[serde(default)]

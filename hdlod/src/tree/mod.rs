@@ -23,7 +23,7 @@ use glam::{DMat4, DVec3, Quat, Vec3};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::scene::{Keyframe, Motion, Up};
+use crate::scene::{Georeference, Keyframe, Motion, Up};
 use crate::time::{TimeSpan, format_date, parse_date};
 
 pub use baseline::Baseline;
@@ -180,6 +180,8 @@ pub struct Tree {
     /// The scene's world bounds over the whole period.
     pub bounds: Aabb,
     pub up: Up,
+    /// The scene's place on Earth, if it has one.
+    pub georeference: Option<Georeference>,
     pub root: u32,
     pub config: serde_json::Value,
     pub stats: serde_json::Value,
@@ -223,6 +225,7 @@ impl Tree {
             time,
             bounds,
             up,
+            georeference: None,
             root,
             config: serde_json::json!({}),
             stats: serde_json::json!({}),
@@ -492,6 +495,7 @@ impl Tree {
             },
             bounds: bounds(&self.bounds),
             up: self.up,
+            georeference: self.georeference,
             root: self.root,
             config: self.config.clone(),
             stats: self.stats.clone(),
@@ -610,6 +614,7 @@ impl Tree {
             },
             bounds: aabb(manifest.bounds),
             up: manifest.up,
+            georeference: manifest.georeference,
             root: manifest.root,
             config: manifest.config,
             stats: manifest.stats,

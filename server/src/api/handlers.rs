@@ -159,6 +159,7 @@ pub async fn scene(
         "time": time_json(&s),
         "bounds": {"min": b.min.to_array(), "max": b.max.to_array()},
         "up": tree.up,
+        "georeference": tree.georeference,
         "root": tree.root,
         "clusters": s.summary.clusters,
         "leaves": s.summary.leaves,

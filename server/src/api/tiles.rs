@@ -22,7 +22,7 @@ use axum::extract::{Path, Query, State};
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::scene::Profile;
-use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Options, Tileset, content, time_slice};
+use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Frame, Options, Tileset, content, time_slice};
 use hdlod::time::TimeValue;
 use hdlod::tree::Tree;
 
@@ -35,8 +35,8 @@ use crate::protocol::{parse_time_query, resolve_time, within_period};
 /// The options of a slice at `t` served from `.../tiles/tileset.json`: the
 /// external tilesets sit in `.../tiles/{t}/`; the content in
 /// `.../tiles/{t}/content/` when the tree has object tables, else the GLBs
-/// in `.../geometry/`.
-fn options(tree: &Tree, t: f64, max_bytes: usize) -> Options {
+/// in `.../geometry/`. The frame only matters to the root file.
+fn options(tree: &Tree, t: f64, max_bytes: usize, frame: Frame) -> Options {
     let (dir, content) = match tree.objects {
         Some(_) => (format!("{t}/content"), ContentNames::Cluster),
         None => ("../geometry".to_owned(), ContentNames::Geometry),
@@ -44,14 +44,43 @@ fn options(tree: &Tree, t: f64, max_bytes: usize) -> Options {
     Options {
         max_bytes,
         content,
+        frame,
         ..Options::new(dir, format!("{t}"))
     }
 }
 
 /// The root file for the query's `time`.
-fn root_file(tree: &Tree, time: &TimeValue, max_bytes: usize) -> Result<Tileset, ApiError> {
+fn root_file(
+    tree: &Tree,
+    time: &TimeValue,
+    frame: Frame,
+    max_bytes: usize,
+) -> Result<Tileset, ApiError> {
     let t = resolve_time(tree, "time", time)?;
-    Ok(time_slice(tree, t, &options(tree, t, max_bytes))?.root)
+    Ok(time_slice(tree, t, &options(tree, t, max_bytes, frame))?.root)
+}
+
+/// `?time=T[&frame=earth|local]`.
+fn tileset_query(pairs: &[(String, String)]) -> Result<(TimeValue, Frame), ApiError> {
+    let mut frame = Frame::Earth;
+    let mut rest = Vec::new();
+    for (key, value) in pairs {
+        if key == "frame" {
+            frame = match value.as_str() {
+                "earth" => Frame::Earth,
+                "local" => Frame::Local,
+                other => {
+                    return Err(ApiError::bad(
+                        "frame",
+                        format!("{other:?} is not a frame: use earth or local"),
+                    ));
+                }
+            };
+        } else {
+            rest.push((key.clone(), value.clone()));
+        }
+    }
+    Ok((parse_time_query(&rest)?, frame))
 }
 
 /// The external file `{time}/{file}` that a root file names.
@@ -66,7 +95,7 @@ fn external_file(
         .strip_suffix(".json")
         .and_then(|id| id.parse().ok())
         .ok_or_else(|| ApiError::not_found("subtree", format!("{file:?} is not ID.json")))?;
-    let mut slice = time_slice(tree, t, &options(tree, t, max_bytes))?;
+    let mut slice = time_slice(tree, t, &options(tree, t, max_bytes, Frame::Earth))?;
     slice.external.remove(&id).ok_or_else(|| {
         ApiError::not_found(
             "subtree",
@@ -141,8 +170,8 @@ pub async fn tileset(
 ) -> Result<Response, ApiError> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let s = find(&state, &name)?;
-    let time = parse_time_query(&pairs)?;
-    let root = root_file(&s.tree, &time, DEFAULT_MAX_BYTES)?;
+    let (time, frame) = tileset_query(&pairs)?;
+    let root = root_file(&s.tree, &time, frame, DEFAULT_MAX_BYTES)?;
     Ok(Cached::of(&root).answer(&headers))
 }
 
@@ -170,7 +199,7 @@ mod tests {
         let t = tree.time.seconds / 2.0;
         let mut pending: Vec<(Option<String>, Tileset)> = vec![(
             None,
-            root_file(&tree, &TimeValue::Seconds(t), small).unwrap(),
+            root_file(&tree, &TimeValue::Seconds(t), Frame::Earth, small).unwrap(),
         )];
         let mut served = 0;
         while let Some((dir, tileset)) = pending.pop() {

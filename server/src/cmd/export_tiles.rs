@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 
 use anyhow::Context;
 use hdlod::scene::Profile;
-use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Options, Tile, Tileset, content, time_slice};
+use hdlod::tiles::{
+    ContentNames, DEFAULT_MAX_BYTES, Frame, Options, Tile, Tileset, content, time_slice,
+};
 use hdlod::tree::Tree;
 use hdlod::tree::format::GEOMETRY_DIR;
 
@@ -37,6 +39,16 @@ pub struct Args {
     /// tilesets.
     #[arg(long, default_value_t = DEFAULT_MAX_BYTES)]
     max_bytes: usize,
+    /// `earth`: a georeferenced scene's root placed on the globe (ECEF);
+    /// `local`: its own frame, for engines in local coordinates.
+    #[arg(long, value_enum, default_value_t = FrameArg::Earth)]
+    frame: FrameArg,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum FrameArg {
+    Earth,
+    Local,
 }
 
 fn collect(tile: &Tile, hashes: &mut BTreeSet<String>, tiles: &mut usize) {
@@ -122,6 +134,10 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let options = Options {
         max_bytes: args.max_bytes,
         content: names,
+        frame: match args.frame {
+            FrameArg::Earth => Frame::Earth,
+            FrameArg::Local => Frame::Local,
+        },
         ..Options::new(dir, SUBTILESETS)
     };
     let slice = time_slice(&tree, t, &options)?;
