@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use hdlod::import::{Options, ifc, import};
+use hdlod::import::{Options, Recorded, ifc, import};
 use hdlod::scene::{TaskType, VisibilityType};
 
 fn root() -> PathBuf {
@@ -134,6 +134,125 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
+/// tiny.ifc as a progress record: T1 done late, T2 still running, both
+/// nested in a summary task `W` without times of its own.
+fn tiny_in_progress() -> String {
+    let text = std::fs::read_to_string(tiny()).unwrap();
+    let nested = "#220=IFCTASK('3TaskTinyHdlod00000003',$,'Works',$,$,'W',$,$,$,.F.,$,$,\
+                  .CONSTRUCTION.);\n\
+                  #221=IFCRELNESTS('3RelTinyHdlod000000003',$,$,$,#220,(#200,#210));\n\
+                  ENDSEC;\nEND-ISO";
+    text.replace(
+        "'2024-03-05T17:00:00',$,$,$,$,$,$,$,$,$,$,$,$,$);",
+        "'2024-03-05T17:00:00',$,$,$,$,$,$,$,$,$,'2024-03-04T08:00:00','2024-03-08T17:00:00',$,$);",
+    )
+    .replace(
+        "'2024-02-02T17:00:00',$,$,$,$,$,$,$,$,$,$,$,$,$);",
+        "'2024-02-02T17:00:00',$,$,$,$,$,$,$,$,$,'2024-02-01T10:00:00',$,$,$);",
+    )
+    .replacen("ENDSEC;\nEND-ISO", nested, 1)
+}
+
+#[test]
+fn ifc4_actual_dates_and_nested_tasks() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = tiny_in_progress();
+    assert!(text.contains("#221=IFCRELNESTS"), "the fixture's end moved");
+    let path = write(dir.path(), "progress.ifc", &text);
+    let model = ifc::read(&path).unwrap();
+    let d = |s: &str| Some(hdlod::time::parse_date(s).unwrap());
+    let got: Vec<_> = model
+        .tasks
+        .iter()
+        .map(|t| (t.id.as_str(), t.parent.as_deref(), t.actual))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (
+                "T1",
+                Some("W"),
+                Recorded {
+                    start: d("2024-03-04T08:00:00"),
+                    finish: d("2024-03-08T17:00:00")
+                }
+            ),
+            (
+                "T2",
+                Some("W"),
+                Recorded {
+                    start: d("2024-02-01T10:00:00"),
+                    finish: None
+                }
+            ),
+            // The summary spans its tasks; running while T2 is.
+            (
+                "W",
+                None,
+                Recorded {
+                    start: d("2024-02-01T10:00:00"),
+                    finish: None
+                }
+            ),
+        ]
+    );
+    let w = &model.tasks[2];
+    assert_eq!(
+        (w.start, w.finish),
+        (
+            d("2024-02-01T08:00:00").unwrap(),
+            d("2024-03-05T17:00:00").unwrap()
+        )
+    );
+
+    // In the scene: the two tasks under their summary, a task without
+    // objects.
+    let options = Options {
+        name: "tiny".into(),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[path], &options, &|_| {}).unwrap();
+    let tasks: Vec<(&str, Option<&str>, usize)> = scene
+        .tasks
+        .iter()
+        .map(|t| (t.id.as_str(), t.parent.as_deref(), t.objects.len()))
+        .collect();
+    assert_eq!(
+        tasks,
+        [("T1", Some("W"), 1), ("T2", Some("W"), 1), ("W", None, 0)]
+    );
+    assert_eq!((report.summary_tasks, report.actual_tasks), (1, 3));
+    // The span reaches T1's actual finish.
+    assert_eq!(report.time.end, "2024-03-08T17:00:00Z");
+
+    // Bad actual dates name the file, the entity and the attribute.
+    let bad = |name: &str, text: String| {
+        ifc::read(&write(dir.path(), name, &text))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = bad("late.ifc", text.replace("'2024-03-04T08:00:00'", "'soon'"));
+    assert!(
+        e.contains("late.ifc")
+            && e.contains("#201 (IfcTaskTime) ActualStart")
+            && e.contains("soon"),
+        "{e}"
+    );
+    let e = bad("orphan.ifc", text.replace("'2024-03-04T08:00:00'", "$"));
+    assert!(
+        e.contains("#201 (IfcTaskTime) ActualFinish") && e.contains("needs an actual start"),
+        "{e}"
+    );
+    let e = bad(
+        "backwards.ifc",
+        text.replace("'2024-03-08T17:00:00'", "'2024-03-01T17:00:00'"),
+    );
+    assert!(
+        e.contains("#201 (IfcTaskTime) ActualFinish") && e.contains("before"),
+        "{e}"
+    );
+}
+
 #[test]
 fn broken_step_names_the_file_and_the_entity() {
     let dir = tempfile::tempdir().unwrap();
@@ -208,6 +327,7 @@ fn schependomlaan_rises_storey_by_storey() {
         name: "schependomlaan".into(),
         schedule: Some(data.join("planning.xml")),
         links: Some(root().join("fixtures/schependomlaan/links.json")),
+        ..Options::default()
     };
     let (scene, report) = import(&models, &options, &|_| {}).unwrap();
     assert!(report.elements > 650, "{}", report.elements);
