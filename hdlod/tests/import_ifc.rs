@@ -9,7 +9,7 @@ use std::io::Write;
 use std::path::{Path, PathBuf};
 
 use glam::Vec3;
-use hdlod::import::{Options, ifc, import};
+use hdlod::import::{Options, Recorded, ifc, import};
 use hdlod::scene::{TaskType, VisibilityType};
 
 fn root() -> PathBuf {
@@ -134,6 +134,125 @@ fn write(dir: &Path, name: &str, text: &str) -> PathBuf {
     path
 }
 
+/// tiny.ifc as a progress record: T1 done late, T2 still running, both
+/// nested in a summary task `W` without times of its own.
+fn tiny_in_progress() -> String {
+    let text = std::fs::read_to_string(tiny()).unwrap();
+    let nested = "#220=IFCTASK('3TaskTinyHdlod00000003',$,'Works',$,$,'W',$,$,$,.F.,$,$,\
+                  .CONSTRUCTION.);\n\
+                  #221=IFCRELNESTS('3RelTinyHdlod000000003',$,$,$,#220,(#200,#210));\n\
+                  ENDSEC;\nEND-ISO";
+    text.replace(
+        "'2024-03-05T17:00:00',$,$,$,$,$,$,$,$,$,$,$,$,$);",
+        "'2024-03-05T17:00:00',$,$,$,$,$,$,$,$,$,'2024-03-04T08:00:00','2024-03-08T17:00:00',$,$);",
+    )
+    .replace(
+        "'2024-02-02T17:00:00',$,$,$,$,$,$,$,$,$,$,$,$,$);",
+        "'2024-02-02T17:00:00',$,$,$,$,$,$,$,$,$,'2024-02-01T10:00:00',$,$,$);",
+    )
+    .replacen("ENDSEC;\nEND-ISO", nested, 1)
+}
+
+#[test]
+fn ifc4_actual_dates_and_nested_tasks() {
+    let dir = tempfile::tempdir().unwrap();
+    let text = tiny_in_progress();
+    assert!(text.contains("#221=IFCRELNESTS"), "the fixture's end moved");
+    let path = write(dir.path(), "progress.ifc", &text);
+    let model = ifc::read(&path).unwrap();
+    let d = |s: &str| Some(hdlod::time::parse_date(s).unwrap());
+    let got: Vec<_> = model
+        .tasks
+        .iter()
+        .map(|t| (t.id.as_str(), t.parent.as_deref(), t.actual))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            (
+                "T1",
+                Some("W"),
+                Recorded {
+                    start: d("2024-03-04T08:00:00"),
+                    finish: d("2024-03-08T17:00:00")
+                }
+            ),
+            (
+                "T2",
+                Some("W"),
+                Recorded {
+                    start: d("2024-02-01T10:00:00"),
+                    finish: None
+                }
+            ),
+            // The summary spans its tasks; running while T2 is.
+            (
+                "W",
+                None,
+                Recorded {
+                    start: d("2024-02-01T10:00:00"),
+                    finish: None
+                }
+            ),
+        ]
+    );
+    let w = &model.tasks[2];
+    assert_eq!(
+        (w.start, w.finish),
+        (
+            d("2024-02-01T08:00:00").unwrap(),
+            d("2024-03-05T17:00:00").unwrap()
+        )
+    );
+
+    // In the scene: the two tasks under their summary, a task without
+    // objects.
+    let options = Options {
+        name: "tiny".into(),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[path], &options, &|_| {}).unwrap();
+    let tasks: Vec<(&str, Option<&str>, usize)> = scene
+        .tasks
+        .iter()
+        .map(|t| (t.id.as_str(), t.parent.as_deref(), t.objects.len()))
+        .collect();
+    assert_eq!(
+        tasks,
+        [("T1", Some("W"), 1), ("T2", Some("W"), 1), ("W", None, 0)]
+    );
+    assert_eq!((report.summary_tasks, report.actual_tasks), (1, 3));
+    // The span reaches T1's actual finish.
+    assert_eq!(report.time.end, "2024-03-08T17:00:00Z");
+
+    // Bad actual dates name the file, the entity and the attribute.
+    let bad = |name: &str, text: String| {
+        ifc::read(&write(dir.path(), name, &text))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = bad("late.ifc", text.replace("'2024-03-04T08:00:00'", "'soon'"));
+    assert!(
+        e.contains("late.ifc")
+            && e.contains("#201 (IfcTaskTime) ActualStart")
+            && e.contains("soon"),
+        "{e}"
+    );
+    let e = bad("orphan.ifc", text.replace("'2024-03-04T08:00:00'", "$"));
+    assert!(
+        e.contains("#201 (IfcTaskTime) ActualFinish") && e.contains("needs an actual start"),
+        "{e}"
+    );
+    let e = bad(
+        "backwards.ifc",
+        text.replace("'2024-03-08T17:00:00'", "'2024-03-01T17:00:00'"),
+    );
+    assert!(
+        e.contains("#201 (IfcTaskTime) ActualFinish") && e.contains("before"),
+        "{e}"
+    );
+}
+
 #[test]
 fn broken_step_names_the_file_and_the_entity() {
     let dir = tempfile::tempdir().unwrap();
@@ -208,6 +327,7 @@ fn schependomlaan_rises_storey_by_storey() {
         name: "schependomlaan".into(),
         schedule: Some(data.join("planning.xml")),
         links: Some(root().join("fixtures/schependomlaan/links.json")),
+        ..Options::default()
     };
     let (scene, report) = import(&models, &options, &|_| {}).unwrap();
     assert!(report.elements > 650, "{}", report.elements);
@@ -252,4 +372,224 @@ fn schependomlaan_rises_storey_by_storey() {
     }
     let size = hi - lo;
     assert!(size.max_element() < 30.0 && size.z > 10.0, "{size}");
+}
+
+/// The real building as planned against as built: the as-built event log
+/// names no element of these models and none of the plan's task ids, so its
+/// tasks are matched to the plan by name (nearest planned start among the
+/// tasks of a name) and the rules link the elements to the plan. Computes
+/// the figures and the table of docs/import.md ("As planned against as
+/// built") and checks that the page holds them.
+#[test]
+fn schependomlaan_as_planned_against_as_built() {
+    let Some(data) = common::data("schependomlaan") else {
+        return;
+    };
+    let mut models: Vec<PathBuf> = std::fs::read_dir(data.join("ifc"))
+        .unwrap()
+        .map(|e| e.unwrap().path())
+        .collect();
+    models.sort();
+    let (plan, log) = (
+        data.join("planning.xml"),
+        data.join("eventlog-as-built.csv"),
+    );
+    let options = Options {
+        name: "schependomlaan".into(),
+        schedule: Some(plan.clone()),
+        links: Some(root().join("fixtures/schependomlaan/links.json")),
+        actual: vec![log.clone()],
+        ..Options::default()
+    };
+    let (scene, report) = import(&models, &options, &|_| {}).unwrap();
+    let a = report.actual.as_ref().unwrap();
+    // 3,661 element rows of 72 tasks (the 3,505 empty rows left out), every
+    // task found in the plan by its name.
+    assert_eq!(
+        (
+            a.rows,
+            a.tasks,
+            a.by_id,
+            a.by_name,
+            a.dated,
+            a.unmatched_rows
+        ),
+        (3661, 72, 0, 72, 72, 0)
+    );
+    assert_eq!((report.scene_tasks, report.actual_tasks), (29, 25));
+
+    // Finish against plan in days: the days of the finishes, a finish at
+    // midnight being the end of the day before (the log gives days).
+    let day = |d: chrono::DateTime<chrono::Utc>| (d - chrono::Duration::seconds(1)).date_naive();
+    let late_by = |planned: chrono::DateTime<chrono::Utc>,
+                   actual: chrono::DateTime<chrono::Utc>| {
+        (day(actual) - day(planned)).num_days()
+    };
+    let date = |t: f64| scene.time.date_at(t);
+    let mut rows: Vec<(i64, &hdlod::scene::Task)> = scene
+        .tasks
+        .iter()
+        .filter_map(|t| Some((late_by(date(t.finish), date(t.actual.finish?)), t)))
+        .collect();
+    assert_eq!(rows.len(), 25, "every dated task of the scene has finished");
+    // Latest against the plan first; of equals, the one planned to finish
+    // last.
+    rows.sort_by(|(a, x), (b, y)| {
+        b.cmp(a)
+            .then(y.finish.total_cmp(&x.finish))
+            .then(x.id.cmp(&y.id))
+    });
+    let mut table = String::from(
+        "| task | planned finish | actual finish (last day) | days late |\n|---|---|---|---|\n",
+    );
+    for (late, t) in rows.iter().take(5) {
+        table += &format!(
+            "| {} {} | {} | {} | {late} |\n",
+            t.id,
+            t.name.trim(),
+            date(t.finish).format("%Y-%m-%d %H:%M"),
+            day(date(t.actual.finish.unwrap())),
+        );
+    }
+    let count = |rows: &[i64]| {
+        (
+            rows.iter().filter(|&&d| d == 0).count(),
+            rows.iter().filter(|&&d| d < 0).count(),
+            rows.iter().filter(|&&d| d > 0).count(),
+        )
+    };
+    let scene_late: Vec<i64> = rows.iter().map(|(d, _)| *d).collect();
+    let early: Vec<String> = rows
+        .iter()
+        .rev()
+        .filter(|(d, _)| *d < 0)
+        .map(|(d, t)| format!("{} {} by {}", t.id, t.name.trim(), -d))
+        .collect();
+
+    // Every plan task the log dates, not only those acting on the models.
+    let mut tasks = hdlod::import::msproject::read(&plan).unwrap();
+    let logs = [hdlod::import::actual::read(&log).unwrap()];
+    hdlod::import::actual::apply(&mut tasks, &logs, &mut Vec::new());
+    let plan_late: Vec<i64> = tasks
+        .iter()
+        .filter_map(|t| Some(late_by(t.finish, t.actual.finish?)))
+        .collect();
+    // How the log's names meet the plan's: one plan task of the name, or
+    // several told apart by the planned start.
+    let normal = |n: &str| {
+        n.split_whitespace()
+            .collect::<Vec<_>>()
+            .join(" ")
+            .to_lowercase()
+    };
+    let plan_names: Vec<String> = tasks.iter().map(|t| normal(&t.name)).collect();
+    let shared = |n: &str| plan_names.iter().filter(|p| **p == normal(n)).count();
+    let log_tasks = &logs[0].tasks;
+    let distinct: std::collections::BTreeSet<String> =
+        log_tasks.iter().map(|t| normal(&t.name)).collect();
+    let same_day = tasks
+        .iter()
+        .filter(|t| {
+            t.actual
+                .start
+                .is_some_and(|s| s.date_naive() == t.start.date_naive())
+        })
+        .count();
+    let names = format!(
+        "Its {} tasks carry {} distinct names, {} of them names of the plan; {} tasks have a \
+         name the plan gives one task, the other {} share theirs with 2 to {} plan tasks. \
+         For {same_day} of the {} plan tasks so dated the log's start is the planned start's \
+         day.",
+        log_tasks.len(),
+        distinct.len(),
+        distinct.iter().filter(|n| shared(n) > 0).count(),
+        log_tasks.iter().filter(|t| shared(&t.name) == 1).count(),
+        log_tasks.iter().filter(|t| shared(&t.name) > 1).count(),
+        log_tasks.iter().map(|t| shared(&t.name)).max().unwrap(),
+        plan_late.len(),
+    );
+    // The as-built log's task dates are the as-planned log's, task by task.
+    let planned_log = hdlod::import::actual::read(&data.join("eventlog-as-planned.csv")).unwrap();
+    for t in log_tasks {
+        let p = planned_log.tasks.iter().find(|p| p.id == t.id).unwrap();
+        assert_eq!(p.actual, t.actual, "{}", t.id);
+    }
+    // Elements whose every task has no actual start: never there on the
+    // actual dates.
+    let undated: std::collections::HashSet<&str> = scene
+        .tasks
+        .iter()
+        .filter(|t| t.actual.start.is_none())
+        .flat_map(|t| t.objects.iter().map(String::as_str))
+        .collect();
+    let dated: std::collections::HashSet<&str> = scene
+        .tasks
+        .iter()
+        .filter(|t| t.actual.start.is_some())
+        .flat_map(|t| t.objects.iter().map(String::as_str))
+        .collect();
+    let never = undated.difference(&dated).count();
+    let undated_tasks: Vec<String> = scene
+        .tasks
+        .iter()
+        .filter(|t| t.actual.start.is_none())
+        .map(|t| t.id.clone())
+        .collect();
+    let unrecorded = format!(
+        "the {} without ({}) are not in the log, and their {never} elements never appear on \
+         the actual dates",
+        undated_tasks.len(),
+        undated_tasks.join(", ")
+    );
+
+    let (on, before, after) = count(&scene_late);
+    let (plan_on, plan_before, plan_after) = count(&plan_late);
+    let summary = format!(
+        "Of the {} tasks of the scene with actual dates, {on} finished on their planned \
+         day, {before} earlier ({}) and {after} later; of all {} plan tasks the log dates, \
+         {plan_on} finished on their planned day, {plan_before} earlier and {plan_after} later.",
+        scene_late.len(),
+        early.join(", "),
+        plan_late.len(),
+    );
+
+    // The log's own judgement, per element and without dates.
+    let mut reader = csv::Reader::from_path(&log).unwrap();
+    let flag = reader
+        .headers()
+        .unwrap()
+        .iter()
+        .position(|h| h == "Element on time or not")
+        .unwrap();
+    let mut too_late: std::collections::BTreeMap<String, usize> = Default::default();
+    for row in reader.records() {
+        let row = row.unwrap();
+        if &row[flag] == "Too late" {
+            *too_late
+                .entry(format!("{} {}", &row[5], &row[7]))
+                .or_default() += 1;
+        }
+    }
+    let flagged = format!(
+        "{} element rows of {} tasks are marked \"Too late\"",
+        too_late.values().sum::<usize>(),
+        too_late.len()
+    );
+
+    // Compared with white space collapsed: the page wraps its lines.
+    let flat = |s: &str| s.split_whitespace().collect::<Vec<_>>().join(" ");
+    let doc = flat(&std::fs::read_to_string(root().join("docs/import.md")).unwrap());
+    let missing: Vec<&String> = [&table, &summary, &flagged, &names, &unrecorded]
+        .into_iter()
+        .filter(|text| !doc.contains(&flat(text)))
+        .collect();
+    assert!(
+        missing.is_empty(),
+        "docs/import.md lacks what this data gives:\n{}\n(flags by log task: {too_late:?})",
+        missing
+            .iter()
+            .map(|s| s.as_str())
+            .collect::<Vec<_>>()
+            .join("\n\n")
+    );
 }

@@ -4,8 +4,8 @@
 
 use std::path::{Path, PathBuf};
 
-use hdlod::import::{Options, import, links_csv, msproject};
-use hdlod::scene::{TaskType, VisibilityType};
+use hdlod::import::{Options, Recorded, import, links_csv, msproject};
+use hdlod::scene::{Dates, TaskType, VisibilityType};
 use hdlod::time::parse_date;
 
 fn root() -> PathBuf {
@@ -43,26 +43,26 @@ const PLAN: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
 fn ms_project_tasks_carry_their_summary_names() {
     let dir = tempfile::tempdir().unwrap();
     let tasks = msproject::read(&write(dir.path(), "plan.xml", PLAN)).unwrap();
-    let got: Vec<(&str, &str)> = tasks
+    let got: Vec<(&str, &str, Option<&str>)> = tasks
         .iter()
-        .map(|t| (t.id.as_str(), t.name.as_str()))
+        .map(|t| (t.id.as_str(), t.name.as_str(), t.parent.as_deref()))
         .collect();
     assert_eq!(
         got,
         [
-            ("2", "Shell / Walls"),
-            ("3", "Shell / Slabs"),
-            ("4", "Shell / Walls"),
-            ("5", "Handover")
+            ("1", "Shell", None),
+            ("2", "Shell / Walls", Some("1")),
+            ("3", "Shell / Slabs", Some("1")),
+            ("4", "Shell / Walls", Some("1")),
+            ("5", "Handover", None)
         ]
     );
-    assert_eq!(tasks[1].start, parse_date("2024-02-05T08:00:00").unwrap());
-    assert_eq!(tasks[1].finish, parse_date("2024-02-09T17:00:00").unwrap());
-    assert!(
-        tasks
-            .iter()
-            .all(|t| t.kind.is_none() && t.objects.is_empty())
-    );
+    assert_eq!(tasks[2].start, parse_date("2024-02-05T08:00:00").unwrap());
+    assert_eq!(tasks[2].finish, parse_date("2024-02-09T17:00:00").unwrap());
+    assert!(tasks.iter().all(|t| t.kind.is_none()
+        && t.objects.is_empty()
+        && t.actual == Recorded::default()
+        && t.baseline.is_none()));
 
     let bad = PLAN.replace("2024-02-05T08:00:00", "next monday");
     let e = msproject::read(&write(dir.path(), "bad.xml", &bad))
@@ -95,8 +95,16 @@ fn link_csv_groups_rows_by_task() {
         ["2SlabTinyHdlod00000001", "2WallTinyHdlod00000001"]
     );
     assert_eq!(tasks[0].start, parse_date("2024-01-08").unwrap());
-    // A one-day task lasts its day.
+    // A task given in days ends at the end of its last day.
+    assert_eq!(tasks[0].finish, parse_date("2024-01-13").unwrap());
     assert_eq!(tasks[1].finish, parse_date("2024-02-06").unwrap());
+
+    // The padding rows of a spreadsheet export are left out.
+    let padded = format!("{csv},,,,,,\n , ,,,,,\n");
+    assert_eq!(
+        links_csv::read(&write(dir.path(), "padded.csv", &padded)).unwrap(),
+        tasks
+    );
 
     let typed = "guid,task,start,finish,type\nA,T,2024-01-01,2024-01-02,DEMOLITION\n";
     let tasks = links_csv::read(&write(dir.path(), "typed.csv", typed)).unwrap();
@@ -165,6 +173,7 @@ fn rules_link_objects_and_report_matches() {
         name: "tiny".into(),
         schedule: Some(write(dir.path(), "plan.xml", PLAN)),
         links: Some(links),
+        ..Options::default()
     };
     let (scene, report) = import(&[tiny()], &options, &|_| {}).unwrap();
     let matched: Vec<(&str, usize, TaskType)> = report
@@ -189,7 +198,7 @@ fn rules_link_objects_and_report_matches() {
         "{:?}",
         report.warnings
     );
-    assert_eq!(report.tasks, 6, "2 IFC4 tasks and 4 of the plan");
+    assert_eq!(report.tasks, 7, "2 IFC4 tasks and 5 of the plan");
     assert!(report.unmatched.is_empty());
     // The slab: removed by T2 on 2024-02-02, there again during "Slabs"
     // (temporary, 2024-02-05..09), built for good at "Handover".
@@ -222,6 +231,7 @@ fn bad_rules_name_the_rule() {
             name: "tiny".into(),
             schedule: Some(plan.clone()),
             links: Some(rules(dir.path(), &format!("[{rule}]"))),
+            ..Options::default()
         };
         import(&[tiny()], &options, &|_| {})
             .unwrap_err()
@@ -260,4 +270,305 @@ fn links_files_follow_their_schema() {
     let bad = serde_json::json!({"format": "hdlod-links/1", "rules": [
         {"name": "both", "select": {}, "task": "1", "task_name": "x"}]});
     assert!(!v.is_valid(&bad));
+}
+
+/// A Project status update: actual dates, baselines, a task still running.
+const PROGRESS: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<Project xmlns="http://schemas.microsoft.com/project">
+  <Tasks>
+    <Task><UID>1</UID><Name>Shell</Name><OutlineLevel>1</OutlineLevel><Summary>1</Summary>
+      <Start>2024-01-08T08:00:00</Start><Finish>2024-03-08T17:00:00</Finish>
+      <ActualStart>2024-01-09T08:00:00</ActualStart></Task>
+    <Task><UID>2</UID><Name>Walls</Name><OutlineLevel>2</OutlineLevel>
+      <Start>2024-01-08T08:00:00</Start><Finish>2024-01-12T17:00:00</Finish>
+      <ActualStart>2024-01-09T08:00:00</ActualStart><ActualFinish>2024-01-16T17:00:00</ActualFinish>
+      <Baseline><Number>1</Number><Start>2024-01-01T08:00:00</Start><Finish>2024-01-05T17:00:00</Finish></Baseline>
+      <Baseline><Number>0</Number><Start>2023-12-18T08:00:00</Start><Finish>2023-12-22T17:00:00</Finish></Baseline></Task>
+    <Task><UID>3</UID><Name>Slabs</Name><OutlineLevel>2</OutlineLevel>
+      <Start>2024-02-05T08:00:00</Start><Finish>2024-02-09T17:00:00</Finish>
+      <ActualStart>2024-02-06T08:00:00</ActualStart>
+      <Baseline><Number>2</Number><Start>2024-01-29T08:00:00</Start><Finish>2024-02-02T17:00:00</Finish></Baseline>
+      <Baseline><Number>1</Number><Cost>100</Cost></Baseline></Task>
+    <Task><UID>4</UID><Name>Roof</Name><OutlineLevel>2</OutlineLevel>
+      <Start>2024-03-04T08:00:00</Start><Finish>2024-03-08T17:00:00</Finish></Task>
+  </Tasks>
+</Project>"#;
+
+#[test]
+fn ms_project_actual_and_baseline_dates() {
+    let dir = tempfile::tempdir().unwrap();
+    let tasks = msproject::read(&write(dir.path(), "progress.xml", PROGRESS)).unwrap();
+    let d = |s: &str| Some(parse_date(s).unwrap());
+    let actual: Vec<(&str, Recorded)> = tasks.iter().map(|t| (t.id.as_str(), t.actual)).collect();
+    assert_eq!(
+        actual,
+        [
+            (
+                "1",
+                Recorded {
+                    start: d("2024-01-09T08:00:00"),
+                    finish: None
+                }
+            ),
+            (
+                "2",
+                Recorded {
+                    start: d("2024-01-09T08:00:00"),
+                    finish: d("2024-01-16T17:00:00")
+                }
+            ),
+            // Still running.
+            (
+                "3",
+                Recorded {
+                    start: d("2024-02-06T08:00:00"),
+                    finish: None
+                }
+            ),
+            ("4", Recorded::default()),
+        ]
+    );
+    // Baseline 0 first; else the lowest-numbered one with both dates.
+    let baseline: Vec<_> = tasks.iter().map(|t| t.baseline).collect();
+    assert_eq!(
+        baseline,
+        [
+            None,
+            Some((
+                parse_date("2023-12-18T08:00:00").unwrap(),
+                parse_date("2023-12-22T17:00:00").unwrap()
+            )),
+            Some((
+                parse_date("2024-01-29T08:00:00").unwrap(),
+                parse_date("2024-02-02T17:00:00").unwrap()
+            )),
+            None
+        ]
+    );
+
+    // Bad actual dates name the file, the task's field and the task.
+    let run = |name: &str, text: String| {
+        msproject::read(&write(dir.path(), name, &text))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = run(
+        "orphan.xml",
+        PROGRESS.replace(
+            "<ActualStart>2024-02-06T08:00:00</ActualStart>",
+            "<ActualFinish>2024-02-09T17:00:00</ActualFinish>",
+        ),
+    );
+    assert!(
+        e.contains("orphan.xml")
+            && e.contains("Task[2]/ActualFinish")
+            && e.contains("needs an actual start"),
+        "{e}"
+    );
+    let e = run(
+        "backwards.xml",
+        PROGRESS.replace(
+            "<ActualFinish>2024-01-16T17:00:00",
+            "<ActualFinish>2024-01-02T17:00:00",
+        ),
+    );
+    assert!(
+        e.contains("Task[1]/ActualFinish") && e.contains("task 2") && e.contains("before"),
+        "{e}"
+    );
+    let e = run(
+        "garbled.xml",
+        PROGRESS.replace("2024-02-06T08:00:00", "Tuesday"),
+    );
+    assert!(
+        e.contains("Task[2]/ActualStart") && e.contains("Tuesday"),
+        "{e}"
+    );
+    let e = run(
+        "baseline.xml",
+        PROGRESS.replace("2023-12-22T17:00:00", "2023-12-01T17:00:00"),
+    );
+    assert!(
+        e.contains("Task[1]/Baseline[1]/Finish") && e.contains("baseline finishes before"),
+        "{e}"
+    );
+}
+
+#[test]
+fn summary_tasks_group_the_scene_tasks_under_them() {
+    let dir = tempfile::tempdir().unwrap();
+    let links = rules(
+        dir.path(),
+        r#"[{"name": "walls", "select": {"class": "IfcWall"}, "task": "2"},
+            {"name": "slab", "select": {"class": "IfcSlab"}, "task": "3"}]"#,
+    );
+    let options = Options {
+        name: "tiny".into(),
+        schedule: Some(write(dir.path(), "progress.xml", PROGRESS)),
+        links: Some(links),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny()], &options, &|_| {}).unwrap();
+    // The model's own IFC4 tasks, the two linked by rules, then their
+    // summary: a task without objects. "Roof" acts on nothing: left out.
+    let got: Vec<(&str, Option<&str>, usize)> = scene
+        .tasks
+        .iter()
+        .map(|t| (t.id.as_str(), t.parent.as_deref(), t.objects.len()))
+        .collect();
+    assert_eq!(
+        got,
+        [
+            ("T1", None, 1),
+            ("T2", None, 1),
+            ("2", Some("1"), 1),
+            ("3", Some("1"), 1),
+            ("1", None, 0)
+        ]
+    );
+    assert_eq!((report.scene_tasks, report.summary_tasks), (4, 1));
+    assert_eq!(report.actual_tasks, 3);
+    let walls = &scene.tasks[2];
+    let at = |d: &str| scene.time.seconds_of(parse_date(d).unwrap());
+    assert_eq!(walls.actual.start, Some(at("2024-01-09T08:00:00")));
+    assert_eq!(walls.actual.finish, Some(at("2024-01-16T17:00:00")));
+    assert_eq!(walls.baseline.unwrap().start, at("2023-12-18T08:00:00"));
+    assert_eq!(scene.tasks[3].actual.finish, None);
+
+    // The scene keeps it all through its file.
+    let out = dir.path().join("scene");
+    hdlod::scene::format::save(&scene, &out).unwrap();
+    let back = hdlod::scene::format::load(&out).unwrap();
+    assert_eq!(back.tasks, scene.tasks);
+}
+
+/// Linking rules for the tiny model against `PLAN`.
+fn plan_rules(dir: &Path) -> PathBuf {
+    rules(
+        dir,
+        r#"[{"name": "walls", "select": {"class": "IfcWall"}, "task": "4"},
+            {"name": "slab", "select": {"class": "IfcSlab"}, "task": "3"}]"#,
+    )
+}
+
+#[test]
+fn as_built_logs_date_the_plan_by_id_then_by_name() {
+    let dir = tempfile::tempdir().unwrap();
+    // An as-built log in the event-log shape: "2" by id; "Walls" by name,
+    // nearest in start to UID 4 (not 2); "Slabs" by name with one element
+    // still to do; "Paint" in no plan; padding rows.
+    let log = "GUID,TaskID,TaskName,TaskStart,TaskFinish\n\
+               e1,2,Walls,9-1-2024,15-1-2024\n\
+               e2,ST40,walls ,4-3-2024,11-3-2024\n\
+               e3,ST40,Walls,5-3-2024,12-3-2024\n\
+               e4,ST30,Slabs,6-2-2024,8-2-2024\n\
+               e5,ST30,Slabs,7-2-2024,\n\
+               e6,ST30,Slabs,,\n\
+               e7,ST90,Paint,1-4-2024,2-4-2024\n\
+               ,,,,\n";
+    let options = Options {
+        name: "tiny".into(),
+        schedule: Some(write(dir.path(), "plan.xml", PLAN)),
+        links: Some(plan_rules(dir.path())),
+        actual: vec![write(dir.path(), "built.csv", log)],
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny()], &options, &|_| {}).unwrap();
+    let a = report.actual.as_ref().unwrap();
+    assert_eq!(
+        (
+            a.rows,
+            a.tasks,
+            a.by_id,
+            a.by_name,
+            a.dated,
+            a.unmatched_rows
+        ),
+        (7, 4, 1, 2, 3, 1)
+    );
+    assert_eq!(a.unmatched, ["built.csv: ST90 \"Paint\""]);
+    assert!(
+        report
+            .warnings
+            .iter()
+            .any(|w| w.contains("built.csv") && w.contains("1 task(s) (1 rows)")),
+        "{:?}",
+        report.warnings
+    );
+    let task = |id: &str| scene.tasks.iter().find(|t| t.id == id).unwrap();
+    let at = |d: &str| scene.time.seconds_of(parse_date(d).unwrap());
+    // Walls 4: from its first element's start to the end of its last day.
+    assert_eq!(task("4").actual.start, Some(at("2024-03-04")));
+    assert_eq!(task("4").actual.finish, Some(at("2024-03-13")));
+    // Slabs: started, not finished while an element is still to do.
+    assert_eq!(task("3").actual.start, Some(at("2024-02-06")));
+    assert_eq!(task("3").actual.finish, None);
+    assert_eq!(report.actual_tasks, 2);
+    // The span reaches the last actual finish (after the plan's 03-08).
+    assert_eq!(report.time.end, "2024-03-13T00:00:00Z");
+
+    // The wall is built by the model's T1 (2024-03-01, never recorded) and
+    // the plan's 4. Planned, it stands from T1's start; on the actual dates
+    // from 4's actual start, as T1 has not started by the record.
+    let wall = |scene: &hdlod::scene::Scene, d: &str| {
+        let o = scene
+            .objects
+            .iter()
+            .find(|o| o.id == "2WallTinyHdlod00000001")
+            .unwrap();
+        o.visibility
+            .at(scene.time.seconds_of(parse_date(d).unwrap()))
+    };
+    assert!(wall(&scene, "2024-03-02") && wall(&scene, "2024-03-05"));
+    let actual = Options {
+        dates: Dates::Actual,
+        ..options.clone()
+    };
+    let (scene, _) = import(&[tiny()], &actual, &|_| {}).unwrap();
+    assert_eq!(scene.schedule_options.dates, Dates::Actual);
+    assert!(!wall(&scene, "2024-03-02") && wall(&scene, "2024-03-05"));
+}
+
+#[test]
+fn bad_as_built_rows_name_the_line_and_column() {
+    let dir = tempfile::tempdir().unwrap();
+    let run = |name: &str, log: &str| {
+        hdlod::import::actual::read(&write(dir.path(), name, log))
+            .unwrap_err()
+            .to_string()
+    };
+    let e = run("a.csv", "Task,Start,Finish\nT,1-2-2024,soon\n");
+    assert!(
+        e.contains("a.csv")
+            && e.contains("line 2")
+            && e.contains("\"Finish\"")
+            && e.contains("soon"),
+        "{e}"
+    );
+    let e = run(
+        "b.csv",
+        "Task,Start,Finish\nT,1-2-2024,2-2-2024\nT,5-2-2024,3-2-2024\n",
+    );
+    assert!(
+        e.contains("b.csv")
+            && e.contains("line 3")
+            && e.contains("\"Finish\"")
+            && e.contains("before the actual start"),
+        "{e}"
+    );
+    let e = run("c.csv", "Task,Start,Finish\nT,,3-2-2024\n");
+    assert!(
+        e.contains("line 2") && e.contains("needs an actual start"),
+        "{e}"
+    );
+    let e = run("d.csv", "GUID,Start,Finish\nx,1-2-2024,2-2-2024\n");
+    assert!(
+        e.contains("d.csv") && e.contains("header") && e.contains("taskname"),
+        "{e}"
+    );
+    let e = run("e.csv", "Task,TaskName,Start,Finish\n,,1-2-2024,2-2-2024\n");
+    assert!(
+        e.contains("line 2") && e.contains("no task id or name"),
+        "{e}"
+    );
 }

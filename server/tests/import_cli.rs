@@ -172,3 +172,101 @@ fn bad_input_is_a_clear_error() {
         "{err}"
     );
 }
+
+#[test]
+fn imports_an_as_built_log_beside_the_plan() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("tiny");
+    let log = tmp.path().join("built.csv");
+    // "Walls" is two tasks of the plan (UIDs 2 and 4): the one planned to
+    // start nearest 9-1-2024 is 2. "Paint" is in no plan.
+    std::fs::write(
+        &log,
+        "GUID,TaskID,TaskName,TaskStart,TaskFinish\n\
+         e1,ST10,Walls,9-1-2024,16-1-2024\n\
+         e2,ST90,Paint,1-5-2024,2-5-2024\n",
+    )
+    .unwrap();
+    let (model, plan, links) = (
+        fixture("tiny.ifc"),
+        fixture("plan.xml"),
+        fixture("links.json"),
+    );
+    let args = |extra: &[&OsStr]| {
+        let mut a: Vec<&OsStr> = vec![
+            "import".as_ref(),
+            "ifc".as_ref(),
+            model.as_os_str(),
+            "--schedule".as_ref(),
+            plan.as_os_str(),
+            "--actual".as_ref(),
+            log.as_os_str(),
+            "--links".as_ref(),
+            links.as_os_str(),
+            "--out".as_ref(),
+            scene.as_os_str(),
+        ];
+        a.extend_from_slice(extra);
+        hdlod(&a)
+    };
+    let out = args(&["--json".as_ref(), "--dates".as_ref(), "actual".as_ref()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    common::assert_matches_schema(&report, "import-report.schema.json");
+    let a = &report["actual"];
+    assert_eq!(
+        [
+            &a["rows"],
+            &a["tasks"],
+            &a["by_id"],
+            &a["by_name"],
+            &a["dated"],
+            &a["unmatched_rows"]
+        ],
+        [2, 2, 0, 1, 1, 1]
+    );
+    assert_eq!(
+        a["unmatched"],
+        serde_json::json!(["built.csv: ST90 \"Paint\""])
+    );
+    assert_eq!(
+        (&report["actual_tasks"], &report["summary_tasks"]),
+        (&1.into(), &1.into())
+    );
+    assert!(text(&out.stderr).contains("match no task of the schedule"));
+
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(scene.join("scene.json")).unwrap()).unwrap();
+    common::assert_matches_schema(&json, "scene.schema.json");
+    assert_eq!(json["schedule_options"]["dates"], "actual");
+    let tasks = json["tasks"].as_array().unwrap();
+    let task = |id: &str| tasks.iter().find(|t| t["id"] == id).unwrap();
+    assert_eq!(task("2")["actual_start"], "2024-01-09T00:00:00Z");
+    assert_eq!(task("2")["actual_finish"], "2024-01-17T00:00:00Z");
+    assert_eq!(task("2")["parent"], "1");
+    assert_eq!(task("1")["objects"], serde_json::json!([]));
+
+    // The table says it too.
+    let out = args(&[]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let table = text(&out.stdout);
+    assert!(
+        table.contains("as built: 2 rows, 2 tasks (0 matched by id, 1 by name)")
+            && table.contains("1 rows match no task"),
+        "{table}"
+    );
+
+    // A log that is not a CSV is refused by name.
+    let out = hdlod(&[
+        "import".as_ref(),
+        "ifc".as_ref(),
+        model.as_os_str(),
+        "--actual".as_ref(),
+        plan.as_os_str(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+    ]);
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(err.contains("plan.xml") && err.contains(".csv"), "{err}");
+}

@@ -3,7 +3,10 @@
 //! optionally the task's name and type. Headers are matched by the names
 //! these exports use (`GUID`/`GlobalId`, `Task`/`TaskId`, `TaskStart`/
 //! `Start`, `TaskFinish`/`Finish`, `TaskName`/`Name`, `Type`), any case.
-//! Dates are ISO 8601 or day-month-year (`26-2-2015`, `26/02/2015`).
+//! Dates are ISO 8601 or day-month-year (`26-2-2015`, `26/02/2015`); a
+//! finish given as a day, without a time, is the end of that day. Rows
+//! with every field empty (the padding of spreadsheet exports) are left
+//! out. [`super::actual`] reads the same files as as-built records.
 
 use std::collections::BTreeMap;
 use std::path::Path;
@@ -15,48 +18,90 @@ use crate::error::{Error, Result};
 use crate::scene::TaskType;
 use crate::time::parse_date;
 
-const GUID: &[&str] = &["guid", "globalid", "element", "elementguid", "element_guid"];
-const TASK: &[&str] = &["task", "taskid", "task_id"];
-const START: &[&str] = &["taskstart", "start", "task_start"];
-const FINISH: &[&str] = &["taskfinish", "finish", "task_finish", "end"];
-const NAME: &[&str] = &["taskname", "name", "task_name"];
+pub(super) const GUID: &[&str] = &["guid", "globalid", "element", "elementguid", "element_guid"];
+pub(super) const TASK: &[&str] = &["task", "taskid", "task_id"];
+pub(super) const START: &[&str] = &["taskstart", "start", "task_start"];
+pub(super) const FINISH: &[&str] = &["taskfinish", "finish", "task_finish", "end"];
+pub(super) const NAME: &[&str] = &["taskname", "name", "task_name"];
 const TYPE: &[&str] = &["type", "tasktype", "task_type"];
 
-/// Reads the links into tasks: one task per task id (its objects in file
-/// order), with the dates of its first row.
-pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
-    let mut reader = csv::ReaderBuilder::new()
-        .flexible(false)
-        .from_path(path)
-        .map_err(|e| Error::invalid(path, "CSV", e.to_string()))?;
-    let headers = reader
-        .headers()
-        .map_err(|e| Error::invalid(path, "header", e.to_string()))?
-        .clone();
-    let column = |names: &[&str]| {
-        headers
+/// A CSV file's rows with its header: columns found by their names.
+pub(super) struct Table<'a> {
+    pub path: &'a Path,
+    pub headers: csv::StringRecord,
+    reader: csv::Reader<std::fs::File>,
+}
+
+impl<'a> Table<'a> {
+    pub fn open(path: &'a Path) -> Result<Table<'a>> {
+        let mut reader = csv::ReaderBuilder::new()
+            .flexible(false)
+            .from_path(path)
+            .map_err(|e| Error::invalid(path, "CSV", e.to_string()))?;
+        let headers = reader
+            .headers()
+            .map_err(|e| Error::invalid(path, "header", e.to_string()))?
+            .clone();
+        Ok(Table {
+            path,
+            headers,
+            reader,
+        })
+    }
+
+    /// The first column with one of `names`, any case.
+    pub fn column(&self, names: &[&str]) -> Option<usize> {
+        self.headers
             .iter()
             .position(|h| names.contains(&h.trim().to_ascii_lowercase().as_str()))
-    };
-    let need = |names: &[&str]| {
-        column(names).ok_or_else(|| {
+    }
+
+    pub fn need(&self, names: &[&str]) -> Result<usize> {
+        self.column(names).ok_or_else(|| {
             Error::invalid(
-                path,
+                self.path,
                 "header",
                 format!("no column named {} (any case)", names.join(" or ")),
             )
         })
-    };
-    let (guid, task, start, finish) = (need(GUID)?, need(TASK)?, need(START)?, need(FINISH)?);
-    let (name, kind) = (column(NAME), column(TYPE));
+    }
+
+    /// The rows that are not blank, with their line numbers (the header is
+    /// line 1; a row's line is its record's, as no field spans lines in
+    /// these exports).
+    pub fn rows(&mut self) -> impl Iterator<Item = Result<(usize, csv::StringRecord)>> + '_ {
+        let path = self.path;
+        self.reader
+            .records()
+            .enumerate()
+            .map(move |(i, row)| {
+                let line = i + 2;
+                row.map(|r| (line, r))
+                    .map_err(|e| Error::invalid(path, format!("line {line}"), e.to_string()))
+            })
+            .filter(|row| !matches!(row, Ok((_, r)) if r.iter().all(|f| f.trim().is_empty())))
+    }
+}
+
+/// Reads the links into tasks: one task per task id (its objects in file
+/// order), with the dates of its first row.
+pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
+    let mut table = Table::open(path)?;
+    let (guid, task, start, finish) = (
+        table.need(GUID)?,
+        table.need(TASK)?,
+        table.need(START)?,
+        table.need(FINISH)?,
+    );
+    let (name, kind) = (table.column(NAME), table.column(TYPE));
 
     let mut tasks: Vec<ScheduleTask> = Vec::new();
     let mut by_id: BTreeMap<String, usize> = BTreeMap::new();
-    for (i, row) in reader.records().enumerate() {
-        let line = i + 2;
-        let row = row.map_err(|e| Error::invalid(path, format!("line {line}"), e.to_string()))?;
+    let headers = table.headers.clone();
+    for row in table.rows() {
+        let (line, row) = row?;
         let field = |c: usize| row.get(c).unwrap_or_default().trim();
-        let at = |c: usize| format!("line {line}, column {:?}", &headers[c]);
+        let at = |c: usize| at(&headers, line, c);
         let id = field(task);
         let element = field(guid);
         if id.is_empty() || element.is_empty() {
@@ -79,6 +124,7 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
                         format!("task {id} finishes before it starts"),
                     ));
                 }
+                let f = end_of(field(finish), f);
                 let kind = match kind.map(field).filter(|k| !k.is_empty()) {
                     Some(k) => Some(TaskType::parse(k).ok_or_else(|| {
                         Error::invalid(
@@ -90,17 +136,8 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
                     None => None,
                 };
                 tasks.push(ScheduleTask {
-                    id: id.to_string(),
-                    name: name.map(field).unwrap_or_default().to_string(),
                     kind,
-                    start: s,
-                    // A task given by days ends at the end of its last day.
-                    finish: if f == s && !field(finish).contains('T') {
-                        f + chrono::Duration::days(1)
-                    } else {
-                        f
-                    },
-                    objects: Vec::new(),
+                    ..ScheduleTask::planned(id, name.map(field).unwrap_or_default(), s, f)
                 });
                 by_id.insert(id.to_string(), tasks.len() - 1);
                 tasks.len() - 1
@@ -114,8 +151,23 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
     Ok(tasks)
 }
 
+/// Where a field is: `line N, column "NAME"`.
+pub(super) fn at(headers: &csv::StringRecord, line: usize, column: usize) -> String {
+    format!("line {line}, column {:?}", &headers[column])
+}
+
+/// A finish as written: given as a day, without a time, it is the end of
+/// that day (a task from 26-2 to 27-2 takes both days).
+pub(super) fn end_of(text: &str, date: DateTime<Utc>) -> DateTime<Utc> {
+    if text.contains('T') {
+        date
+    } else {
+        date + chrono::Duration::days(1)
+    }
+}
+
 /// ISO 8601, or the day-first dates of European exports.
-fn parse_csv_date(text: &str) -> std::result::Result<DateTime<Utc>, String> {
+pub(super) fn parse_csv_date(text: &str) -> std::result::Result<DateTime<Utc>, String> {
     if let Ok(d) = parse_date(text) {
         return Ok(d);
     }

@@ -1,13 +1,15 @@
 //! Import of BIM models and their 4D schedules into an `hdlod-scene/1`
 //! scene (docs/import.md): IFC geometry ([`ifc`]), schedules from IFC4
 //! tasks ([`ifc_tasks`]), Microsoft Project XML ([`msproject`]) or a CSV of
-//! element-task links ([`links_csv`]), and linking rules ([`rules`]) for
-//! schedules that name no elements.
+//! element-task links ([`links_csv`]), linking rules ([`rules`]) for
+//! schedules that name no elements, and as-built logs whose dates are the
+//! actual dates of the plan's tasks ([`actual`]).
 //!
 //! The result is an ordinary [`Scene`]: one object per IFC element, id = its
 //! GlobalId, z up, metres; its tasks drive the visibility as everywhere else
 //! (`Scene::apply_schedule`).
 
+pub mod actual;
 pub mod ifc;
 pub mod ifc_tasks;
 pub mod links_csv;
@@ -24,7 +26,9 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
-use crate::scene::{Object, Scene, ScheduleOptions, Task, TaskType, Up, Visibility};
+use crate::scene::{
+    Actual, Dates, Object, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
+};
 use crate::time::{TimeSpan, format_date};
 
 /// A task as a schedule file gives it, with absolute dates.
@@ -35,10 +39,63 @@ pub struct ScheduleTask {
     /// The type the schedule gives, if any (a rule may set it; the default
     /// is construct).
     pub kind: Option<TaskType>,
+    /// The planned start and finish.
     pub start: DateTime<Utc>,
     pub finish: DateTime<Utc>,
+    /// What was recorded of its execution.
+    pub actual: Recorded,
+    /// An earlier plan's start and finish.
+    pub baseline: Option<(DateTime<Utc>, DateTime<Utc>)>,
+    /// The id of its summary task in the same schedule, if any.
+    pub parent: Option<String>,
     /// GlobalIds of the elements the schedule itself links to the task.
     pub objects: Vec<String>,
+}
+
+impl ScheduleTask {
+    /// A planned task: no type, actual or baseline dates, parent or
+    /// elements.
+    pub fn planned(
+        id: impl Into<String>,
+        name: impl Into<String>,
+        start: DateTime<Utc>,
+        finish: DateTime<Utc>,
+    ) -> ScheduleTask {
+        ScheduleTask {
+            id: id.into(),
+            name: name.into(),
+            kind: None,
+            start,
+            finish,
+            actual: Recorded::default(),
+            baseline: None,
+            parent: None,
+            objects: Vec::new(),
+        }
+    }
+}
+
+/// A task's recorded execution as a schedule gives it: a start once it
+/// began, a finish once it ended.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct Recorded {
+    pub start: Option<DateTime<Utc>>,
+    pub finish: Option<DateTime<Utc>>,
+}
+
+impl Recorded {
+    /// The record of a start and a finish as read; the message says what is
+    /// wrong with the finish (the readers name the file and field).
+    pub fn new(
+        start: Option<DateTime<Utc>>,
+        finish: Option<DateTime<Utc>>,
+    ) -> std::result::Result<Recorded, &'static str> {
+        match (start, finish) {
+            (None, Some(_)) => Err("an actual finish needs an actual start"),
+            (Some(s), Some(f)) if f < s => Err("the actual finish is before the actual start"),
+            _ => Ok(Recorded { start, finish }),
+        }
+    }
 }
 
 /// What to import besides the models.
@@ -51,6 +108,11 @@ pub struct Options {
     pub schedule: Option<PathBuf>,
     /// Linking rules (`hdlod-links/1`).
     pub links: Option<PathBuf>,
+    /// As-built logs (`.csv`): their dates are the actual dates of the
+    /// schedule's tasks, matched by task id, else by name.
+    pub actual: Vec<PathBuf>,
+    /// The dates the scene's presence follows.
+    pub dates: Dates,
 }
 
 /// What an import did (schemas/import-report.schema.json).
@@ -64,6 +126,14 @@ pub struct Report {
     /// Tasks of the schedule (all sources) and those that act on objects.
     pub tasks: usize,
     pub scene_tasks: usize,
+    /// Summary tasks the scene holds, without objects, so that the parents
+    /// of its tasks resolve.
+    pub summary_tasks: usize,
+    /// Tasks of the scene with an actual start (from any source).
+    pub actual_tasks: usize,
+    /// What the as-built logs gave, when there are any.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub actual: Option<actual::Report>,
     pub rules: Vec<RuleReport>,
     /// Objects some task acts on.
     pub scheduled: usize,
@@ -207,6 +277,25 @@ pub fn import(
     if let Some(path) = &options.schedule {
         schedule.extend(read_schedule(path)?);
     }
+    if !options.actual.is_empty() {
+        let logs = options
+            .actual
+            .iter()
+            .map(|path| {
+                if extension(path) != "csv" {
+                    return Err(Error::argument(
+                        "actual",
+                        format!(
+                            "{}: an as-built log is a .csv of element-task rows",
+                            path.display()
+                        ),
+                    ));
+                }
+                actual::read(path)
+            })
+            .collect::<Result<Vec<_>>>()?;
+        report.actual = Some(actual::apply(&mut schedule, &logs, &mut report.warnings));
+    }
     let rules = match &options.links {
         Some(path) => rules::read(path, &schedule)?,
         None => Vec::new(),
@@ -275,14 +364,24 @@ pub fn import(
             .collect();
     }
 
+    // The span covers the planned and the actual dates of the tasks that
+    // act on objects, so that either choice of dates plays within it.
     let acting: Vec<&ScheduleTask> = if groups.is_empty() {
         schedule.iter().collect()
     } else {
         groups.iter().map(|((k, _), _)| &schedule[*k]).collect()
     };
     let time = match (
-        acting.iter().map(|t| t.start).min(),
-        acting.iter().map(|t| t.finish).max(),
+        acting
+            .iter()
+            .flat_map(|t| [Some(t.start), t.actual.start])
+            .flatten()
+            .min(),
+        acting
+            .iter()
+            .flat_map(|t| [Some(t.finish), t.actual.start, t.actual.finish])
+            .flatten()
+            .max(),
     ) {
         (Some(start), Some(end)) if end > start => TimeSpan {
             start,
@@ -299,25 +398,62 @@ pub fn import(
         end: format_date(time.end()),
     };
 
+    report.scene_tasks = groups.len();
+    let mut rows: Vec<(usize, TaskType, Vec<String>)> = groups
+        .into_iter()
+        .map(|((k, kind), objects)| (k, kind, objects))
+        .collect();
+    let summaries = summary_rows(&schedule, rows.iter().map(|r| r.0));
+    report.summary_tasks = summaries.len();
+    rows.extend(summaries.into_iter().map(|k| {
+        let kind = schedule[k].kind.unwrap_or(TaskType::Construct);
+        (k, kind, Vec::new())
+    }));
+
     let mut tasks = Vec::new();
     let mut ids = HashSet::new();
-    for ((k, kind), objects) in groups {
-        let t = &schedule[k];
+    // Schedule task -> the id of its first scene task.
+    let mut scene_id: HashMap<usize, String> = HashMap::new();
+    for (k, kind, objects) in &rows {
+        let t = &schedule[*k];
         let mut id = t.id.clone();
         if !ids.insert(id.clone()) {
-            id = format!("{}:{}", t.id, type_name(kind));
+            id = format!("{}:{}", t.id, type_name(*kind));
             ids.insert(id.clone());
         }
-        tasks.push(Task::planned(
+        scene_id.entry(*k).or_insert_with(|| id.clone());
+        let at = |d: DateTime<Utc>| time.seconds_of(d);
+        tasks.push(Task {
             id,
-            t.name.clone(),
-            kind,
-            time.seconds_of(t.start),
-            time.seconds_of(t.finish),
-            objects,
-        ));
+            name: t.name.clone(),
+            kind: *kind,
+            start: at(t.start),
+            finish: at(t.finish),
+            actual: Actual {
+                start: t.actual.start.map(at),
+                finish: t.actual.finish.map(at),
+            },
+            baseline: t.baseline.map(|(s, f)| Span {
+                start: at(s),
+                finish: at(f),
+            }),
+            parent: None,
+            objects: objects.clone(),
+        });
     }
-    report.scene_tasks = tasks.len();
+    // Parents by scene id; one naming a task that is not in the scene (not
+    // in the schedule, or without dates) is dropped.
+    let first = first_by_id(&schedule);
+    for ((k, ..), task) in rows.iter().zip(&mut tasks) {
+        task.parent = schedule[*k]
+            .parent
+            .as_deref()
+            .and_then(|p| first.get(p))
+            .and_then(|j| scene_id.get(j))
+            .cloned();
+    }
+    break_cycles(&mut tasks, &mut report.warnings);
+    report.actual_tasks = tasks.iter().filter(|t| t.actual.start.is_some()).count();
 
     let mut scene = Scene {
         name: name.clone(),
@@ -326,13 +462,79 @@ pub fn import(
         meshes,
         objects,
         tasks,
-        schedule_options: ScheduleOptions::default(),
+        schedule_options: ScheduleOptions {
+            dates: options.dates,
+            ..ScheduleOptions::default()
+        },
         appearance: None,
         georeference: None,
     };
     scene.apply_schedule();
     report.seconds = clock.elapsed().as_secs_f64();
     Ok((scene, report))
+}
+
+/// The first task of the schedule with each id.
+fn first_by_id(schedule: &[ScheduleTask]) -> HashMap<&str, usize> {
+    let mut first = HashMap::new();
+    for (k, t) in schedule.iter().enumerate() {
+        first.entry(t.id.as_str()).or_insert(k);
+    }
+    first
+}
+
+/// The summary tasks above the acting tasks that do not act themselves, in
+/// schedule order: a Gantt chart groups its rows under them, so the scene
+/// keeps them as tasks without objects. Summary tasks with nothing of the
+/// scene below them are left out.
+fn summary_rows(schedule: &[ScheduleTask], acting: impl Iterator<Item = usize>) -> Vec<usize> {
+    let first = first_by_id(schedule);
+    let acting: HashSet<usize> = acting.collect();
+    let mut above = HashSet::new();
+    for &k in &acting {
+        let mut at = schedule[k].parent.as_deref();
+        // At most one step per task: a cycle of parents ends the walk.
+        for _ in 0..schedule.len() {
+            let Some(&j) = at.and_then(|p| first.get(p)) else {
+                break;
+            };
+            if !acting.contains(&j) {
+                above.insert(j);
+            }
+            at = schedule[j].parent.as_deref();
+        }
+    }
+    let mut rows: Vec<usize> = above.into_iter().collect();
+    rows.sort_unstable();
+    rows
+}
+
+/// Drops the parent of a task whose parents lead back to itself (a nesting
+/// cycle in a broken file), with a warning: the scene's parents form a tree.
+fn break_cycles(tasks: &mut [Task], warnings: &mut Vec<String>) {
+    let index: HashMap<String, usize> = tasks
+        .iter()
+        .enumerate()
+        .map(|(i, t)| (t.id.clone(), i))
+        .collect();
+    for i in 0..tasks.len() {
+        let mut at = i;
+        for _ in 0..tasks.len() {
+            let Some(&p) = tasks[at].parent.as_ref().and_then(|p| index.get(p)) else {
+                break;
+            };
+            if p == i {
+                warnings.push(format!(
+                    "task {:?}: its parents lead back to it; parent {:?} dropped",
+                    tasks[i].id,
+                    tasks[i].parent.as_deref().unwrap_or_default()
+                ));
+                tasks[i].parent = None;
+                break;
+            }
+            at = p;
+        }
+    }
 }
 
 fn type_name(kind: TaskType) -> &'static str {
@@ -344,13 +546,16 @@ fn type_name(kind: TaskType) -> &'static str {
     }
 }
 
+/// A file's extension in lower case.
+fn extension(path: &Path) -> String {
+    path.extension()
+        .map(|e| e.to_string_lossy().to_ascii_lowercase())
+        .unwrap_or_default()
+}
+
 /// Reads a schedule by its extension.
 pub fn read_schedule(path: &Path) -> Result<Vec<ScheduleTask>> {
-    let ext = path
-        .extension()
-        .map(|e| e.to_string_lossy().to_ascii_lowercase())
-        .unwrap_or_default();
-    match ext.as_str() {
+    match extension(path).as_str() {
         "xml" => msproject::read(path),
         "csv" => links_csv::read(path),
         "ifc" | "ifczip" => {

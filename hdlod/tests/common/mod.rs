@@ -194,7 +194,9 @@ const DATA_SETS: [(&str, &str); 3] = [
         "the Schependomlaan building, CC BY 4.0, from github.com/SvSchaijk/DataSetSchependomlaan: \
          into ifc/ the twelve ROOT-*.ifczip of 'Coordination model and subcontractors \
          models/BIMsight Projectdata1/' except ROOT-Compleet, a space in a name made _; \
-         as planning.xml 'Planning/XML/Uitvoering Schependomlaan 18-02-2015.xml'",
+         as planning.xml 'Planning/XML/Uitvoering Schependomlaan 18-02-2015.xml'; as \
+         eventlog-as-planned.csv and eventlog-as-built.csv its event logs 'eventlog IFC \
+         schependomlaan.csv' and 'Schependomlaan eventlog as planned data incl as built data.csv'",
     ),
     (
         "3d-tiles-schema",

@@ -1,13 +1,14 @@
-//! `hdlod import ifc MODEL.ifc|.ifczip ... [--schedule FILE] [--links RULES.json]
-//! --out SCENE [--name NAME] [--json]`: BIM models and their schedule into an
-//! `hdlod-scene/1` scene (docs/import.md).
+//! `hdlod import ifc MODEL.ifc|.ifczip ... [--schedule FILE] [--actual LOG.csv]...
+//! [--links RULES.json] [--dates planned|actual] --out SCENE [--name NAME]
+//! [--json]`: BIM models and their schedule, with what was built when, into
+//! an `hdlod-scene/1` scene (docs/import.md).
 
 use std::path::PathBuf;
 
 use anyhow::Context;
 use hdlod::build::Progress;
 use hdlod::import::{Options, Report, import};
-use hdlod::scene::format;
+use hdlod::scene::{Dates, format};
 
 use super::progress::Report as Bars;
 
@@ -27,10 +28,19 @@ pub struct Args {
     /// always read.
     #[arg(long)]
     schedule: Option<PathBuf>,
+    /// An as-built log (.csv, element-task rows): its dates are the actual
+    /// dates of the schedule's tasks, matched by task id, else by name.
+    /// Repeatable.
+    #[arg(long, value_name = "LOG.csv")]
+    actual: Vec<PathBuf>,
     /// Linking rules (hdlod-links/1, schemas/links.schema.json) that attach
     /// objects to the schedule's tasks.
     #[arg(long)]
     links: Option<PathBuf>,
+    /// The dates the scene's presence follows: the plan, or the actual
+    /// dates (a task without any has not started).
+    #[arg(long, value_enum, default_value = "planned")]
+    dates: DatesArg,
     /// The scene directory to write (replaced atomically on success).
     #[arg(long)]
     out: PathBuf,
@@ -40,6 +50,12 @@ pub struct Args {
     /// Print the report as JSON on stdout (schemas/import-report.schema.json).
     #[arg(long)]
     json: bool,
+}
+
+#[derive(Clone, Copy, clap::ValueEnum)]
+enum DatesArg {
+    Planned,
+    Actual,
 }
 
 pub fn run(command: Import) -> anyhow::Result<()> {
@@ -56,6 +72,11 @@ pub fn run(command: Import) -> anyhow::Result<()> {
         name,
         schedule: args.schedule.clone(),
         links: args.links.clone(),
+        actual: args.actual.clone(),
+        dates: match args.dates {
+            DatesArg::Planned => Dates::Planned,
+            DatesArg::Actual => Dates::Actual,
+        },
     };
     let bars = Bars::new(args.json);
     bars.phase("reading IFC", args.models.len() as u64);
@@ -133,6 +154,24 @@ fn print_report(r: &Report, out: &str) {
                 r.unmatched.len() - 10
             );
         }
+        if r.summary_tasks > 0 {
+            println!(
+                "  {} summary tasks kept (without objects) to group them",
+                r.summary_tasks
+            );
+        }
+    }
+    if let Some(a) = &r.actual {
+        println!(
+            "\nas built: {} rows, {} tasks ({} matched by id, {} by name); {} schedule tasks \
+             dated, {} of the scene; {} rows match no task",
+            a.rows, a.tasks, a.by_id, a.by_name, a.dated, r.actual_tasks, a.unmatched_rows
+        );
+        for u in a.unmatched.iter().take(10) {
+            println!("  unmatched: {u}");
+        }
+    } else if r.actual_tasks > 0 {
+        println!("\n{} tasks with actual dates", r.actual_tasks);
     }
     println!(
         "\nscene {out}: {} to {}, {:.2} s",
