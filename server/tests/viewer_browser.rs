@@ -440,6 +440,57 @@ fn the_viewer_reviews_the_schedule_in_chromium() {
     }
     assert!(seen.contains("null"), "{seen:?}");
 
+    // The rules on the library's own unit cases (scene::status,
+    // scene::appearance, ObjectTables::governing_task's rule).
+    let rules = &out["rules"];
+    assert_eq!(
+        rules["progress"],
+        serde_json::json!([
+            "in_progress",
+            "not_started",
+            "finished",
+            "in_progress",
+            "not_started",
+            "in_progress"
+        ])
+    );
+    assert_eq!(
+        rules["deviation"],
+        serde_json::json!([
+            "on_time", "late", "on_time", "late", "on_time", "early", "on_time", "early", "early",
+            "late", null
+        ])
+    );
+    assert_eq!(
+        rules["governed"],
+        serde_json::json!({"planned": [0, 0, 1, 1, 1, 2], "tie": 3, "actual": [1, 1, 1], "none": -1})
+    );
+    let looks = &rules["looks"];
+    assert_eq!(rules["name"], "late red");
+    assert_eq!(looks["late"]["hex"], "#ff0000");
+    assert_eq!(f(&looks["late"]["transparency"]), 0.0);
+    assert_eq!(looks["onTime"]["hex"], "#0000ff");
+    assert_eq!(f(&looks["onTime"]["transparency"]), 0.25);
+    assert_eq!(looks["before"]["kind"], "model");
+    assert_eq!(looks["demolishAfter"]["kind"], "hidden");
+    assert_eq!(looks["defaultActive"]["hex"], "#2fb344");
+    assert_eq!(f(&looks["defaultActive"]["transparency"]), 0.5);
+    assert_eq!(looks["temporaryAfter"]["kind"], "hidden");
+    let errors = rules["errors"].as_array().unwrap();
+    for (error, field) in errors.iter().zip([
+        "types.paint",
+        "types.construct.after",
+        "#rrggbb",
+        "same task type",
+        "format",
+    ]) {
+        let error = error.as_str().unwrap_or_default();
+        assert!(
+            error.starts_with("p.json: ") && error.contains(field),
+            "{field}: {error}"
+        );
+    }
+
     // (a) Task appearance: where the objects of a construct task in
     // progress are drawn, the active green blended over what is behind;
     // not so in the model's colours.

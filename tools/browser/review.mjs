@@ -79,6 +79,67 @@ try {
     });
   }, [schedule.tasks, schedule.dates, probes]);
 
+  // The rules on hand-made cases, the library's own unit cases among them
+  // (scene::status, scene::appearance, the governing task).
+  out.rules = await page.evaluate(async () => {
+    const a = await import("/viewer/appearance.js");
+    const task = (start, finish, actualStart, actualFinish, type = "construct") => {
+      const t = { type, start, finish };
+      if (actualStart !== null) t.actual_start = actualStart;
+      if (actualFinish !== null) t.actual_finish = actualFinish;
+      return t;
+    };
+    const name = (d) => (d === null ? null : a.DEVIATION_NAMES[d]);
+    const late = task(10, 20, 15, 30);
+    const progress = [[late, 12, "planned"], [late, 12, "actual"], [late, 25, "planned"], [late, 25, "actual"],
+      [task(10, 20, null, null), 1e9, "actual"], [task(10, 20, 5, null), 1e9, "actual"]]
+      .map(([t, time, dates]) => a.PROGRESS_NAMES[a.progress(t, time, dates)]);
+    const deviation = [
+      ...[5, 12, 17, 25, 30].map((t) => name(a.deviation(late, t))),
+      ...[7, 11, 15].map((t) => name(a.deviation(task(10, 20, 5, 12), t))),
+      ...[7, 25].map((t) => name(a.deviation(task(10, 20, 5, null), t))),
+      name(a.deviation(task(10, 20, null, null), 15)),
+    ];
+    // Four tasks on one object: 0 [0, 10) never recorded, 1 [5, 20)
+    // recorded from 8 and still running, 2 [30, 40) never recorded, 3
+    // [5, 15) recorded as planned.
+    const tasks = [task(0, 10, null, null), task(5, 20, 8, null), task(30, 40, null, null), task(5, 15, 5, 15)];
+    const governing = (list, t, dates) => {
+      const idx = Int32Array.from(list);
+      return a.governing(idx, 0, idx.length, a.standings(tasks, t, dates));
+    };
+    const governed = {
+      planned: [-1, 2, 6, 17, 25, 35].map((t) => governing([0, 1, 2], t, "planned")),
+      tie: governing([0, 1, 2, 3], 6, "planned"),
+      actual: [6, 9, 27].map((t) => governing([0, 1, 2], t, "actual")),
+      none: governing([], 6, "planned"),
+    };
+    const parse = (json) => {
+      try {
+        return { profile: a.parseProfile(JSON.parse(json), "p.json: ") };
+      } catch (e) {
+        return { error: e.message };
+      }
+    };
+    const lateRed = parse('{"format": "hdlod-appearance/1", "name": "late red", "types": {"CONSTRUCTION": {"active": {"color": "#0000ff", "transparency": 0.25}, "late": {"color": "#ff0000"}}, "demolish": {}}}').profile;
+    const looks = {
+      late: a.look(lateRed, 0, a.IN_PROGRESS, a.LATE),
+      onTime: a.look(lateRed, 0, a.IN_PROGRESS, a.ON_TIME),
+      before: a.look(lateRed, 0, a.NOT_STARTED, null),
+      demolishAfter: a.look(lateRed, 1, a.FINISHED, null),
+      defaultActive: a.look(a.DEFAULT_PROFILE, 0, a.IN_PROGRESS, null),
+      temporaryAfter: a.look(a.DEFAULT_PROFILE, 2, a.FINISHED, null),
+    };
+    const errors = [
+      '{"format": "hdlod-appearance/1", "types": {"paint": {}}}',
+      '{"format": "hdlod-appearance/1", "types": {"construct": {"after": "gone"}}}',
+      '{"format": "hdlod-appearance/1", "types": {"construct": {"active": {"color": "green"}}}}',
+      '{"format": "hdlod-appearance/1", "types": {"construct": {}, "INSTALLATION": {}}}',
+      '{"format": "hdlod-appearance/2"}',
+    ].map((j) => parse(j).error || null);
+    return { progress, deviation, governed, looks, errors, name: lateRed.name };
+  });
+
   // Pixels inside the present objects of `objects` whose look is `want`
   // (the look texture's bytes); up to `n` per object.
   const pixelsOf = async (objects, t, want, n) => {
