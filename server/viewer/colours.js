@@ -17,11 +17,11 @@ import {
   DEFAULT_PROFILE, DEVIATION_COLOURS, TASK_TYPES, featureDeviation, governing, look, standings,
 } from "./appearance.js";
 
-export const OWN = 0;
-export const HIDE = 1;
+const OWN = 0;
+const HIDE = 1;
 
 // The texture's bytes of a look: [r, g, b, a].
-export function lookBytes(l) {
+function lookBytes(l) {
   if (l.kind === "model") return [0, 0, 0, OWN];
   if (l.kind === "hidden" || l.transparency >= 1) return [0, 0, 0, HIDE];
   return [...l.rgb, 2 + Math.round((1 - l.transparency) * 253)];
@@ -39,12 +39,12 @@ function hslHex(h, s, l) {
   return `#${f(0)}${f(8)}${f(4)}`;
 }
 
-export function categoryColour(i) {
+function categoryColour(i) {
   return i < PALETTE.length ? PALETTE[i] : hslHex((i * 137.508) % 360, 0.55, 0.55);
 }
 
 // Storeys bottom to top along a ramp from blue through green to red.
-export function rampColour(i, n) {
+function rampColour(i, n) {
   const x = n > 1 ? i / (n - 1) : 0;
   return hslHex(240 * (1 - x), 0.6, 0.5);
 }
