@@ -61,6 +61,9 @@ fn the_viewer_files_are_served() {
         "mat4.js",
         "featurestate.js",
         "objects.js",
+        "appearance.js",
+        "colours.js",
+        "gantt.js",
     ] {
         let response = get(&format!("/viewer/{file}"));
         assert_eq!(response.status(), 200, "{file}");
@@ -346,4 +349,363 @@ fn identity(server: &Server, out: &Value) {
     let px = &link["pixels"];
     assert!(f(&px["differ"]) < 0.005 * f(&px["pixels"]), "{px}");
     assert!(f(&px["offA"]) > 0.0);
+}
+
+/// The share of `pixels` (RGB triples) for which `test` holds.
+fn share(pixels: &Value, test: impl Fn(f64, f64, f64) -> bool) -> f64 {
+    let list = pixels.as_array().unwrap();
+    assert!(!list.is_empty());
+    let hits = list
+        .iter()
+        .filter(|p| test(f(&p[0]), f(&p[1]), f(&p[2])))
+        .count();
+    hits as f64 / list.len() as f64
+}
+
+fn green(r: f64, g: f64, b: f64) -> bool {
+    g > r + 15.0 && g > b + 15.0
+}
+
+fn red(r: f64, g: f64, b: f64) -> bool {
+    r > g + 60.0 && r > b + 60.0
+}
+
+/// The task `id` at `time`, as the server says.
+fn task_at(server: &Server, id: &str, time: f64) -> Value {
+    server.get_json(&format!("/api/v1/scenes/{SCENE}/tasks/{id}?time={time}"))
+}
+
+/// The 4D review: task status in the page against the server's, the
+/// colour modes' pixels, the Gantt chart's isolation and marks, the
+/// legends, profiles from a link and a file, and the chart's frame time
+/// with 5,000 tasks.
+#[test]
+fn the_viewer_reviews_the_schedule_in_chromium() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(&build_tree(dir.path()));
+    let shots = Path::new(env!("CARGO_BIN_EXE_hdlod"))
+        .parent()
+        .and_then(Path::parent)
+        .unwrap()
+        .join("browser-screenshots/review");
+    let run = Command::new("node")
+        .arg(repo().join("tools/browser/review.mjs"))
+        .args([server.base.as_str(), SCENE])
+        .arg(&shots)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "driver failed: {}\n{stdout}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out: Value = serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
+    assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
+    let schedule = server.get_json(&format!("/api/v1/scenes/{SCENE}/schedule"));
+    assert_eq!(
+        f(&out["tasks"]),
+        schedule["tasks"].as_array().unwrap().len() as f64
+    );
+
+    // The page's task status is the server's, for tasks late, early, on
+    // time, unrecorded and running, just before, at and after their dates;
+    // every state and deviation occurs among them.
+    let status = out["status"].as_array().unwrap();
+    let mut seen = std::collections::BTreeSet::new();
+    for probe in status {
+        let id = probe["id"].as_str().unwrap();
+        let server_task = task_at(&server, id, f(&probe["time"]));
+        assert_eq!(
+            probe["state"], server_task["state"],
+            "{probe} {server_task}"
+        );
+        assert_eq!(probe["deviation"], server_task["deviation"], "{probe}");
+        seen.insert(probe["state"].to_string());
+        seen.insert(probe["deviation"].to_string());
+    }
+    for word in [
+        "not_started",
+        "in_progress",
+        "finished",
+        "early",
+        "on_time",
+        "late",
+    ] {
+        assert!(seen.contains(&format!("\"{word}\"")), "{word}: {seen:?}");
+    }
+    assert!(seen.contains("null"), "{seen:?}");
+
+    // The rules on the library's own unit cases (scene::status,
+    // scene::appearance, ObjectTables::governing_task's rule).
+    let rules = &out["rules"];
+    assert_eq!(
+        rules["progress"],
+        serde_json::json!([
+            "in_progress",
+            "not_started",
+            "finished",
+            "in_progress",
+            "not_started",
+            "in_progress"
+        ])
+    );
+    assert_eq!(
+        rules["deviation"],
+        serde_json::json!([
+            "on_time", "late", "on_time", "late", "on_time", "early", "on_time", "early", "early",
+            "late", null
+        ])
+    );
+    assert_eq!(
+        rules["governed"],
+        serde_json::json!({"planned": [0, 0, 1, 1, 1, 2], "tie": 3, "actual": [1, 1, 1], "none": -1})
+    );
+    let looks = &rules["looks"];
+    assert_eq!(rules["name"], "late red");
+    assert_eq!(looks["late"]["hex"], "#ff0000");
+    assert_eq!(f(&looks["late"]["transparency"]), 0.0);
+    assert_eq!(looks["onTime"]["hex"], "#0000ff");
+    assert_eq!(f(&looks["onTime"]["transparency"]), 0.25);
+    assert_eq!(looks["before"]["kind"], "model");
+    assert_eq!(looks["demolishAfter"]["kind"], "hidden");
+    assert_eq!(looks["defaultActive"]["hex"], "#2fb344");
+    assert_eq!(f(&looks["defaultActive"]["transparency"]), 0.5);
+    assert_eq!(looks["temporaryAfter"]["kind"], "hidden");
+    let errors = rules["errors"].as_array().unwrap();
+    for (error, field) in errors.iter().zip([
+        "types.paint",
+        "types.construct.after",
+        "#rrggbb",
+        "same task type",
+        "format",
+    ]) {
+        let error = error.as_str().unwrap_or_default();
+        assert!(
+            error.starts_with("p.json: ") && error.contains(field),
+            "{field}: {error}"
+        );
+    }
+
+    // (a) Task appearance: where the objects of a construct task in
+    // progress are drawn, the active green blended over what is behind;
+    // not so in the model's colours.
+    let active = &out["active"];
+    assert!(
+        active.is_object(),
+        "no construct task drawn in progress: {out:#}"
+    );
+    let task = task_at(&server, active["id"].as_str().unwrap(), f(&active["time"]));
+    assert_eq!(task["type"], "construct");
+    assert_eq!(task["state"], "in_progress", "{task}");
+    let look = &active["look"];
+    assert_eq!([f(&look[0]), f(&look[1]), f(&look[2])], [47.0, 179.0, 68.0]);
+    assert!(
+        f(&look[3]) > 1.0 && f(&look[3]) < 255.0,
+        "translucent: {look}"
+    );
+    let shown = share(&active["appearance"], green);
+    assert!(shown > 0.8, "green in appearance mode: {shown}");
+    assert!(share(&active["model"], green) < 0.1, "{active}");
+
+    // (b) Planned against actual: a task late at that time (the server
+    // says so) is red where its objects are drawn, and not in their own
+    // colours.
+    let late = &out["late"];
+    assert!(late.is_object(), "no late task drawn: {out:#}");
+    let task = task_at(&server, late["id"].as_str().unwrap(), f(&late["time"]));
+    assert_eq!(task["deviation"], "late", "{task}");
+    assert!(share(&late["deviation"], red) > 0.8, "{late}");
+    assert!(share(&late["model"], red) < 0.2, "{late}");
+
+    // (c) A click on the task's Gantt bar isolates its objects: only they
+    // are pickable, the rest turns faint (near the background); a second
+    // click ends it; from a time outside the task the click moves the
+    // time to its start.
+    let g = &out["ganttIsolate"];
+    let active_task = task_at(&server, active["id"].as_str().unwrap(), 0.0);
+    let objects: Vec<u64> = active_task["objects"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|o| o["index"].as_u64().unwrap())
+        .collect();
+    assert_eq!(g["search"]["task"], active["id"], "{g}");
+    assert_eq!(g["search"]["mode"], "isolate");
+    assert_eq!(f(&g["search"]["matches"]), objects.len() as f64);
+    assert_eq!(g["selected"], active["id"]);
+    assert_eq!(f(&g["time"]), f(&active["time"]));
+    let pickable = ids(&g["coverage"]);
+    assert!(
+        !pickable.is_empty() && pickable.iter().all(|i| objects.contains(i)),
+        "{g}"
+    );
+    assert!(
+        f(&g["pixels"]["offB"]) < 0.5 * f(&g["pixels"]["offA"]),
+        "{}",
+        g["pixels"]
+    );
+    let off = |p: &Value| -> f64 {
+        let list = p.as_array().unwrap();
+        let bg = [219.0, 227.0, 237.0];
+        list.iter()
+            .map(|x| (0..3).map(|i| (f(&x[i]) - bg[i]).abs()).sum::<f64>())
+            .sum::<f64>()
+            / list.len() as f64
+    };
+    let (before, after) = (off(&g["othersBefore"]), off(&g["othersAfter"]));
+    assert!(after < 0.25 * before, "others: {before} -> {after}");
+    assert_eq!(g["ended"]["task"], Value::Null);
+    assert_eq!(f(&g["ended"]["matches"]), 0.0);
+    let start = if schedule["dates"] == "actual" {
+        "actual_start"
+    } else {
+        "start"
+    };
+    assert_eq!(f(&g["jump"]["time"]), f(&active_task[start]), "{g}");
+    // Picking an object marks its tasks (the server's list) and scrolls
+    // the chart to them.
+    let pick = &out["ganttPick"];
+    assert!(
+        pick.is_object(),
+        "no object with tasks below the chart's first rows: {out:#}"
+    );
+    let index = &pick["target"]["index"];
+    assert_eq!(pick["selection"]["index"], *index);
+    let object = object_at(&server, index, f(&active["time"]));
+    let tasks: Vec<&Value> = object["tasks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|t| &t["id"])
+        .collect();
+    assert_eq!(
+        pick["highlighted"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .collect::<Vec<_>>(),
+        tasks
+    );
+    let visible = pick["visible"].as_array().unwrap();
+    assert!(tasks.iter().any(|t| visible.contains(t)), "{pick}");
+    assert!(
+        !tasks
+            .iter()
+            .any(|t| pick["visibleBefore"].as_array().unwrap().contains(t))
+    );
+
+    // (d) Each mode's legend lists its colours, and its picture is not the
+    // model's.
+    let legends = &out["legends"];
+    let colours = |mode: &str| -> Vec<String> {
+        legends[mode]["colours"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| c.as_str().unwrap().to_owned())
+            .collect()
+    };
+    for hex in ["#2fb344", "#d93025", "#f2c21b"] {
+        assert!(
+            colours("appearance").contains(&hex.to_owned()),
+            "{hex}: {legends:#}"
+        );
+    }
+    for hex in ["#d93025", "#2fb344", "#3b82f6"] {
+        assert!(colours("deviation").contains(&hex.to_owned()), "{hex}");
+    }
+    let all = server.get_json(&format!("/api/v1/scenes/{SCENE}/objects?limit=1000"));
+    let classes: std::collections::BTreeSet<&str> = all["items"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|o| o["class"].as_str())
+        .collect();
+    let named = |mode: &str| colours(mode).iter().filter(|c| c.starts_with('#')).count();
+    assert_eq!(named("ifc_class"), classes.len(), "{legends:#}");
+    for class in &classes {
+        assert!(
+            legends["ifc_class"]["text"]
+                .as_str()
+                .unwrap()
+                .contains(class)
+        );
+    }
+    let storeys = legends["storey"]["text"].as_str().unwrap();
+    assert!(
+        named("storey") >= 2 && storeys.contains("Level 00"),
+        "{storeys}"
+    );
+    assert_eq!(named("class"), 3);
+    for mode in [
+        "appearance",
+        "deviation",
+        "ifc_class",
+        "storey",
+        "class",
+        "level",
+    ] {
+        assert_eq!(legends[mode]["error"], Value::Null, "{mode}");
+        assert!(
+            f(&legends[mode]["pixels"]["differ"]) > 0.0,
+            "{mode}: {legends:#}"
+        );
+    }
+
+    // (e) Another profile, from a data: URL in the link (construct work
+    // blue) and from a file (magenta): the same pixels change colour (a
+    // lighter shade where faint isolated-out objects lie in front); a
+    // broken file is refused, naming the field, and changes nothing.
+    let link = &out["profileUrl"];
+    assert_eq!(link["profile"], "blue work");
+    // The link also reproduces the mode, the open chart and the isolated task.
+    assert_eq!(link["colourMode"], "appearance");
+    assert_eq!(link["gantt"], true);
+    assert_eq!(link["search"]["task"], active["id"]);
+    assert_eq!(link["gantt_selected"], active["id"]);
+    assert!(link["source"].as_str().unwrap().starts_with("data:"));
+    assert!(
+        share(&link["colours"], |r, g, b| b > r + 40.0 && b > g + 40.0) > 0.9,
+        "{link}"
+    );
+    let file = &out["profileFile"];
+    assert_eq!(file["profile"], "magenta work");
+    assert!(
+        share(&file["colours"], |r, g, b| r > g + 40.0 && b > g + 40.0) > 0.9,
+        "{file}"
+    );
+    assert!(
+        file["address"]
+            .as_str()
+            .unwrap()
+            .contains("appearance=data")
+    );
+    let broken = &out["profileBroken"];
+    assert!(
+        broken["error"]
+            .as_str()
+            .unwrap()
+            .contains("types.construct.after"),
+        "{broken}"
+    );
+    assert_eq!(broken["profile"], "magenta work");
+
+    // The Gantt chart with 5,000 tasks draws only the rows in view, in a
+    // few milliseconds a frame.
+    let bench = &out["ganttBench"];
+    assert_eq!(f(&bench["tasks"]), 5000.0);
+    assert!(f(&bench["rowsDrawn"]) < 40.0, "{bench}");
+    assert_eq!(bench["revealed"], true);
+    assert!(f(&bench["medianMs"]) < 16.0, "{bench}");
+    eprintln!(
+        "Gantt, 5,000 tasks: frame median {:.1} ms, p95 {:.1} ms; layout {:.1} ms",
+        f(&bench["medianMs"]),
+        f(&bench["p95Ms"]),
+        f(&bench["layoutMs"])
+    );
 }

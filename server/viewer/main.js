@@ -5,14 +5,20 @@
 // against drawing every present object (docs/viewer.md). A click picks the
 // scene object under the cursor (its properties and tasks in a panel); a
 // search highlights, isolates or hides objects; objects absent at the
-// current time are hidden even inside a drawn cluster.
+// current time are hidden even inside a drawn cluster. For a 4D review the
+// colour modes colour each object by its task's appearance, by its
+// execution against the plan, by class or storey, and a Gantt chart of the
+// schedule follows the time (docs/viewer.md).
 
 import { Camera, FOV_Y_DEG } from "./camera.js";
 import { Renderer, classColour, levelColour } from "./renderer.js";
 import { CutConnection, GeometryCache } from "./stream.js";
 import { project } from "./mat4.js";
 import { FeatureState } from "./featurestate.js";
-import { ObjectPanel, searchObjects } from "./objects.js";
+import { ObjectPanel, objectClasses, objectStoreys, searchObjects } from "./objects.js";
+import { PHASES, TASK_TYPES, running, parseProfile } from "./appearance.js";
+import { FeatureColours, MODES as FEATURE_MODES, naturalOrder } from "./colours.js";
+import { Gantt } from "./gantt.js";
 
 const $ = (id) => document.getElementById(id);
 const DAY = 86400;
@@ -23,11 +29,14 @@ const ui = {
   colour: $("colour"), mode: $("mode"), stats: $("stats"), legend: $("legend"), message: $("message"),
   panel: $("panel"), search: $("search"), query: $("query"), searchMode: $("search-mode"),
   isolate: $("isolate"), hide: $("hide"), clear: $("clear"), matches: $("matches"),
+  profile: $("profile"), profileFile: $("profile-file"), ganttToggle: $("gantt-toggle"),
+  gantt: $("gantt"), ganttCanvas: $("gantt-canvas"),
 };
 
 // A press that moves less than this (CSS pixels) is a click, not a drag.
 const CLICK_SLOP = 4;
 const MODES = ["highlight", "isolate", "hide"];
+const COLOUR_MODES = ["vertex", "class", "level", ...FEATURE_MODES];
 
 const viewer = {
   ready: false,
@@ -51,8 +60,13 @@ const viewer = {
   panel: null, // ObjectPanel
   objectsError: null, // why the scene has no object table, if it has none
   selection: null, // {index, id}
-  search: { q: "", mode: "highlight", matches: [], pending: false },
+  search: { q: "", mode: "highlight", matches: [], pending: false, task: null },
   picks: 0,
+  colours: new FeatureColours(), // the per-feature colours of the review modes
+  schedule: null, // GET .../schedule
+  profileSource: null, // where the profile came from: null (the scene's), a URL or a data: URL
+  review: { pending: true, error: null, categories: {} }, // categories: mode -> {pending, done, error}
+  gantt: null, // Gantt
 };
 
 let renderer;
@@ -110,6 +124,8 @@ function setTime(t) {
   ui.time.value = String(Math.round((viewer.t / Math.max(span(), 1e-9)) * 10000));
   ui.date.textContent = formatDate(viewer.t);
   viewer.features.setTime(viewer.t);
+  viewer.colours.setTime(viewer.t);
+  if (viewer.gantt) viewer.gantt.setTime(viewer.t);
   if (viewer.panel) viewer.panel.setTime(viewer.t);
   viewer.needsDraw = true;
 }
@@ -125,19 +141,101 @@ function setPixelError(p) {
 }
 
 function setColourMode(mode) {
+  if (!COLOUR_MODES.includes(mode)) mode = "vertex";
   viewer.colourMode = mode;
   urlDirty = true;
   ui.colour.value = mode;
-  const swatch = (rgb, name) =>
-    `<span style="background: rgb(${rgb.map((c) => Math.round(c * 255)).join(",")})"></span>${name}`;
-  if (mode === "class") {
-    ui.legend.innerHTML = ["static", "pseudo_dynamic", "dynamic"].map((c) => swatch(classColour(c), c.replace("_", "-"))).join("");
-  } else if (mode === "level") {
-    ui.legend.innerHTML = [0, 1, 2, 3, 4, 5, 6].map((l) => swatch(levelColour(l), l === 6 ? "6+" : String(l))).join("") + " (0: original objects)";
-  } else {
-    ui.legend.innerHTML = "";
-  }
+  ui.profile.hidden = mode !== "appearance";
+  viewer.colours.setMode(mode);
+  if (mode === "ifc_class" || mode === "storey") loadCategories(mode);
+  renderLegend();
   viewer.needsDraw = true;
+}
+
+function hex(rgb) {
+  return `#${rgb.map((c) => Math.round(c * 255).toString(16).padStart(2, "0")).join("")}`;
+}
+
+function escapeHtml(text) {
+  return String(text).replace(/[&<>"]/g, (c) => ({ "&": "&amp;", "<": "&lt;", ">": "&gt;", '"': "&quot;" })[c]);
+}
+
+// One legend entry: a swatch of `colour` ("#rrggbb"; null: the objects'
+// own colours) and its words. Swatches carry their colour as data-colour.
+function entry(colour, label, opacity = 1) {
+  const swatch = colour
+    ? `<span class="swatch" data-colour="${colour}" style="background: ${colour}; opacity: ${Math.max(opacity, 0.15)}"></span>`
+    : `<span class="swatch own" data-colour="model"></span>`;
+  return `<span class="entry">${swatch}${escapeHtml(label)}</span>`;
+}
+
+// The look of a phase in the appearance legend.
+function lookEntry(phase, l) {
+  if (l.kind === "hidden") return `<span class="entry"><span class="note">${phase}:</span> hidden</span>`;
+  if (l.kind === "model") return entry(null, `${phase}`);
+  const transparency = l.transparency > 0 ? ` (${Math.round(l.transparency * 100)}% transparent)` : "";
+  return entry(l.hex, `${phase}${transparency}`, 1 - l.transparency);
+}
+
+// The legend of the colour mode (the `legend` aside).
+function renderLegend() {
+  const mode = viewer.colourMode;
+  const review = viewer.review;
+  let html = "";
+  if (mode === "class") {
+    html = ["static", "pseudo_dynamic", "dynamic"].map((c) => entry(hex(classColour(c)), c.replace("_", "-"))).join("") + ' <span class="note">(visibility class)</span>';
+  } else if (mode === "level") {
+    html = [0, 1, 2, 3, 4, 5, 6].map((l) => entry(hex(levelColour(l)), l === 6 ? "6+" : String(l))).join("") + ' <span class="note">(HDLOD level; 0: original objects)</span>';
+  } else if (mode === "appearance") {
+    const profile = viewer.colours.profile;
+    const used = new Set(viewer.schedule ? viewer.schedule.tasks.map((t) => t.type) : TASK_TYPES);
+    const rows = TASK_TYPES.map((type, kind) => {
+      if (!used.has(type)) return "";
+      const looks = profile.types[kind];
+      const phases = PHASES.filter((p) => looks[p]).map((p) => lookEntry(p, looks[p])).join("");
+      return `<div data-type="${type}"><span class="type">${type}</span>${phases}</div>`;
+    }).join("");
+    const from = viewer.profileSource ? (viewer.profileSource.startsWith("data:") ? " (loaded)" : ` (${escapeHtml(viewer.profileSource)})`) : "";
+    html = `<div class="note">appearance profile <b data-field="profile">${escapeHtml(profile.name)}</b>${from}; ${entry(null, "own colour")}</div>${rows}`;
+  } else if (mode === "deviation" || mode === "ifc_class" || mode === "storey") {
+    const c = review.categories[mode];
+    const entries = viewer.colours.legend().map((e) => entry(e.colour, e.note ? `${e.label} (${e.note})` : e.label)).join("");
+    const title = { deviation: "planned against actual", ifc_class: "IFC class", storey: "storey" }[mode];
+    html = `<div class="note">${title}</div>${entries}`;
+    if (c && c.pending) html += ` <span class="note">loading ${c.done || 0} of ${viewer.colours.count}&hellip;</span>`;
+    if (c && c.error) html += ` <span class="error">${escapeHtml(c.error)}</span>`;
+  }
+  if (mode === "appearance" || mode === "deviation") {
+    if (review.pending) html += ' <span class="note">loading the schedule&hellip;</span>';
+    if (review.error) html += ` <span class="error">${escapeHtml(review.error)}</span>`;
+  }
+  ui.legend.innerHTML = html;
+}
+
+// The distinct values of every object's class or storey, once per scene,
+// when their mode is first chosen.
+async function loadCategories(mode) {
+  const state = viewer.review.categories;
+  if (state[mode] || viewer.features.count === 0) return;
+  const c = { pending: true, done: 0, error: null };
+  state[mode] = c;
+  const count = viewer.features.count;
+  try {
+    const values = mode === "ifc_class"
+      ? await objectClasses(viewer.sceneUrl, count, getJson)
+      : await objectStoreys(viewer.sceneUrl, count, getJson, (done) => {
+        c.done = done;
+        if (done % 50 === 0 && viewer.colourMode === mode) renderLegend();
+      });
+    const names = [...new Set(values.filter((v) => v !== null))].sort(naturalOrder);
+    const index = new Map(names.map((n, i) => [n, i]));
+    viewer.colours.setCategories(mode, names, Int32Array.from(values, (v) => (v === null ? -1 : index.get(v))));
+  } catch (e) {
+    c.error = e.message;
+  } finally {
+    c.pending = false;
+    if (viewer.colourMode === mode) renderLegend();
+  }
 }
 
 function setPlaying(on) {
@@ -233,19 +331,28 @@ function drawItems() {
   return items;
 }
 
-// The state texture follows the time and the flags: uploaded only when
-// one of them changed since the last upload.
+// The state texture follows the time and the flags, the looks the time,
+// the colour mode and the profile: each uploaded only when one of them
+// changed since its last upload.
 function uploadFeatureState() {
   const f = viewer.features;
-  if (!f.dirty) return;
-  f.dirty = false;
-  renderer.setState(f.bytes(renderer.stateRowBytes()), f.count);
+  if (f.dirty) {
+    f.dirty = false;
+    renderer.setState(f.bytes(renderer.stateRowBytes()), f.count);
+  }
+  const c = viewer.colours;
+  if (c.dirty) {
+    c.dirty = false;
+    const bytes = c.bytes(renderer.stateRowBytes());
+    renderer.setLooks(bytes, c.count);
+    if (!bytes) c.translucent = 0;
+  }
 }
 
 function draw(width, height) {
   const start = performance.now();
   uploadFeatureState();
-  renderer.draw(drawItems(), viewer.matrices, width, height, viewer.features.isolating());
+  renderer.draw(drawItems(), viewer.matrices, width, height, viewer.features.isolating(), viewer.colours.translucent > 0);
   const ms = performance.now() - start;
   viewer.frameMs = viewer.frameMs ? viewer.frameMs * 0.8 + ms * 0.2 : ms;
 }
@@ -297,6 +404,9 @@ function updateUrl(now) {
   set("selected", viewer.selection && viewer.selection.id);
   set("q", viewer.search.q);
   set("mode", viewer.search.q && viewer.search.mode !== "highlight" ? viewer.search.mode : null);
+  set("task", viewer.search.task);
+  set("gantt", ui.gantt.hidden ? null : "1");
+  set("appearance", viewer.profileSource);
   history.replaceState(null, "", `?${params}`);
 }
 
@@ -326,11 +436,12 @@ function frame(now) {
     urlDirty = true;
   }
   updateUrl(now);
-  if (viewer.features.dirty) viewer.needsDraw = true;
+  if (viewer.features.dirty || viewer.colours.dirty) viewer.needsDraw = true;
   if (viewer.needsDraw) {
     viewer.needsDraw = false;
     draw(width, height);
   }
+  if (!ui.gantt.hidden) viewer.gantt.frame();
   if (now - lastStats > 250) {
     lastStats = now;
     updateStats();
@@ -381,6 +492,13 @@ function bindInput() {
   ui.play.addEventListener("click", () => setPlaying(!viewer.playing));
   ui.pixelError.addEventListener("input", () => setPixelError(sliderToPixelError(Number(ui.pixelError.value))));
   ui.colour.addEventListener("change", () => setColourMode(ui.colour.value));
+  ui.profile.addEventListener("click", () => ui.profileFile.click());
+  ui.profileFile.addEventListener("change", async () => {
+    const file = ui.profileFile.files[0];
+    ui.profileFile.value = "";
+    if (file && (await loadProfileText(await file.text(), file.name))) setColourMode("appearance");
+  });
+  ui.ganttToggle.addEventListener("click", () => showGantt(ui.gantt.hidden));
   ui.mode.addEventListener("click", () => setMode(camera.mode === "fly" ? "orbit" : "fly"));
   ui.search.addEventListener("submit", (e) => {
     e.preventDefault();
@@ -415,13 +533,56 @@ function selectAt(x, y) {
   select(index === null ? null : { index, id: null });
 }
 
-// selection: {index, id (null until the panel knows it)} or null.
+// selection: {index, id (null until the panel knows it)} or null. Its
+// tasks are marked in the Gantt chart.
 function select(selection) {
   viewer.selection = selection;
   viewer.features.select(selection && selection.index);
   viewer.panel.show(selection && selection.index, viewer.t);
+  if (viewer.schedule) viewer.gantt.highlight(selection ? viewer.colours.tasksOf(selection.index) : []);
   urlDirty = true;
   viewer.needsDraw = true;
+}
+
+// Task k and the tasks under it in the WBS.
+function taskTree(k) {
+  const tasks = viewer.schedule.tasks;
+  const under = new Set([k]);
+  // Parents come in any order: sweep until no task joins.
+  for (let grew = true; grew;) {
+    grew = false;
+    tasks.forEach((t, j) => {
+      if (!under.has(j) && t.parent !== undefined && under.has(t.parent)) {
+        under.add(j);
+        grew = true;
+      }
+    });
+  }
+  return [...under];
+}
+
+// Isolates the objects of task k (and of the tasks under it), as a search
+// does; a planner looks at a task while it runs, so the time moves to its
+// start unless it is already within it. The same task again ends it.
+function isolateTask(k) {
+  const task = viewer.schedule.tasks[k];
+  if (viewer.search.task === task.id) {
+    search("", "highlight");
+    return;
+  }
+  const objects = new Set();
+  for (const j of taskTree(k)) for (const i of viewer.schedule.tasks[j].objects) objects.add(i);
+  const matches = [...objects].sort((a, b) => a - b);
+  const s = viewer.search;
+  Object.assign(s, { q: "", mode: "isolate", matches, pending: false, task: task.id });
+  ui.query.value = "";
+  ui.searchMode.textContent = "isolate";
+  ui.matches.textContent = `task ${task.id}: ${matches.length} objects`;
+  viewer.features.setMatches(matches, "isolate");
+  viewer.gantt.setSelected(k);
+  const [start, finish] = running(task, viewer.schedule.dates);
+  if (!(viewer.t >= start && viewer.t < finish)) setTime(Number.isFinite(start) ? start : task.start);
+  urlDirty = true;
 }
 
 // q: the text (empty clears); mode: what the matches do.
@@ -429,6 +590,8 @@ async function search(q, mode) {
   const s = viewer.search;
   s.q = q;
   s.mode = MODES.includes(mode) ? mode : "highlight";
+  s.task = null;
+  if (viewer.gantt) viewer.gantt.setSelected(null);
   ui.query.value = q;
   ui.searchMode.textContent = q && s.mode !== "highlight" ? s.mode : "";
   urlDirty = true;
@@ -499,16 +662,34 @@ function testHook() {
         panel: viewer.panel && viewer.panel.shown && {
           index: viewer.panel.shown.index, id: viewer.panel.shown.id, time: viewer.panel.shownTime, present: viewer.panel.shown.present,
         },
-        search: { q: viewer.search.q, mode: viewer.search.mode, matches: viewer.search.matches.length, pending: viewer.search.pending },
+        search: { q: viewer.search.q, mode: viewer.search.mode, matches: viewer.search.matches.length, pending: viewer.search.pending, task: viewer.search.task },
         objects: viewer.features.count,
         objectsError: viewer.objectsError,
         stateUploads: renderer ? renderer.stateUploads : 0,
         picks: viewer.picks,
+        review: {
+          tasks: viewer.schedule ? viewer.schedule.tasks.length : 0,
+          dates: viewer.schedule && viewer.schedule.dates,
+          pending: viewer.review.pending,
+          error: viewer.review.error,
+          profile: viewer.colours.profile.name,
+          profileSource: viewer.profileSource,
+          coloured: viewer.colours.ready(),
+          translucent: viewer.colours.translucent,
+          lookUploads: renderer ? renderer.lookUploads : 0,
+          legend: [...ui.legend.querySelectorAll(".swatch")].map((e) => e.dataset.colour),
+          legendText: ui.legend.textContent,
+        },
+        gantt: viewer.gantt && { open: !ui.gantt.hidden, ...viewer.gantt.state() },
       };
     },
-    // True when the drawn cut answers the current view and nothing loads.
+    // True when the drawn cut answers the current view, nothing loads and
+    // the colour mode has what it needs.
     settled() {
       if (!viewer.ready || connection.busy() || cache.loading > 0 || !viewer.lastRequest) return false;
+      if (viewer.review.pending) return false;
+      const c = viewer.review.categories[viewer.colourMode];
+      if (c && c.pending) return false;
       const [width, height] = viewportSize();
       return JSON.stringify(viewer.lastRequest) === JSON.stringify(cutRequest(width, height));
     },
@@ -535,6 +716,44 @@ function testHook() {
     setTime: (t) => setTime(t),
     setPixelError: (p) => setPixelError(p),
     setColourMode: (m) => setColourMode(m),
+    // The tasks of feature i, by index into the schedule.
+    tasksOf: (i) => viewer.colours.tasksOf(i),
+    // The look bytes of feature i as last uploaded ([r, g, b, a]; a: 0 own colour, 1 hidden).
+    lookOf: (i) => (viewer.colours.out && viewer.colours.ready() ? Array.from(viewer.colours.out.subarray(4 * i, 4 * i + 4)) : null),
+    // Device-pixel centres (as CSS pixels) of up to `n` pixels inside each
+    // of `ids` (the pick pass's pixel and its four neighbours show it).
+    featurePixels: (ids, n) => {
+      const [width, height] = viewportSize();
+      uploadFeatureState();
+      const px = renderer.pickRect(drawItems(), viewer.matrices, width, height, 0, 0, width, height);
+      const want = new Map(ids.map((id) => [id, []]));
+      const dpr = width / ui.canvas.clientWidth;
+      const step = Math.max(1, Math.round(3 * dpr));
+      for (let y = step; y < height - step; y += step) {
+        for (let x = step; x < width - step; x += step) {
+          // pickRect's rows run from the bottom.
+          const at = (xx, yy) => px[(height - 1 - yy) * width + xx];
+          const id = at(x, y);
+          const list = want.get(id);
+          if (!list || list.length >= n) continue;
+          if ([[step, 0], [-step, 0], [0, step], [0, -step]].every(([a, b]) => at(x + a, y + b) === id)) {
+            list.push([(x + 0.5) / dpr, (y + 0.5) / dpr]);
+          }
+        }
+      }
+      return Object.fromEntries(want);
+    },
+    showGantt: (on) => showGantt(on),
+    // Task k's planned bar in page CSS pixels {x, y, w, h}, scrolled into view.
+    ganttBar: (k) => {
+      viewer.gantt.reveal(k);
+      viewer.gantt.frame();
+      const b = viewer.gantt.barOf(k);
+      const r = ui.ganttCanvas.getBoundingClientRect();
+      return b && { x: b.x + r.left, y: b.y + r.top, w: b.w, h: b.h };
+    },
+    isolateTask: (k) => isolateTask(k),
+    loadProfile: (text, name) => loadProfileText(text, name),
     // The distance as a multiple of the one where the whole scene fills the view.
     setDistanceFactor: (f) => camera.zoom((camera.home * f) / camera.distance),
     setCamera: ({ target, distance, azimuth, elevation }) => {
@@ -567,11 +786,15 @@ async function loadObjects(params) {
   try {
     viewer.features.setPresence((await getJson(`${viewer.sceneUrl}/presence`)).presence);
     viewer.features.setTime(viewer.t);
+    viewer.colours.setCount(viewer.features.count);
   } catch (e) {
     viewer.objectsError = e.message;
     ui.search.hidden = true;
+    viewer.review = { pending: false, error: `no schedule: ${e.message}`, categories: {} };
+    renderLegend();
     return;
   }
+  await loadReview(params);
   const id = params.get("selected");
   if (id) {
     try {
@@ -583,6 +806,82 @@ async function loadObjects(params) {
   }
   const q = params.get("q");
   if (q) search(q, params.get("mode") || "highlight");
+  const task = params.get("task");
+  if (task && viewer.schedule) {
+    const k = viewer.schedule.tasks.findIndex((t) => t.id === task);
+    if (k >= 0) isolateTask(k);
+    else showMessage(`The link's task: no task ${task} in this scene.`);
+  }
+}
+
+// The schedule and the scene's appearance profile, once per scene (the
+// browser revalidates them by ETag), or the profile the link names.
+async function loadReview(params) {
+  const review = viewer.review;
+  try {
+    const [schedule, profile] = await Promise.all([
+      getJson(`${viewer.sceneUrl}/schedule`),
+      getJson(`${viewer.sceneUrl}/appearance`),
+    ]);
+    viewer.schedule = schedule;
+    viewer.colours.setSchedule(schedule);
+    viewer.colours.setProfile(parseProfile(profile, `${viewer.sceneUrl}/appearance: `));
+    viewer.gantt.setSchedule(schedule);
+    viewer.gantt.setTime(viewer.t);
+    if (viewer.selection) viewer.gantt.highlight(viewer.colours.tasksOf(viewer.selection.index));
+  } catch (e) {
+    review.error = `The schedule: ${e.message}`;
+  }
+  const url = params.get("appearance");
+  if (url) await loadProfileUrl(url);
+  review.pending = false;
+  renderLegend();
+  // A link's class or storey mode waited for the object count.
+  if (viewer.colourMode === "ifc_class" || viewer.colourMode === "storey") loadCategories(viewer.colourMode);
+}
+
+// A profile from a URL (the link's `appearance`, a data: URL for one
+// loaded from a file).
+async function loadProfileUrl(url) {
+  let text;
+  try {
+    const response = await fetch(url);
+    if (!response.ok) throw new Error(`HTTP ${response.status}`);
+    text = await response.text();
+  } catch (e) {
+    showMessage(`Cannot load the appearance profile ${url.startsWith("data:") ? "of the link" : url}: ${e.message}`);
+    return;
+  }
+  await loadProfileText(text, url.startsWith("data:") ? "the link's profile" : url, url);
+}
+
+// A profile file's text: checked, then drawn; the link keeps it as a
+// data: URL (or the URL it came from), so it reproduces the colours.
+async function loadProfileText(text, name, url = null) {
+  let profile;
+  try {
+    profile = parseProfile(JSON.parse(text), `${name}: `);
+  } catch (e) {
+    showMessage(`The appearance profile ${e instanceof SyntaxError ? `${name}: ${e.message}` : e.message}`);
+    return false;
+  }
+  viewer.colours.setProfile(profile);
+  viewer.profileSource = url || `data:application/json,${encodeURIComponent(JSON.stringify(JSON.parse(text)))}`;
+  if (viewer.error && viewer.error.startsWith("The appearance profile")) showMessage(null);
+  renderLegend();
+  urlDirty = true;
+  viewer.needsDraw = true;
+  return true;
+}
+
+// The Gantt chart docked at the bottom; the 3D view shrinks above it.
+function showGantt(on) {
+  ui.gantt.hidden = !on;
+  document.body.classList.toggle("gantt-open", on);
+  ui.ganttToggle.classList.toggle("on", on);
+  urlDirty = true;
+  if (on && viewer.gantt.highlighted.size) viewer.gantt.highlight([...viewer.gantt.highlighted]);
+  else if (on) viewer.gantt.dirty = true;
 }
 
 async function start() {
@@ -630,11 +929,14 @@ async function start() {
   setTime(t === null ? 0 : t);
   const p = Number(params.get("pixel_error"));
   setPixelError(p > 0 ? p : 1);
-  setColourMode(["vertex", "class", "level"].includes(params.get("colour")) ? params.get("colour") : "vertex");
+  setColourMode(params.get("colour") || "vertex");
   setMode("orbit");
   const position = coordinates(params.get("position"));
   const target = coordinates(params.get("target"));
   if (position && target) camera.lookFrom(position, target);
+  viewer.gantt = new Gantt(ui.ganttCanvas, (k) => isolateTask(k));
+  viewer.gantt.setTime(viewer.t);
+  showGantt(params.get("gantt") === "1");
   viewer.panel = new ObjectPanel(ui.panel, viewer.sceneUrl, getJson, formatDate, (o) => {
     if (viewer.selection && viewer.selection.index === o.index && viewer.selection.id !== o.id) {
       viewer.selection.id = o.id;

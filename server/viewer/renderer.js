@@ -9,7 +9,10 @@
 // per-feature state texture (featurestate.js: present, ghosted, selected,
 // matched) is read by feature id: a feature that is absent or hidden has
 // its vertices moved outside the clip volume, so its triangles (whose three
-// corners share the id) are dropped before rasterisation.
+// corners share the id) are dropped before rasterisation. A second
+// per-feature texture, the looks (colours.js), gives a colour mode's
+// colour and opacity per feature, or hides it: opaque looks are drawn in
+// the first pass, translucent ones blended in the second with the ghosts.
 const VERTEX = `#version 300 es
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
@@ -22,25 +25,34 @@ uniform bool uHasState;
 uniform int uStateWidth;
 uniform int uStateCount;
 uniform bool uIsolating;
-// 0: opaque, 1: ghosts, 2: feature ids (picking)
+uniform sampler2D uLooks;
+uniform int uLookCount;
+// 0: opaque, 1: ghosts and translucent looks, 2: feature ids (picking)
 uniform int uPass;
 out vec3 vWorld;
 out vec3 vNormal;
 out vec4 vColor;
 flat out float vFeature;
 flat out vec4 vState;
+flat out vec4 vLook;
 void main() {
   // r present, g ghosted, b selected, a matched
   vec4 state = vec4(1.0, 0.0, 0.0, 0.0);
   bool hasFeature = aFeature >= 0.0;
   int id = int(aFeature + 0.5);
+  ivec2 texel = ivec2(id % uStateWidth, id / uStateWidth);
   if (hasFeature && uHasState && id < uStateCount) {
-    state = texelFetch(uState, ivec2(id % uStateWidth, id / uStateWidth), 0);
+    state = texelFetch(uState, texel, 0);
   } else if (uIsolating) {
     state.g = 1.0;
   }
+  // a: 0 own colour, 1 hidden, 2..255 rgb at opacity (a - 2) / 253
+  vec4 look = vec4(0.0);
+  if (hasFeature && id < uLookCount) look = texelFetch(uLooks, texel, 0);
+  int lookA = int(look.a * 255.0 + 0.5);
   bool ghost = state.g > 0.5;
-  bool keep = state.r > 0.5 && (uPass == 1 ? ghost : !ghost) && (uPass != 2 || hasFeature);
+  bool translucent = !ghost && lookA > 1 && lookA < 255;
+  bool keep = state.r > 0.5 && lookA != 1 && (uPass == 2 ? !ghost && hasFeature : (uPass == 1) == (ghost || translucent));
   if (!keep) {
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     return;
@@ -51,6 +63,7 @@ void main() {
   vColor = aColor;
   vFeature = aFeature;
   vState = state;
+  vLook = vec4(look.rgb, lookA > 1 ? float(lookA - 2) / 253.0 : -1.0);
   gl_Position = uViewProj * world;
 }`;
 
@@ -62,6 +75,7 @@ in vec3 vNormal;
 in vec4 vColor;
 flat in float vFeature;
 flat in vec4 vState;
+flat in vec4 vLook;
 uniform vec3 uEye;
 uniform vec4 uTint;
 uniform bool uHasNormals;
@@ -79,13 +93,15 @@ void main() {
   vec3 n = uHasNormals ? normalize(vNormal) : normalize(cross(dFdx(vWorld), dFdy(vWorld)));
   vec3 l = normalize(uEye - vWorld);
   float lambert = abs(dot(n, l));
-  vec3 base = uTint.a > 0.0 ? uTint.rgb : vColor.rgb;
+  vec3 base = vLook.a >= 0.0 ? vLook.rgb : uTint.a > 0.0 ? uTint.rgb : vColor.rgb;
   if (vState.a > 0.5) base = mix(base, vec3(0.1, 0.75, 0.95), 0.6);
   if (vState.b > 0.5) base = mix(base, vec3(1.0, 0.45, 0.0), 0.75);
   vec3 lit = base * (0.3 + 0.7 * lambert);
-  if (uPass == 1) {
+  if (uPass == 1 && vState.g > 0.5) {
     float grey = dot(lit, vec3(0.3, 0.59, 0.11));
     outColor = vec4(vec3(grey), 0.12);
+  } else if (uPass == 1) {
+    outColor = vec4(lit, vLook.a);
   } else {
     outColor = vec4(lit, 1.0);
   }
@@ -134,7 +150,7 @@ export class Renderer {
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
     this.program = program;
     this.u = {};
-    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uPass"]) {
+    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass"]) {
       this.u[name] = gl.getUniformLocation(program, name);
     }
     gl.enable(gl.DEPTH_TEST);
@@ -143,26 +159,47 @@ export class Renderer {
     this.stateHeight = 0;
     this.stateCount = 0;
     this.stateUploads = 0;
+    this.looksTexture = gl.createTexture();
+    // One empty row until a colour mode fills it, so the sampler is never
+    // bound to an incomplete texture.
+    this.looksHeight = this.fill(this.looksTexture, 0, new Uint8Array(4 * this.stateWidth));
+    this.lookCount = 0;
+    this.lookUploads = 0;
     this.pickTarget = null;
   }
 
   // The per-feature state, RGBA bytes of feature i at 4 * i (the length a
   // multiple of stateRowBytes()); null draws every feature plainly.
   setState(bytes, count) {
-    const gl = this.gl;
     this.stateCount = bytes ? count : 0;
     if (!bytes) return;
-    const height = bytes.length / (4 * this.stateWidth);
-    gl.bindTexture(gl.TEXTURE_2D, this.stateTexture);
-    if (height !== this.stateHeight) {
-      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.stateWidth, height, 0, gl.RGBA, gl.UNSIGNED_BYTE, bytes);
+    this.stateHeight = this.fill(this.stateTexture, this.stateHeight, bytes);
+    this.stateUploads++;
+  }
+
+  // The per-feature looks (colours.js), in the state's layout; null: every
+  // feature its own colour.
+  setLooks(bytes, count) {
+    this.lookCount = bytes ? count : 0;
+    if (!bytes) return;
+    this.looksHeight = this.fill(this.looksTexture, this.looksHeight, bytes);
+    this.lookUploads++;
+  }
+
+  // Uploads rows of RGBA bytes into a texture of the state's width that
+  // is `height` rows high now; returns its new height.
+  fill(texture, height, bytes) {
+    const gl = this.gl;
+    const rows = bytes.length / (4 * this.stateWidth);
+    gl.bindTexture(gl.TEXTURE_2D, texture);
+    if (rows !== height) {
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.RGBA8, this.stateWidth, rows, 0, gl.RGBA, gl.UNSIGNED_BYTE, bytes);
       gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.NEAREST);
       gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.NEAREST);
-      this.stateHeight = height;
     } else {
-      gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.stateWidth, height, gl.RGBA, gl.UNSIGNED_BYTE, bytes);
+      gl.texSubImage2D(gl.TEXTURE_2D, 0, 0, 0, this.stateWidth, rows, gl.RGBA, gl.UNSIGNED_BYTE, bytes);
     }
-    this.stateUploads++;
+    return rows;
   }
 
   stateRowBytes() {
@@ -200,17 +237,19 @@ export class Renderer {
 
   // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null),
   // feature (the whole item's feature id where its GLB has none, or null)}];
-  // isolating: features not flagged as isolated are drawn as ghosts.
-  draw(items, camera, width, height, isolating) {
+  // isolating: features not flagged as isolated are drawn as ghosts;
+  // translucent: some looks have a transparency, drawn blended.
+  draw(items, camera, width, height, isolating, translucent) {
     const gl = this.gl;
     gl.bindFramebuffer(gl.FRAMEBUFFER, null);
     gl.viewport(0, 0, width, height);
     gl.clearColor(...BACKGROUND, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
     this.pass(items, camera, 0, isolating);
-    if (isolating) {
-      // Faint and behind nothing: blended over the opaque picture without
-      // writing depth, so the isolated features show through them.
+    if (isolating || translucent) {
+      // Ghosts faint and translucent looks behind nothing: blended over the
+      // opaque picture without writing depth, so what is behind them
+      // shows through.
       gl.enable(gl.BLEND);
       gl.blendFunc(gl.SRC_ALPHA, gl.ONE_MINUS_SRC_ALPHA);
       gl.depthMask(false);
@@ -233,6 +272,11 @@ export class Renderer {
     gl.activeTexture(gl.TEXTURE0);
     gl.bindTexture(gl.TEXTURE_2D, this.stateTexture);
     gl.uniform1i(this.u.uState, 0);
+    gl.activeTexture(gl.TEXTURE1);
+    gl.bindTexture(gl.TEXTURE_2D, this.looksTexture);
+    gl.uniform1i(this.u.uLooks, 1);
+    gl.uniform1i(this.u.uLookCount, this.lookCount);
+    gl.activeTexture(gl.TEXTURE0);
     for (const item of items) {
       const g = item.gpu;
       if (which === 2 && !g.hasFeatures && item.feature == null) continue;

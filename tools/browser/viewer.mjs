@@ -6,6 +6,7 @@
 import { mkdirSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import { launch } from "./launch.mjs";
+import { canvasShot as canvasPng, compare as comparePng, hook as pageHook, settle as settlePage } from "./page.mjs";
 
 const [base, scene, outDir] = process.argv.slice(2);
 if (!base || !scene || !outDir) {
@@ -27,16 +28,7 @@ try {
     if (m.type() === "error" && !faults) out.errors.push(`console: ${m.text()}`);
   });
 
-  const settleOn = async (p) => {
-    await p.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.settled() && window.hdlodViewer.panelSettled(), null, {
-      timeout: 20000,
-      polling: 50,
-    });
-    // One more frame so the canvas shows what the state says.
-    await p.evaluate(() => new Promise((r) => requestAnimationFrame(() => requestAnimationFrame(r))));
-    return p.evaluate(() => window.hdlodViewer.state());
-  };
-  const settle = () => settleOn(page);
+  const settle = () => settlePage(page);
   // The server's own cut for the request the viewer's drawn cut answers.
   const serverCut = (request) =>
     page.evaluate(async ([sceneName, body]) => {
@@ -79,7 +71,7 @@ try {
       };
     }, png.toString("base64"));
   };
-  const hook = (f, arg) => page.evaluate(([body, a]) => new Function("v", "a", `return (${body})(v, a)`)(window.hdlodViewer, a), [f.toString(), arg]);
+  const hook = (f, arg) => pageHook(page, f, arg);
   const api = (p, path) => p.evaluate(async (u) => (await fetch(u)).json(), path);
   const sceneApi = `/api/v1/scenes/${encodeURIComponent(scene)}`;
   // The RGB of one CSS pixel of the page as shown.
@@ -95,39 +87,9 @@ try {
   };
   // Two screenshots of the canvas compared: pixels that differ, and the
   // pixels off the background in each.
-  const compare = async (name, a, b) => {
-    const clip = { x: 0, y: 0, width: WIDTH, height: HEIGHT };
-    for (const [suffix, png] of [["a", a], ["b", b]]) writeFileSync(join(outDir, `${name}-${suffix}.png`), png);
-    return page.evaluate(async ([da, db, clip]) => {
-      const load = async (d) => {
-        const img = await createImageBitmap(await (await fetch(`data:image/png;base64,${d}`)).blob());
-        const c = new OffscreenCanvas(img.width, img.height);
-        const g = c.getContext("2d");
-        g.drawImage(img, 0, 0);
-        return g.getImageData(clip.x, clip.y, clip.width, clip.height).data;
-      };
-      const [pa, pb] = [await load(da), await load(db)];
-      const bg = [219, 227, 237];
-      const off = (px, i) => Math.abs(px[i] - bg[0]) + Math.abs(px[i + 1] - bg[1]) + Math.abs(px[i + 2] - bg[2]) > 12;
-      let differ = 0;
-      let offA = 0;
-      let offB = 0;
-      for (let i = 0; i < pa.length; i += 4) {
-        if (Math.abs(pa[i] - pb[i]) + Math.abs(pa[i + 1] - pb[i + 1]) + Math.abs(pa[i + 2] - pb[i + 2]) > 24) differ++;
-        if (off(pa, i)) offA++;
-        if (off(pb, i)) offB++;
-      }
-      return { pixels: pa.length / 4, differ, offA, offB };
-    }, [a.toString("base64"), b.toString("base64"), clip]);
-  };
+  const compare = (name, a, b) => comparePng(page, outDir, name, a, b, { x: 0, y: 0, width: WIDTH, height: HEIGHT });
   // The canvas alone: the overlays (toolbar, panel, stats) hidden for the shot.
-  const canvasShot = async (p = page) => {
-    const overlays = "#bar, #panel, #stats, #legend, #help";
-    await p.evaluate((sel) => document.querySelectorAll(sel).forEach((e) => (e.style.visibility = "hidden")), overlays);
-    const png = await p.screenshot();
-    await p.evaluate((sel) => document.querySelectorAll(sel).forEach((e) => (e.style.visibility = "")), overlays);
-    return png;
-  };
+  const canvasShot = (p = page) => canvasPng(p);
   const coverage = () => hook((v) => v.featureCoverage());
 
   async function identity() {
@@ -266,7 +228,7 @@ try {
     second.on("pageerror", (e) => out.errors.push(`second page error: ${e.message}`));
     await second.goto(url);
     await second.waitForFunction(() => window.hdlodViewer && window.hdlodViewer.state().search.matches > 0, null, { timeout: 20000 });
-    const b = await settleOn(second);
+    const b = await settlePage(second);
     const shotB = await canvasShot(second);
     const pick = (st) => ({ time: st.time, eye: st.eye, target: st.target, selection: st.selection, search: st.search, distance: st.distance });
     out.roundTrip = { url, a: pick(a), b: pick(b), pixels: await compare("link", shotA, shotB) };

@@ -13,7 +13,7 @@ const JS: &str = "text/javascript; charset=utf-8";
 const CSS: &str = "text/css; charset=utf-8";
 
 /// Name, content type, bytes of every file under `/viewer/`.
-const FILES: [(&str, &str, &str); 10] = [
+const FILES: [(&str, &str, &str); 13] = [
     ("index.html", HTML, include_str!("../../viewer/index.html")),
     ("viewer.css", CSS, include_str!("../../viewer/viewer.css")),
     ("main.js", JS, include_str!("../../viewer/main.js")),
@@ -28,6 +28,13 @@ const FILES: [(&str, &str, &str); 10] = [
         include_str!("../../viewer/featurestate.js"),
     ),
     ("objects.js", JS, include_str!("../../viewer/objects.js")),
+    (
+        "appearance.js",
+        JS,
+        include_str!("../../viewer/appearance.js"),
+    ),
+    ("colours.js", JS, include_str!("../../viewer/colours.js")),
+    ("gantt.js", JS, include_str!("../../viewer/gantt.js")),
 ];
 
 fn file(name: &str) -> Option<Response> {
