@@ -87,6 +87,7 @@ fn objects_and_tasks_follow_the_openapi_document() {
     for o in &columns {
         assert!(o["name"].as_str().unwrap().starts_with("Column L01"), "{o}");
         assert_eq!(o["class"], "IfcColumn");
+        assert_eq!(o["storey"], "Level 01");
     }
     let storey = all_pages(&server, &doc, "objects", "level%2001", 1000);
     assert!(storey.len() > columns.len());

@@ -15,7 +15,7 @@ import { Renderer, classColour, levelColour } from "./renderer.js";
 import { CutConnection, GeometryCache } from "./stream.js";
 import { project } from "./mat4.js";
 import { FeatureState } from "./featurestate.js";
-import { ObjectPanel, objectClasses, objectStoreys, searchObjects } from "./objects.js";
+import { ObjectPanel, objectField, searchObjects } from "./objects.js";
 import { PHASES, TASK_TYPES, running, parseProfile } from "./appearance.js";
 import { FeatureColours, MODES as FEATURE_MODES, naturalOrder } from "./colours.js";
 import { Gantt } from "./gantt.js";
@@ -65,7 +65,7 @@ const viewer = {
   colours: new FeatureColours(), // the per-feature colours of the review modes
   schedule: null, // GET .../schedule
   profileSource: null, // where the profile came from: null (the scene's), a URL or a data: URL
-  review: { pending: true, error: null, categories: {} }, // categories: mode -> {pending, done, error}
+  review: { pending: true, error: null, categories: {} }, // categories: mode -> {pending, error}
   gantt: null, // Gantt
 };
 
@@ -202,7 +202,7 @@ function renderLegend() {
     const entries = viewer.colours.legend().map((e) => entry(e.colour, e.note ? `${e.label} (${e.note})` : e.label)).join("");
     const title = { deviation: "planned against actual", ifc_class: "IFC class", storey: "storey" }[mode];
     html = `<div class="note">${title}</div>${entries}`;
-    if (c && c.pending) html += ` <span class="note">loading ${c.done || 0} of ${viewer.colours.count}&hellip;</span>`;
+    if (c && c.pending) html += ` <span class="note">loading&hellip;</span>`;
     if (c && c.error) html += ` <span class="error">${escapeHtml(c.error)}</span>`;
   }
   if (mode === "appearance" || mode === "deviation") {
@@ -217,16 +217,11 @@ function renderLegend() {
 async function loadCategories(mode) {
   const state = viewer.review.categories;
   if (state[mode] || viewer.features.count === 0) return;
-  const c = { pending: true, done: 0, error: null };
+  const c = { pending: true, error: null };
   state[mode] = c;
   const count = viewer.features.count;
   try {
-    const values = mode === "ifc_class"
-      ? await objectClasses(viewer.sceneUrl, count, getJson)
-      : await objectStoreys(viewer.sceneUrl, count, getJson, (done) => {
-        c.done = done;
-        if (done % 50 === 0 && viewer.colourMode === mode) renderLegend();
-      });
+    const values = await objectField(viewer.sceneUrl, count, mode === "ifc_class" ? "class" : "storey", getJson);
     const names = [...new Set(values.filter((v) => v !== null))].sort(naturalOrder);
     const index = new Map(names.map((n, i) => [n, i]));
     viewer.colours.setCategories(mode, names, Int32Array.from(values, (v) => (v === null ? -1 : index.get(v))));

@@ -117,43 +117,18 @@ export async function searchObjects(base, q, getJson) {
   return indices;
 }
 
-// Every object's class, by index (null for none): the whole object list,
-// a page at a time.
-export async function objectClasses(base, count, getJson) {
-  const classes = new Array(count).fill(null);
+// Every object's class or storey (`field` of the list items), by index,
+// null for none: the whole object list, a page at a time.
+export async function objectField(base, count, field, getJson) {
+  const values = new Array(count).fill(null);
   let cursor = null;
   do {
     const page = await getJson(`${base}/objects?limit=${SEARCH_PAGE}${cursor ? `&cursor=${encodeURIComponent(cursor)}` : ""}`);
-    for (const item of page.items) if (item.index < count) classes[item.index] = item.class;
+    for (const item of page.items) {
+      const v = item[field];
+      if (item.index < count) values[item.index] = v === undefined || v === null || v === "" ? null : String(v);
+    }
     cursor = page.next;
   } while (cursor);
-  return classes;
-}
-
-// Objects whose storeys the viewer asks for one by one, at most: the
-// object list does not carry properties, so each storey is one object
-// answer (docs/viewer.md).
-export const STOREY_LOOKUPS = 5000;
-const STOREY_REQUESTS = 6;
-
-// Every object's storey property, by index (null for none), asked object
-// by object with a few requests in flight; progress(done) as they come.
-export async function objectStoreys(base, count, getJson, progress) {
-  if (count > STOREY_LOOKUPS) {
-    throw new Error(`${count.toLocaleString("en-US")} objects: too many to ask for their storeys one by one (the object list carries no properties)`);
-  }
-  const storeys = new Array(count).fill(null);
-  let next = 0;
-  let done = 0;
-  const worker = async () => {
-    while (next < count) {
-      const i = next++;
-      const o = await getJson(`${base}/objects/${i}?by=index`);
-      const storey = o.properties.storey;
-      storeys[i] = storey === undefined || storey === null || storey === "" ? null : String(storey);
-      progress(++done);
-    }
-  };
-  await Promise.all(Array.from({ length: STOREY_REQUESTS }, worker));
-  return storeys;
+  return values;
 }

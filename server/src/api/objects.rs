@@ -18,8 +18,8 @@ use axum::extract::rejection::PathRejection;
 use axum::extract::{FromRequestParts, Path, Query, State};
 use axum::http::request::Parts;
 use axum::response::{IntoResponse, Response};
-use hdlod::scene::Class;
 use hdlod::scene::status::{Deviation, Progress};
+use hdlod::scene::{Class, property};
 use hdlod::time::{TimeValue, format_date};
 use hdlod::tree::objects::{ObjectEntry, ObjectTables, TaskEntry};
 use serde::Serialize;
@@ -201,6 +201,8 @@ struct ObjectItem<'a> {
     id: &'a str,
     name: Option<&'a str>,
     class: Option<&'a str>,
+    /// The `storey` property, which the viewer colours by.
+    storey: Option<&'a str>,
     visibility_class: Class,
     url: String,
 }
@@ -212,6 +214,7 @@ impl<'a> ObjectItem<'a> {
             id: &o.id,
             name: o.name.as_deref(),
             class: o.class.as_deref(),
+            storey: o.properties.get(property::STOREY).map(String::as_str),
             visibility_class: o.visibility_class,
             url: object_url(scene, &o.id),
         }
