@@ -497,8 +497,10 @@ fn as_built_logs_date_the_plan_by_id_then_by_name() {
     );
     let task = |id: &str| scene.tasks.iter().find(|t| t.id == id).unwrap();
     let at = |d: &str| scene.time.seconds_of(parse_date(d).unwrap());
-    // Walls 4: from its first element's start to the end of its last day.
-    assert_eq!(task("4").actual.start, Some(at("2024-03-04")));
+    // Walls 4: from its first element's start to the end of its last day;
+    // the log gives days, and the start's day is the planned one, so the
+    // planned hour stands for it.
+    assert_eq!(task("4").actual.start, Some(at("2024-03-04T08:00:00Z")));
     assert_eq!(task("4").actual.finish, Some(at("2024-03-13")));
     // Slabs: started, not finished while an element is still to do.
     assert_eq!(task("3").actual.start, Some(at("2024-02-06")));

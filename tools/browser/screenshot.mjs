@@ -1,14 +1,17 @@
-// The documentation's screenshot of the 4D review (docs/viewer-review.png):
-//   node tools/browser/screenshot.mjs BASE_URL SCENE OUT.png
+// The documentation's screenshots of the 4D review (docs/viewer-review.png,
+// docs/schependomlaan-review.png):
+//   node tools/browser/screenshot.mjs BASE_URL SCENE OUT.png [whole]
 // The planned against actual mode with the Gantt chart open, near the
-// tower, at the time (of 120 through the period) when late objects cover
-// the most pixels while others are at work on time or early; the chart
-// scrolled to the task of the object drawn late over most pixels.
-// scripts/viewer-screenshots runs it on the tiny site.
+// tower (or, with `whole`, the viewer's own framing of the whole scene),
+// at the time (of 120 through the period) when late objects cover the most
+// pixels while others are at work on time or early, or, where nothing is
+// ever late, when early objects cover the most; the chart scrolled to the
+// task of the object drawn late (else early) over most pixels.
+// scripts/viewer-screenshots runs it.
 import { launch } from "./launch.mjs";
 import { hook, settle } from "./page.mjs";
 
-const [base, scene, file] = process.argv.slice(2);
+const [base, scene, file, framing] = process.argv.slice(2);
 if (!base || !scene || !file) {
   console.error("usage: node screenshot.mjs BASE_URL SCENE OUT.png");
   process.exit(2);
@@ -20,7 +23,9 @@ try {
   page.on("pageerror", (e) => errors.push(e.message));
   await page.goto(`${base}/?scene=${encodeURIComponent(scene)}&time=0&colour=deviation&gantt=1`);
   let s = await settle(page);
-  await hook(page, (v) => v.setCamera({ target: [0, 10, 0], distance: 55, azimuth: 0.75, elevation: 0.42 }));
+  if (framing !== "whole") {
+    await hook(page, (v) => v.setCamera({ target: [0, 10, 0], distance: 55, azimuth: 0.75, elevation: 0.42 }));
+  }
   const LATE = "217,48,37";
   const EARLY = "47,179,68";
   const ON_TIME = "59,130,246";
@@ -38,12 +43,16 @@ try {
         const key = l.slice(0, 3).join(",");
         by[key] = (by[key] || 0) + n;
         if (key === "217,48,37" && (!by.top || n > by.top[1])) by.top = [Number(id), n];
+        if (key === "47,179,68" && (!by.topEarly || n > by.topEarly[1])) by.topEarly = [Number(id), n];
       }
       return by;
     });
     const others = (counts[EARLY] || 0) + (counts[ON_TIME] || 0);
     const score = others > 0 ? counts[LATE] || 0 : 0;
-    if (!best || score > best.score) best = { t, score, top: counts.top };
+    const early = counts[EARLY] || 0;
+    if (!best || score > best.score || (score === best.score && early > best.early)) {
+      best = { t, score, early, top: counts.top || counts.topEarly };
+    }
   }
   await hook(page, (v, [t, top]) => {
     v.setTime(t);

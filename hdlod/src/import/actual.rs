@@ -7,7 +7,10 @@
 //! column, one name). It started at its rows' first start and finished at
 //! their last finish once every row has one; a row without a finish is
 //! still running, one without dates has not started. A finish given as a
-//! day is the end of that day, as in the links CSV.
+//! day is the end of that day, as in the links CSV. A log that gives days
+//! says nothing of the hour: where its day is the day of the planned
+//! instant, the planned instant stands for it, so a task finished on its
+//! planned day is on time, not late by the evening hours.
 //!
 //! Logs and plans often come from different tools, so a log's task is
 //! matched to the schedule by id first, else by name: equal names after
@@ -45,6 +48,8 @@ pub struct LogTask {
     pub actual: Recorded,
     /// Its rows in the file.
     pub rows: usize,
+    /// Every date of its rows was given as a day, with no time of day.
+    pub by_day: bool,
 }
 
 /// What the as-built logs gave (schemas/import-report.schema.json,
@@ -95,6 +100,7 @@ pub fn read(path: &Path) -> Result<Log> {
         last: Option<DateTime<Utc>>,
         finished: bool,
     }
+    let day_only = |text: &str| text.is_empty() || !text.contains('T');
     let mut tasks: Vec<Acc> = Vec::new();
     let mut by_key: HashMap<String, usize> = HashMap::new();
     for row in table.rows() {
@@ -131,6 +137,7 @@ pub fn read(path: &Path) -> Result<Log> {
                     name: task_name.to_string(),
                     actual: Recorded::default(),
                     rows: 0,
+                    by_day: true,
                 },
                 first: None,
                 last: None,
@@ -140,6 +147,7 @@ pub fn read(path: &Path) -> Result<Log> {
         });
         let acc = &mut tasks[k];
         acc.task.rows += 1;
+        acc.task.by_day &= day_only(field(Some(start))) && day_only(field(Some(finish)));
         if let Some(s) = record.start {
             acc.first = Some(acc.first.map_or(s, |f| f.min(s)));
         }
@@ -243,10 +251,43 @@ pub fn apply(schedule: &mut [ScheduleTask], logs: &[Log], warnings: &mut Vec<Str
         } else {
             None
         };
+        let (start, finish) = if recs.iter().all(|(_, t)| t.by_day) {
+            on_planned_day(task, start, finish)
+        } else {
+            (start, finish)
+        };
         task.actual = Recorded { start, finish };
         report.dated += usize::from(start.is_some());
     }
     report
+}
+
+/// Day-given actual dates with the planned instant where the day is the
+/// planned one: a start on the planned start's day (from its midnight), a
+/// finish at the end of the planned finish's day.
+fn on_planned_day(
+    task: &ScheduleTask,
+    start: Option<DateTime<Utc>>,
+    finish: Option<DateTime<Utc>>,
+) -> (Option<DateTime<Utc>>, Option<DateTime<Utc>>) {
+    let day = chrono::Duration::days(1);
+    let start = start.map(|s| {
+        if (s..s + day).contains(&task.start) {
+            task.start
+        } else {
+            s
+        }
+    });
+    let finish = finish.map(|f| {
+        if task.finish > f - day && task.finish <= f {
+            task.finish
+        } else {
+            f
+        }
+    });
+    // A snapped start may pass an unsnapped finish on the same day.
+    let finish = finish.map(|f| start.map_or(f, |s| f.max(s)));
+    (start, finish)
 }
 
 /// The schedule task a log task names: its name, or the last part of a
