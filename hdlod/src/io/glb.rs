@@ -371,18 +371,7 @@ impl GlbBuilder {
         min_max: Option<(Vec<f32>, Vec<f32>)>,
     ) -> json::Index<json::Accessor> {
         // Every attribute is 4-byte components, so the buffer stays aligned.
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(bytes);
-        let view = self.root.push(json::buffer::View {
-            buffer: json::Index::new(0),
-            byte_length: USize64::from(bytes.len()),
-            byte_offset: Some(USize64::from(offset)),
-            byte_stride: None,
-            name: None,
-            target: Some(Valid(target)),
-            extensions: None,
-            extras: None,
-        });
+        let view = self.push_view(bytes, Some(Valid(target)));
         let (min, max) = match min_max {
             Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
             None => (None, None),
@@ -440,6 +429,26 @@ impl GlbBuilder {
         })
     }
 
+    /// Appends `bytes` to the buffer where it ends now, as a buffer view.
+    fn push_view(
+        &mut self,
+        bytes: &[u8],
+        target: Option<json::validation::Checked<json::buffer::Target>>,
+    ) -> json::Index<json::buffer::View> {
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(bytes);
+        self.root.push(json::buffer::View {
+            buffer: json::Index::new(0),
+            byte_length: USize64::from(bytes.len()),
+            byte_offset: Some(USize64::from(offset)),
+            byte_stride: None,
+            name: None,
+            target,
+            extensions: None,
+            extras: None,
+        })
+    }
+
     /// A buffer view of raw bytes (no accessor, no target), starting 8-byte
     /// aligned; its index.
     fn raw_view(&mut self, bytes: &[u8]) -> usize {
@@ -447,18 +456,7 @@ impl GlbBuilder {
         // unused one.
         let bytes = if bytes.is_empty() { &[0u8][..] } else { bytes };
         self.bin.resize(self.bin.len().next_multiple_of(8), 0);
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(bytes);
-        let view = self.root.push(json::buffer::View {
-            buffer: json::Index::new(0),
-            byte_length: USize64::from(bytes.len()),
-            byte_offset: Some(USize64::from(offset)),
-            byte_stride: None,
-            name: None,
-            target: None,
-            extensions: None,
-            extras: None,
-        });
+        let view = self.push_view(bytes, None);
         // Later attributes start 4-byte aligned again.
         self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         view.value()

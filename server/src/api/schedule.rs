@@ -93,12 +93,18 @@ fn schedule_of(s: &LoadedScene, tables: &ObjectTables) -> Cached {
     })
 }
 
-fn no_query(query: Result<Query<Vec<(String, String)>>, QueryRejection>) -> Result<(), ApiError> {
+/// The scene a route names, for a request that takes no query parameter.
+fn scene_of(
+    state: &AppState,
+    scene: Result<Path<String>, PathRejection>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+) -> Result<Arc<LoadedScene>, ApiError> {
+    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
-    match pairs.first() {
-        Some((key, _)) => Err(ApiError::bad(key, "unknown query parameter")),
-        None => Ok(()),
+    if let Some((key, _)) = pairs.first() {
+        return Err(ApiError::bad(key, "unknown query parameter"));
     }
+    find(state, &scene)
 }
 
 pub async fn schedule(
@@ -107,9 +113,7 @@ pub async fn schedule(
     query: Result<Query<Vec<(String, String)>>, QueryRejection>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
-    no_query(query)?;
-    let s = find(&state, &scene)?;
+    let s = scene_of(&state, scene, query)?;
     let tables = tables(&s)?;
     Ok(s.schedule
         .get_or_init(|| schedule_of(&s, tables))
@@ -122,9 +126,7 @@ pub async fn appearance(
     query: Result<Query<Vec<(String, String)>>, QueryRejection>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
-    no_query(query)?;
-    let s = find(&state, &scene)?;
+    let s = scene_of(&state, scene, query)?;
     let own = s.tree.objects.as_ref().and_then(ObjectTables::appearance);
     Ok(s.appearance
         .get_or_init(|| Cached::of(&own.cloned().unwrap_or_default().to_file()))
