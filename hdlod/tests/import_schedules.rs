@@ -135,13 +135,14 @@ fn link_csv_groups_rows_by_task() {
 fn schedules_by_extension() {
     let dir = tempfile::tempdir().unwrap();
     // IFC4 tasks from another file.
-    let tasks = hdlod::import::read_schedule(&tiny()).unwrap();
+    let tasks = hdlod::import::read_schedule(&tiny(), &Default::default()).unwrap();
     assert_eq!(tasks.len(), 2);
-    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.ifc", "hello"))
-        .unwrap_err()
-        .to_string();
+    let e =
+        hdlod::import::read_schedule(&write(dir.path(), "plan.ifc", "hello"), &Default::default())
+            .unwrap_err()
+            .to_string();
     assert!(e.contains("plan.ifc") && e.contains("FILE_SCHEMA"), "{e}");
-    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.mpp", ""))
+    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.mpp", ""), &Default::default())
         .unwrap_err()
         .to_string();
     assert!(e.contains("plan.mpp") && e.contains(".xml"), "{e}");
@@ -569,6 +570,114 @@ fn bad_as_built_rows_name_the_line_and_column() {
     let e = run("e.csv", "Task,TaskName,Start,Finish\n,,1-2-2024,2-2-2024\n");
     assert!(
         e.contains("line 2") && e.contains("no task id or name"),
+        "{e}"
+    );
+}
+
+/// `PLAN` with links and custom fields: Slabs 2 days after Walls (2), the
+/// second Walls (4) with Slabs (SS), Handover after everything else.
+const LINKED: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<Project xmlns="http://schemas.microsoft.com/project">
+  <ExtendedAttributes>
+    <ExtendedAttribute><FieldID>188743731</FieldID><FieldName>Text1</FieldName><Alias>Zone</Alias></ExtendedAttribute>
+    <ExtendedAttribute><FieldID>188743734</FieldID><FieldName>Text2</FieldName></ExtendedAttribute>
+  </ExtendedAttributes>
+  <Tasks>
+    <Task><UID>1</UID><Name>Shell</Name><WBS>1</WBS><OutlineLevel>1</OutlineLevel><Summary>1</Summary>
+      <Start>2024-01-08T08:00:00</Start><Finish>2024-03-29T17:00:00</Finish></Task>
+    <Task><UID>2</UID><Name>Walls</Name><WBS>1.1</WBS><OutlineLevel>2</OutlineLevel>
+      <Start>2024-01-08T08:00:00</Start><Finish>2024-01-12T17:00:00</Finish>
+      <ExtendedAttribute><FieldID>188743731</FieldID><Value>North</Value></ExtendedAttribute>
+      <ExtendedAttribute><FieldID>188743734</FieldID><Value>masonry</Value></ExtendedAttribute></Task>
+    <Task><UID>3</UID><Name>Slabs</Name><WBS>1.2</WBS><OutlineLevel>2</OutlineLevel>
+      <Start>2024-02-05T08:00:00</Start><Finish>2024-02-09T17:00:00</Finish>
+      <PredecessorLink><PredecessorUID>2</PredecessorUID><Type>1</Type><LinkLag>9600</LinkLag><LagFormat>7</LagFormat></PredecessorLink>
+      <ExtendedAttribute><FieldID>188743731</FieldID><Value>South</Value></ExtendedAttribute></Task>
+    <Task><UID>4</UID><Name>Walls</Name><WBS>1.3</WBS><OutlineLevel>2</OutlineLevel>
+      <Start>2024-03-04T08:00:00</Start><Finish>2024-03-08T17:00:00</Finish>
+      <PredecessorLink><PredecessorUID>3</PredecessorUID><Type>3</Type></PredecessorLink>
+      <PredecessorLink><PredecessorUID>77</PredecessorUID><CrossProject>1</CrossProject></PredecessorLink></Task>
+    <Task><UID>5</UID><Name>Handover</Name><WBS>2</WBS><OutlineLevel>1</OutlineLevel>
+      <Start>2024-04-02T08:00:00</Start><Finish>2024-04-02T17:00:00</Finish>
+      <PredecessorLink><PredecessorUID>4</PredecessorUID><Type>0</Type><LinkLag>-4800</LinkLag></PredecessorLink>
+      <PredecessorLink><PredecessorUID>3</PredecessorUID><Type>2</Type><LinkLag>500</LinkLag><LagFormat>19</LagFormat></PredecessorLink></Task>
+  </Tasks>
+</Project>"#;
+
+#[test]
+fn ms_project_links_and_custom_fields() {
+    use hdlod::scene::{LinkType, Predecessor};
+    let dir = tempfile::tempdir().unwrap();
+    let tasks = msproject::read(&write(dir.path(), "linked.xml", LINKED)).unwrap();
+    let links = |k: usize| -> Vec<(&str, LinkType, f64)> {
+        tasks[k]
+            .predecessors
+            .iter()
+            .map(|p| (p.task.as_str(), p.kind, p.lag / 3600.0))
+            .collect()
+    };
+    assert!(links(0).is_empty() && links(1).is_empty());
+    // 9600 tenths of a minute: 16 hours; a percent lag reads as none.
+    assert_eq!(links(2), [("2", LinkType::FinishStart, 16.0)]);
+    assert_eq!(links(3), [("3", LinkType::StartStart, 0.0)]);
+    assert_eq!(
+        links(4),
+        [
+            ("4", LinkType::FinishFinish, -8.0),
+            ("3", LinkType::StartFinish, 0.0)
+        ]
+    );
+    assert_eq!(tasks[1].fields["Zone"], "North");
+    assert_eq!(tasks[1].fields["Text2"], "masonry");
+    assert_eq!(tasks[2].fields["Zone"], "South");
+    assert_eq!(tasks[2].wbs.as_deref(), Some("1.2"));
+
+    // Rules on the fields and the WBS; the scene keeps the link between
+    // its two tasks.
+    let links_file = rules(
+        dir.path(),
+        r#"[{"name": "north", "select": {"class": "IfcWall"}, "tasks": {"fields": {"Zone": "north"}}},
+            {"name": "slab", "select": {"class": "IfcSlab"}, "tasks": {"wbs": "1.2", "name": "*slabs"}}]"#,
+    );
+    let options = Options {
+        name: "tiny".into(),
+        schedule: Some(write(dir.path(), "linked.xml", LINKED)),
+        links: Some(links_file),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny()], &options, &|_| {}).unwrap();
+    let slabs = scene.tasks.iter().find(|t| t.id == "3").unwrap();
+    assert_eq!(
+        slabs.predecessors,
+        [Predecessor {
+            task: "2".into(),
+            kind: LinkType::FinishStart,
+            lag: 16.0 * 3600.0
+        }]
+    );
+    assert_eq!((report.links, report.links_outside), (1, 0));
+
+    // A cycle, and a link of no known type.
+    let cycle = LINKED.replace(
+        "<Task><UID>2</UID><Name>Walls</Name><WBS>1.1</WBS><OutlineLevel>2</OutlineLevel>",
+        "<Task><UID>2</UID><Name>Walls</Name><WBS>1.1</WBS><OutlineLevel>2</OutlineLevel>\
+         <PredecessorLink><PredecessorUID>5</PredecessorUID></PredecessorLink>",
+    );
+    let e = msproject::read(&write(dir.path(), "cycle.xml", &cycle))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("cycle.xml")
+            && e.contains("PredecessorLink")
+            && e.contains("2 -> 3 -> 4 -> 5 -> 2"),
+        "{e}"
+    );
+    let bad = LINKED.replace("<Type>3</Type>", "<Type>7</Type>");
+    let e = msproject::read(&write(dir.path(), "bad.xml", &bad))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("Task[3]/PredecessorLink[0]/Type") && e.contains("\"7\""),
         "{e}"
     );
 }
