@@ -14,7 +14,9 @@ pub mod ifc;
 pub mod ifc_tasks;
 pub mod links_csv;
 pub mod msproject;
+pub mod pmxml;
 pub mod rules;
+mod wbs;
 pub mod xer;
 pub mod xlsx;
 
@@ -710,10 +712,22 @@ fn extension(path: &Path) -> String {
         .unwrap_or_default()
 }
 
+/// Whether an `.xml` file is P6 XML rather than Project XML: its root
+/// element, `APIBusinessObjects`, opens its first few kilobytes.
+fn is_p6_xml(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut head = Vec::with_capacity(4096);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(4096).read_to_end(&mut head))
+        .map_err(|e| Error::io(path, e))?;
+    Ok(String::from_utf8_lossy(&head).contains("<APIBusinessObjects"))
+}
+
 /// Reads a schedule by its extension (and, for `.xml`, its root element).
 pub fn read_schedule(path: &Path, source: &Source) -> Result<Vec<ScheduleTask>> {
     let ext = extension(path);
-    let multi = matches!(ext.as_str(), "xer");
+    let p6_xml = ext == "xml" && is_p6_xml(path)?;
+    let multi = ext == "xer" || p6_xml;
     if source.project.is_some() && !multi {
         return Err(Error::argument(
             "project",
@@ -725,6 +739,7 @@ pub fn read_schedule(path: &Path, source: &Source) -> Result<Vec<ScheduleTask>> 
     }
     match ext.as_str() {
         "xer" => xer::read(path, source.project.as_deref()),
+        "xml" if p6_xml => pmxml::read(path, source.project.as_deref()),
         "xml" => msproject::read(path),
         "csv" => links_csv::read(path),
         "xlsx" => xlsx::read(path, &source.mapping.clone().unwrap_or_default()),
@@ -739,7 +754,7 @@ pub fn read_schedule(path: &Path, source: &Source) -> Result<Vec<ScheduleTask>> 
             "schedule",
             format!(
                 "{}: unknown schedule format; expected .xer (Primavera P6), .xml (Microsoft \
-                 Project), .xlsx (a task list), .csv (element-task links) or .ifc/.ifczip \
+                 Project or P6 XML), .xlsx (a task list), .csv (element-task links) or .ifc/.ifczip \
                  (IFC4 tasks)",
                 path.display()
             ),

@@ -38,6 +38,7 @@ use std::path::Path;
 
 use chrono::{DateTime, NaiveDate, NaiveDateTime, Utc};
 
+use super::wbs::{RawNode, Wbs};
 use super::{Recorded, ScheduleTask, check_links};
 use crate::error::{Error, Result};
 use crate::scene::{LinkType, Predecessor};
@@ -50,7 +51,7 @@ const TABLES: [&str; 9] = [
 
 /// Dates outside these years are taken for mistakes (P6 itself keeps
 /// dates within them).
-const YEARS: std::ops::RangeInclusive<i32> = 1900..=2200;
+pub(super) const YEARS: std::ops::RangeInclusive<i32> = 1900..=2200;
 
 /// One table: its field names and rows (fields borrowed from the text).
 struct Table<'a> {
@@ -375,7 +376,7 @@ pub fn read(path: &Path, project: Option<&str>) -> Result<Vec<ScheduleTask>> {
     )?;
 
     let wbs = match tables.get("PROJWBS") {
-        Some(t) => Wbs::read(path, t, &chosen)?,
+        Some(t) => read_wbs(path, t, &chosen)?,
         None => Wbs::default(),
     };
 
@@ -510,166 +511,33 @@ fn choose_project(
     }
 }
 
-/// One WBS node of the project.
-#[derive(Debug, Clone, Default)]
-struct Node {
-    /// Its code path from the project's node (`TWR.L01`).
-    code: String,
-    /// Its names below the project's node (`Level 1 / Frame`).
-    names: String,
-    /// A node below the project's root, which becomes a summary task.
-    summary: bool,
-    /// Its parent node's code path when that is a summary task.
-    parent: Option<String>,
-}
-
-/// The project's work breakdown: `wbs_id` -> node.
-#[derive(Default)]
-struct Wbs {
-    nodes: HashMap<String, Node>,
-    /// Node ids in file order.
-    order: Vec<String>,
-}
-
-impl Wbs {
-    fn read(path: &Path, t: &Table, project: &str) -> Result<Wbs> {
-        let (id, proj, parent, short, name) = (
-            t.column(path, "wbs_id")?,
-            t.column(path, "proj_id")?,
-            t.column(path, "parent_wbs_id")?,
-            t.column(path, "wbs_short_name")?,
-            t.column(path, "wbs_name")?,
-        );
-        let root_flag = t.optional("proj_node_flag");
-        // wbs_id -> (parent, short name, name, is the project's node).
-        let mut raw: HashMap<&str, (&str, &str, &str, bool)> = HashMap::new();
-        let mut order = Vec::new();
-        for row in rows(t).filter(|r| r.get(&proj).trim() == project) {
-            let key = row.get(&id).trim();
-            raw.insert(
-                key,
-                (
-                    row.get(&parent).trim(),
-                    row.get(&short).trim(),
-                    row.get(&name).trim(),
-                    row.opt(&root_flag).trim() == "Y",
-                ),
-            );
-            order.push(key.to_string());
-        }
-        let mut nodes = HashMap::new();
-        for key in &order {
-            // The chain up to the project's node or to a parent outside
-            // the project; a cycle of parents is an error.
-            let mut chain = Vec::new();
-            let mut at = key.as_str();
-            while let Some(&(up, ..)) = raw.get(at) {
-                if chain.contains(&at) {
-                    return Err(Error::invalid(
-                        path,
-                        format!("PROJWBS wbs_id {key}, field parent_wbs_id"),
-                        "the WBS parents form a cycle",
-                    ));
-                }
-                chain.push(at);
-                if raw[at].3 {
-                    break;
-                }
-                at = up;
-            }
-            chain.reverse();
-            let code: Vec<&str> = chain.iter().map(|k| raw[k].1).collect();
-            let names: Vec<&str> = chain
-                .iter()
-                .filter(|k| !raw[**k].3)
-                .map(|k| raw[k].2)
-                .collect();
-            let summary = !raw[key.as_str()].3;
-            let parent = (chain.len() >= 2 && !raw[chain[chain.len() - 2]].3)
-                .then(|| code[..code.len() - 1].join("."));
-            nodes.insert(
-                key.clone(),
-                Node {
-                    code: code.join("."),
-                    names: names.join(" / "),
-                    summary,
-                    parent,
-                },
-            );
-        }
-        Ok(Wbs { nodes, order })
-    }
-
-    fn node(&self, wbs_id: &str) -> Option<&Node> {
-        self.nodes.get(wbs_id)
-    }
-
-    /// The summary tasks: each node below the project's, spanning the
-    /// activities below it (actual: from their first actual start,
-    /// finished once all have finished). Nodes with no activity below are
-    /// left out.
-    fn summaries(&self, tasks: &[ScheduleTask]) -> Vec<ScheduleTask> {
-        let by_code: HashMap<&str, &Node> =
-            self.nodes.values().map(|n| (n.code.as_str(), n)).collect();
-        let mut span: HashMap<&str, Span> = HashMap::new();
-        for t in tasks {
-            let mut at = t.parent.as_deref();
-            while let Some(code) = at {
-                span.entry(code).or_default().add(t);
-                at = by_code.get(code).and_then(|n| n.parent.as_deref());
-            }
-        }
-        self.order
-            .iter()
-            .filter_map(|k| {
-                let n = &self.nodes[k];
-                let s = span.get(n.code.as_str())?;
-                let (start, finish) = s.planned?;
-                let name = n.names.clone();
-                Some(ScheduleTask {
-                    actual: s.actual(),
-                    parent: n.parent.clone(),
-                    wbs: Some(n.code.clone()),
-                    ..ScheduleTask::planned(n.code.clone(), name, start, finish)
-                })
-            })
-            .collect()
-    }
-}
-
-/// What a summary spans of the activities below it.
-#[derive(Default)]
-struct Span {
-    planned: Option<(DateTime<Utc>, DateTime<Utc>)>,
-    actual_start: Option<DateTime<Utc>>,
-    actual_finish: Option<DateTime<Utc>>,
-    all_finished: bool,
-    count: usize,
-}
-
-impl Span {
-    fn add(&mut self, t: &ScheduleTask) {
-        self.planned = Some(match self.planned {
-            Some((s, f)) => (s.min(t.start), f.max(t.finish)),
-            None => (t.start, t.finish),
-        });
-        if let Some(s) = t.actual.start {
-            self.actual_start = Some(self.actual_start.map_or(s, |a| a.min(s)));
-        }
-        let finished = t.actual.finish;
-        if let Some(f) = finished {
-            self.actual_finish = Some(self.actual_finish.map_or(f, |a| a.max(f)));
-        }
-        self.all_finished = (self.count == 0 || self.all_finished) && finished.is_some();
-        self.count += 1;
-    }
-
-    fn actual(&self) -> Recorded {
-        Recorded {
-            start: self.actual_start,
-            finish: self.actual_finish.filter(|_| self.all_finished),
-        }
-    }
+/// `PROJWBS`: the project's WBS nodes.
+fn read_wbs(path: &Path, t: &Table, project: &str) -> Result<Wbs> {
+    let (id, proj, parent, short, name) = (
+        t.column(path, "wbs_id")?,
+        t.column(path, "proj_id")?,
+        t.column(path, "parent_wbs_id")?,
+        t.column(path, "wbs_short_name")?,
+        t.column(path, "wbs_name")?,
+    );
+    let root_flag = t.optional("proj_node_flag");
+    let nodes: Vec<RawNode> = rows(t)
+        .filter(|r| r.get(&proj).trim() == project)
+        .map(|row| RawNode {
+            id: row.get(&id).trim(),
+            parent: row.get(&parent).trim(),
+            short: row.get(&short).trim(),
+            name: row.get(&name).trim(),
+            root: row.opt(&root_flag).trim() == "Y",
+        })
+        .collect();
+    Wbs::new(&nodes).map_err(|key| {
+        Error::invalid(
+            path,
+            format!("PROJWBS wbs_id {key}, field parent_wbs_id"),
+            "the WBS parents form a cycle",
+        )
+    })
 }
 
 /// `TASKPRED`: the links among the project's activities. A link from an
