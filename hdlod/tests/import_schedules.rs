@@ -681,3 +681,73 @@ fn ms_project_links_and_custom_fields() {
         "{e}"
     );
 }
+
+/// The tiny model with property sets: the wall's own (fire rating, and
+/// external) and its type's (a rating the wall's own set overrides, and an
+/// acoustic rating).
+fn tiny_with_psets(dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(tiny()).unwrap();
+    let psets = "\
+#300=IFCPROPERTYSINGLEVALUE('FireRating',$,IFCLABEL('REI60'),$);
+#301=IFCPROPERTYSINGLEVALUE('IsExternal',$,IFCBOOLEAN(.T.),$);
+#302=IFCPROPERTYSET('3PsetTinyHdlod00000001',$,'Pset_WallCommon',$,(#300,#301));
+#303=IFCRELDEFINESBYPROPERTIES('3RelPTinyHdlod00000001',$,$,$,(#40),#302);
+#310=IFCPROPERTYSINGLEVALUE('FireRating',$,IFCLABEL('REI30'),$);
+#311=IFCPROPERTYSINGLEVALUE('AcousticRating',$,IFCLABEL('45 dB'),$);
+#312=IFCPROPERTYSET('3PsetTinyHdlod00000002',$,'Pset_WallCommon',$,(#310,#311));
+#313=IFCWALLTYPE('3TypeTinyHdlod00000001',$,'brick wall',$,$,(#312),$,$,$,.SOLIDWALL.);
+#314=IFCRELDEFINESBYTYPE('3RelTTinyHdlod00000001',$,$,$,(#40),#313);
+ENDSEC;
+END-ISO-10303-21;";
+    let at = text.rfind("ENDSEC;").unwrap();
+    let path = dir.join("tiny-psets.ifc");
+    std::fs::write(&path, format!("{}{psets}\n", &text[..at])).unwrap();
+    path
+}
+
+#[test]
+fn rules_select_by_property_set_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let links = rules(
+        dir.path(),
+        r#"[{"name": "fire-rated external walls", "task": "2",
+             "select": {"properties": {"Pset_WallCommon.FireRating": "REI6?",
+                                       "Pset_WallCommon.IsExternal": "true",
+                                       "Pset_WallCommon.AcousticRating": "45*"}}}]"#,
+    );
+    let options = Options {
+        name: "tiny".into(),
+        schedule: Some(write(dir.path(), "plan.xml", PLAN)),
+        links: Some(links),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny_with_psets(dir.path())], &options, &|_| {}).unwrap();
+    assert_eq!(report.rules[0].matched, 1);
+    let wall = scene
+        .objects
+        .iter()
+        .find(|o| o.id == "2WallTinyHdlod00000001")
+        .unwrap();
+    // Only the properties a rule names are imported; the element's own
+    // value wins over its type's.
+    let psets: Vec<(&str, &str)> = wall
+        .properties
+        .iter()
+        .filter(|(k, _)| k.starts_with("Pset_"))
+        .map(|(k, v)| (k.as_str(), v.as_str()))
+        .collect();
+    assert_eq!(
+        psets,
+        [
+            ("Pset_WallCommon.AcousticRating", "45 dB"),
+            ("Pset_WallCommon.FireRating", "REI60"),
+            ("Pset_WallCommon.IsExternal", "true")
+        ]
+    );
+    let slab = scene
+        .objects
+        .iter()
+        .find(|o| o.id == "2SlabTinyHdlod00000001")
+        .unwrap();
+    assert!(!slab.properties.keys().any(|k| k.starts_with("Pset_")));
+}

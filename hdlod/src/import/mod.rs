@@ -15,6 +15,7 @@ pub mod ifc_tasks;
 pub mod links_csv;
 pub mod msproject;
 pub mod pmxml;
+mod psets;
 pub mod rules;
 mod wbs;
 pub mod xer;
@@ -278,11 +279,15 @@ pub fn import(
         return Err(Error::argument("models", "no IFC model given"));
     }
     let name = &options.name;
+    let psets = match &options.links {
+        Some(links) => rules::property_sets(links)?,
+        None => HashSet::new(),
+    };
     let read: Vec<(f64, ifc::Model)> = models
         .par_iter()
         .map(|path| {
             let t = Instant::now();
-            let model = ifc::read(path)?;
+            let model = ifc::read_with(path, &psets)?;
             progress(path);
             Ok((t.elapsed().as_secs_f64(), model))
         })
@@ -330,6 +335,7 @@ pub fn import(
             if let Some(s) = e.storey {
                 properties.insert(rules::STOREY.to_string(), s);
             }
+            properties.extend(e.properties);
             objects.push(Object {
                 id: e.id,
                 mesh: meshes.len(),

@@ -222,6 +222,20 @@ fn parse(path: &Path) -> Result<RulesFile> {
     Ok(file)
 }
 
+/// The property-set properties the rules name (`Pset_WallCommon.FireRating`
+/// in `select.properties` or as a `match` property): the IFC reader
+/// imports their values.
+pub fn property_sets(path: &Path) -> Result<std::collections::HashSet<String>> {
+    let file = parse(path)?;
+    Ok(file
+        .rules
+        .iter()
+        .flat_map(|r| r.select.properties.keys().chain(r.join.keys()))
+        .filter(|k| k.contains('.'))
+        .cloned()
+        .collect())
+}
+
 /// The rules file's spreadsheet mapping, if it has one: an unknown column
 /// name is an error naming it.
 pub fn read_mapping(path: &Path) -> Result<Option<Mapping>> {

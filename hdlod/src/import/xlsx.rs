@@ -324,17 +324,18 @@ fn date_of(cell: &Data) -> std::result::Result<Option<DateTime<Utc>>, String> {
     Ok(Some(date))
 }
 
+/// A predecessor as Project writes it, compiled once.
+static PREDECESSOR: std::sync::LazyLock<regex::Regex> = std::sync::LazyLock::new(|| {
+    regex::Regex::new(r"^(?P<id>.+?)(?P<type>FS|SS|FF|SF)?(?:\s*(?P<lag>[+-]\s*\d+(?:\.\d+)?)\s*(?P<unit>h|d|w|hours?|days?|weeks?)?)?$").expect("a valid pattern")
+});
+
 /// `A1000, A1010SS+2d; 7FF-4h`: ids with an optional link type and lag.
 fn parse_predecessors(text: &str) -> std::result::Result<Vec<Predecessor>, String> {
-    let pattern = regex::Regex::new(
-        r"^(?P<id>.+?)(?P<type>FS|SS|FF|SF)?(?:\s*(?P<lag>[+-]\s*\d+(?:\.\d+)?)\s*(?P<unit>h|d|w|hours?|days?|weeks?)?)?$",
-    )
-    .expect("a valid pattern");
     text.split([',', ';'])
         .map(str::trim)
         .filter(|s| !s.is_empty())
         .map(|item| {
-            let m = pattern
+            let m = PREDECESSOR
                 .captures(item)
                 .ok_or_else(|| format!("{item:?} is not a predecessor (ID, ID FS+2d)"))?;
             let kind = m
