@@ -55,6 +55,18 @@ fn the_written_table_follows_the_schema() {
         &serde_json::from_str(&text).unwrap(),
         "tree-objects.schema.json",
     );
+    // The links by task index: the scaffolding follows the beams.
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let scaffold = json["tasks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["id"] == "T3")
+        .unwrap();
+    assert_eq!(
+        scaffold["predecessors"],
+        serde_json::json!([{"task": 1, "type": "FF", "lag": 86400.0}])
+    );
 }
 
 /// The table's index of an object is its index in the scene, absent
