@@ -251,6 +251,32 @@ fn bad_rules_name_the_rule() {
     assert!(e.contains("rules[0].type") && e.contains("party"), "{e}");
     let e = run(r#"{"name": "r5", "select": {"colour": "red"}, "task": "2"}"#);
     assert!(e.contains("links.json") && e.contains("colour"), "{e}");
+    // Task selectors: one that selects nothing, an empty one, a bad
+    // pattern, a match on no task attribute, two ways to name tasks.
+    let e = run(r#"{"name": "r6", "select": {}, "tasks": {"wbs": "9.*"}}"#);
+    assert!(
+        e.contains("rules[0].tasks (rule \"r6\")") && e.contains("selects no task"),
+        "{e}"
+    );
+    let e = run(r#"{"name": "r7", "select": {}, "tasks": {}}"#);
+    assert!(
+        e.contains("rules[0].tasks") && e.contains("empty task selector"),
+        "{e}"
+    );
+    let e = run(r#"{"name": "r8", "select": {}, "tasks": {"codes": {"Trade": {"regex": "["}}}}"#);
+    assert!(
+        e.contains("tasks.codes.Trade") && e.contains("bad regex"),
+        "{e}"
+    );
+    let e = run(
+        r#"{"name": "r9", "select": {}, "tasks": {"name": "*"}, "match": {"storey": "level"}}"#,
+    );
+    assert!(
+        e.contains("match.storey") && e.contains("not a task attribute"),
+        "{e}"
+    );
+    let e = run(r#"{"name": "r10", "select": {}, "task": "2", "tasks": {"name": "*"}}"#);
+    assert!(e.contains("exactly one of"), "{e}");
 }
 
 #[test]
@@ -267,10 +293,28 @@ fn links_files_follow_their_schema() {
         let errors: Vec<String> = v.iter_errors(&json).map(|e| e.to_string()).collect();
         assert!(errors.is_empty(), "{rel}: {errors:?}");
     }
+    // Task selectors, matches, property sets and a spreadsheet mapping.
+    let selectors = serde_json::json!({"format": "hdlod-links/1",
+        "spreadsheet": {"sheet": "Plan", "columns": {"id": "Code", "start": "Begin"}},
+        "rules": [
+            {"name": "walls by level", "select": {"class": "IfcWall*"},
+             "tasks": {"codes": {"Trade": "WALLS"}, "wbs": "TWR.*"}, "match": {"storey": "code:Level"}},
+            {"name": "rated", "select": {"properties": {"Pset_WallCommon.FireRating": "REI*"}},
+             "tasks": {"fields": {"Zone": "north", "early_start": "2024-*"}}, "type": "temporary"}]});
+    let errors: Vec<String> = v.iter_errors(&selectors).map(|e| e.to_string()).collect();
+    assert!(errors.is_empty(), "{errors:?}");
     // The schema rejects what the reader rejects.
-    let bad = serde_json::json!({"format": "hdlod-links/1", "rules": [
-        {"name": "both", "select": {}, "task": "1", "task_name": "x"}]});
-    assert!(!v.is_valid(&bad));
+    for bad in [
+        serde_json::json!({"format": "hdlod-links/1", "rules": [
+            {"name": "both", "select": {}, "task": "1", "task_name": "x"}]}),
+        serde_json::json!({"format": "hdlod-links/1", "rules": [
+            {"name": "two", "select": {}, "task": "1", "tasks": {"id": "x"}}]}),
+        serde_json::json!({"format": "hdlod-links/1", "rules": [
+            {"name": "match", "select": {}, "tasks": {"id": "x"}, "match": {"storey": "level"}}]}),
+        serde_json::json!({"format": "hdlod-links/1", "spreadsheet": {"columns": {"colour": "Zone"}}, "rules": []}),
+    ] {
+        assert!(!v.is_valid(&bad), "{bad}");
+    }
 }
 
 /// A Project status update: actual dates, baselines, a task still running.
