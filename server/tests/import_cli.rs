@@ -349,3 +349,27 @@ fn imports_a_p6_schedule_with_its_links_and_inspects_them() {
             .contains("2 summary tasks, 3 levels of work breakdown; 2 tasks linked by 1 links")
     );
 }
+
+#[test]
+fn bench_xer_reads_the_site_schedule_it_writes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let xer = tmp.path().join("site.xer");
+    let out = hdlod(&[
+        "bench".as_ref(),
+        "xer".as_ref(),
+        "--scale".as_ref(),
+        "tiny".as_ref(),
+        "--repeats".as_ref(),
+        "1".as_ref(),
+        "--out".as_ref(),
+        xer.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let n = |k: &str| report[k].as_u64().unwrap();
+    // Every activity and every WBS node below the project's is a task.
+    assert!(n("activities") > 500 && n("links") > 0);
+    assert_eq!(n("tasks"), n("activities") + n("wbs_nodes") - 1);
+    assert!(xer.is_file());
+}
