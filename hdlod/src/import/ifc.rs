@@ -53,7 +53,7 @@ pub struct Model {
     pub elements: Vec<Element>,
     /// Entities left out: IFC class -> reason -> count.
     pub skipped: BTreeMap<String, BTreeMap<String, usize>>,
-    /// IFC4 tasks of the file (none for IFC2x3).
+    /// The tasks of the file's work schedules.
     pub tasks: Vec<ScheduleTask>,
 }
 

@@ -1,9 +1,11 @@
 //! Import of BIM models and their 4D schedules into an `hdlod-scene/1`
-//! scene (docs/import.md): IFC geometry ([`ifc`]), schedules from IFC4
-//! tasks ([`ifc_tasks`]), Microsoft Project XML ([`msproject`]) or a CSV of
-//! element-task links ([`links_csv`]), linking rules ([`rules`]) for
-//! schedules that name no elements, and as-built logs whose dates are the
-//! actual dates of the plan's tasks ([`actual`]).
+//! scene (docs/import.md): IFC geometry ([`ifc`]), schedules from IFC work
+//! schedules ([`ifc_tasks`]), Primavera P6 XER ([`xer`]) and XML
+//! ([`pmxml`]), Microsoft Project XML ([`msproject`]), spreadsheets
+//! ([`xlsx`]) or a CSV of element-task links ([`links_csv`]), with their
+//! work breakdown and logic links; linking rules ([`rules`]) for schedules
+//! that name no elements, and as-built logs whose dates are the actual
+//! dates of the plan's tasks ([`actual`]).
 //!
 //! The result is an ordinary [`Scene`]: one object per IFC element, id = its
 //! GlobalId, z up, metres; its tasks drive the visibility as everywhere else
@@ -169,8 +171,9 @@ impl Recorded {
 pub struct Options {
     /// The scene's name.
     pub name: String,
-    /// A schedule: `.xml` (Microsoft Project), `.csv` (element-task links)
-    /// or `.ifc`/`.ifczip` (IFC4 tasks).
+    /// A schedule: `.xer` (Primavera P6), `.xml` (Microsoft Project or P6
+    /// XML), `.xlsx` (a task list), `.csv` (element-task links) or
+    /// `.ifc`/`.ifczip` (IFC work schedules).
     pub schedule: Option<PathBuf>,
     /// Linking rules (`hdlod-links/1`).
     pub links: Option<PathBuf>,
@@ -238,7 +241,7 @@ pub struct FileReport {
     pub triangles: usize,
     /// Entities left out of this file.
     pub skipped: usize,
-    /// IFC4 tasks found in the file.
+    /// Tasks found in the file (IFC4 and IFC2x3 work schedules).
     pub tasks: usize,
     pub seconds: f64,
 }
@@ -761,7 +764,7 @@ pub fn read_schedule(path: &Path, source: &Source) -> Result<Vec<ScheduleTask>> 
             format!(
                 "{}: unknown schedule format; expected .xer (Primavera P6), .xml (Microsoft \
                  Project or P6 XML), .xlsx (a task list), .csv (element-task links) or .ifc/.ifczip \
-                 (IFC4 tasks)",
+                 (IFC work schedules)",
                 path.display()
             ),
         )),

@@ -154,7 +154,7 @@ impl<'a> Row<'_, 'a> {
 }
 
 /// An XER date: `2024-01-08 08:00` (seconds optional), or a day.
-pub fn parse_xer_date(text: &str) -> std::result::Result<DateTime<Utc>, String> {
+fn parse_xer_date(text: &str) -> std::result::Result<DateTime<Utc>, String> {
     let naive = NaiveDateTime::parse_from_str(text, "%Y-%m-%d %H:%M")
         .or_else(|_| NaiveDateTime::parse_from_str(text, "%Y-%m-%d %H:%M:%S"))
         .or_else(|_| {

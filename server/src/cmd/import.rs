@@ -23,9 +23,10 @@ pub struct Args {
     /// The IFC models (.ifc or .ifczip); their elements make one scene.
     #[arg(required = true)]
     models: Vec<PathBuf>,
-    /// A schedule: Primavera P6 (.xer), Microsoft Project XML (.xml),
-    /// element-task links (.csv) or IFC4 tasks (.ifc/.ifczip). IFC4 tasks
-    /// inside the models are always read.
+    /// A schedule: Primavera P6 (.xer, or P6 XML .xml), Microsoft Project
+    /// XML (.xml), a task list (.xlsx), element-task links (.csv) or IFC
+    /// work schedules (.ifc/.ifczip). The tasks inside the models are
+    /// always read.
     #[arg(long)]
     schedule: Option<PathBuf>,
     /// The project to read of a P6 schedule that holds several: its short
