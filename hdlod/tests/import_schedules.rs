@@ -135,13 +135,14 @@ fn link_csv_groups_rows_by_task() {
 fn schedules_by_extension() {
     let dir = tempfile::tempdir().unwrap();
     // IFC4 tasks from another file.
-    let tasks = hdlod::import::read_schedule(&tiny()).unwrap();
+    let tasks = hdlod::import::read_schedule(&tiny(), &Default::default()).unwrap();
     assert_eq!(tasks.len(), 2);
-    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.ifc", "hello"))
-        .unwrap_err()
-        .to_string();
+    let e =
+        hdlod::import::read_schedule(&write(dir.path(), "plan.ifc", "hello"), &Default::default())
+            .unwrap_err()
+            .to_string();
     assert!(e.contains("plan.ifc") && e.contains("FILE_SCHEMA"), "{e}");
-    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.mpp", ""))
+    let e = hdlod::import::read_schedule(&write(dir.path(), "plan.mpp", ""), &Default::default())
         .unwrap_err()
         .to_string();
     assert!(e.contains("plan.mpp") && e.contains(".xml"), "{e}");
@@ -250,6 +251,32 @@ fn bad_rules_name_the_rule() {
     assert!(e.contains("rules[0].type") && e.contains("party"), "{e}");
     let e = run(r#"{"name": "r5", "select": {"colour": "red"}, "task": "2"}"#);
     assert!(e.contains("links.json") && e.contains("colour"), "{e}");
+    // Task selectors: one that selects nothing, an empty one, a bad
+    // pattern, a match on no task attribute, two ways to name tasks.
+    let e = run(r#"{"name": "r6", "select": {}, "tasks": {"wbs": "9.*"}}"#);
+    assert!(
+        e.contains("rules[0].tasks (rule \"r6\")") && e.contains("selects no task"),
+        "{e}"
+    );
+    let e = run(r#"{"name": "r7", "select": {}, "tasks": {}}"#);
+    assert!(
+        e.contains("rules[0].tasks") && e.contains("empty task selector"),
+        "{e}"
+    );
+    let e = run(r#"{"name": "r8", "select": {}, "tasks": {"codes": {"Trade": {"regex": "["}}}}"#);
+    assert!(
+        e.contains("tasks.codes.Trade") && e.contains("bad regex"),
+        "{e}"
+    );
+    let e = run(
+        r#"{"name": "r9", "select": {}, "tasks": {"name": "*"}, "match": {"storey": "level"}}"#,
+    );
+    assert!(
+        e.contains("match.storey") && e.contains("not a task attribute"),
+        "{e}"
+    );
+    let e = run(r#"{"name": "r10", "select": {}, "task": "2", "tasks": {"name": "*"}}"#);
+    assert!(e.contains("exactly one of"), "{e}");
 }
 
 #[test]
@@ -266,10 +293,28 @@ fn links_files_follow_their_schema() {
         let errors: Vec<String> = v.iter_errors(&json).map(|e| e.to_string()).collect();
         assert!(errors.is_empty(), "{rel}: {errors:?}");
     }
+    // Task selectors, matches, property sets and a spreadsheet mapping.
+    let selectors = serde_json::json!({"format": "hdlod-links/1",
+        "spreadsheet": {"sheet": "Plan", "columns": {"id": "Code", "start": "Begin"}},
+        "rules": [
+            {"name": "walls by level", "select": {"class": "IfcWall*"},
+             "tasks": {"codes": {"Trade": "WALLS"}, "wbs": "TWR.*"}, "match": {"storey": "code:Level"}},
+            {"name": "rated", "select": {"properties": {"Pset_WallCommon.FireRating": "REI*"}},
+             "tasks": {"fields": {"Zone": "north", "early_start": "2024-*"}}, "type": "temporary"}]});
+    let errors: Vec<String> = v.iter_errors(&selectors).map(|e| e.to_string()).collect();
+    assert!(errors.is_empty(), "{errors:?}");
     // The schema rejects what the reader rejects.
-    let bad = serde_json::json!({"format": "hdlod-links/1", "rules": [
-        {"name": "both", "select": {}, "task": "1", "task_name": "x"}]});
-    assert!(!v.is_valid(&bad));
+    for bad in [
+        serde_json::json!({"format": "hdlod-links/1", "rules": [
+            {"name": "both", "select": {}, "task": "1", "task_name": "x"}]}),
+        serde_json::json!({"format": "hdlod-links/1", "rules": [
+            {"name": "two", "select": {}, "task": "1", "tasks": {"id": "x"}}]}),
+        serde_json::json!({"format": "hdlod-links/1", "rules": [
+            {"name": "match", "select": {}, "tasks": {"id": "x"}, "match": {"storey": "level"}}]}),
+        serde_json::json!({"format": "hdlod-links/1", "spreadsheet": {"columns": {"colour": "Zone"}}, "rules": []}),
+    ] {
+        assert!(!v.is_valid(&bad), "{bad}");
+    }
 }
 
 /// A Project status update: actual dates, baselines, a task still running.
@@ -573,4 +618,182 @@ fn bad_as_built_rows_name_the_line_and_column() {
         e.contains("line 2") && e.contains("no task id or name"),
         "{e}"
     );
+}
+
+/// `PLAN` with links and custom fields: Slabs 2 days after Walls (2), the
+/// second Walls (4) with Slabs (SS), Handover after everything else.
+const LINKED: &str = r#"<?xml version="1.0" encoding="UTF-8"?>
+<Project xmlns="http://schemas.microsoft.com/project">
+  <ExtendedAttributes>
+    <ExtendedAttribute><FieldID>188743731</FieldID><FieldName>Text1</FieldName><Alias>Zone</Alias></ExtendedAttribute>
+    <ExtendedAttribute><FieldID>188743734</FieldID><FieldName>Text2</FieldName></ExtendedAttribute>
+  </ExtendedAttributes>
+  <Tasks>
+    <Task><UID>1</UID><Name>Shell</Name><WBS>1</WBS><OutlineLevel>1</OutlineLevel><Summary>1</Summary>
+      <Start>2024-01-08T08:00:00</Start><Finish>2024-03-29T17:00:00</Finish></Task>
+    <Task><UID>2</UID><Name>Walls</Name><WBS>1.1</WBS><OutlineLevel>2</OutlineLevel>
+      <Start>2024-01-08T08:00:00</Start><Finish>2024-01-12T17:00:00</Finish>
+      <ExtendedAttribute><FieldID>188743731</FieldID><Value>North</Value></ExtendedAttribute>
+      <ExtendedAttribute><FieldID>188743734</FieldID><Value>masonry</Value></ExtendedAttribute></Task>
+    <Task><UID>3</UID><Name>Slabs</Name><WBS>1.2</WBS><OutlineLevel>2</OutlineLevel>
+      <Start>2024-02-05T08:00:00</Start><Finish>2024-02-09T17:00:00</Finish>
+      <PredecessorLink><PredecessorUID>2</PredecessorUID><Type>1</Type><LinkLag>9600</LinkLag><LagFormat>7</LagFormat></PredecessorLink>
+      <ExtendedAttribute><FieldID>188743731</FieldID><Value>South</Value></ExtendedAttribute></Task>
+    <Task><UID>4</UID><Name>Walls</Name><WBS>1.3</WBS><OutlineLevel>2</OutlineLevel>
+      <Start>2024-03-04T08:00:00</Start><Finish>2024-03-08T17:00:00</Finish>
+      <PredecessorLink><PredecessorUID>3</PredecessorUID><Type>3</Type></PredecessorLink>
+      <PredecessorLink><PredecessorUID>77</PredecessorUID><CrossProject>1</CrossProject></PredecessorLink></Task>
+    <Task><UID>5</UID><Name>Handover</Name><WBS>2</WBS><OutlineLevel>1</OutlineLevel>
+      <Start>2024-04-02T08:00:00</Start><Finish>2024-04-02T17:00:00</Finish>
+      <PredecessorLink><PredecessorUID>4</PredecessorUID><Type>0</Type><LinkLag>-4800</LinkLag></PredecessorLink>
+      <PredecessorLink><PredecessorUID>3</PredecessorUID><Type>2</Type><LinkLag>500</LinkLag><LagFormat>19</LagFormat></PredecessorLink></Task>
+  </Tasks>
+</Project>"#;
+
+#[test]
+fn ms_project_links_and_custom_fields() {
+    use hdlod::scene::{LinkType, Predecessor};
+    let dir = tempfile::tempdir().unwrap();
+    let tasks = msproject::read(&write(dir.path(), "linked.xml", LINKED)).unwrap();
+    let links = |k: usize| -> Vec<(&str, LinkType, f64)> {
+        tasks[k]
+            .predecessors
+            .iter()
+            .map(|p| (p.task.as_str(), p.kind, p.lag / 3600.0))
+            .collect()
+    };
+    assert!(links(0).is_empty() && links(1).is_empty());
+    // 9600 tenths of a minute: 16 hours; a percent lag reads as none.
+    assert_eq!(links(2), [("2", LinkType::FinishStart, 16.0)]);
+    assert_eq!(links(3), [("3", LinkType::StartStart, 0.0)]);
+    assert_eq!(
+        links(4),
+        [
+            ("4", LinkType::FinishFinish, -8.0),
+            ("3", LinkType::StartFinish, 0.0)
+        ]
+    );
+    assert_eq!(tasks[1].fields["Zone"], "North");
+    assert_eq!(tasks[1].fields["Text2"], "masonry");
+    assert_eq!(tasks[2].fields["Zone"], "South");
+    assert_eq!(tasks[2].wbs.as_deref(), Some("1.2"));
+
+    // Rules on the fields and the WBS; the scene keeps the link between
+    // its two tasks.
+    let links_file = rules(
+        dir.path(),
+        r#"[{"name": "north", "select": {"class": "IfcWall"}, "tasks": {"fields": {"Zone": "north"}}},
+            {"name": "slab", "select": {"class": "IfcSlab"}, "tasks": {"wbs": "1.2", "name": "*slabs"}}]"#,
+    );
+    let options = Options {
+        name: "tiny".into(),
+        schedule: Some(write(dir.path(), "linked.xml", LINKED)),
+        links: Some(links_file),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny()], &options, &|_| {}).unwrap();
+    let slabs = scene.tasks.iter().find(|t| t.id == "3").unwrap();
+    assert_eq!(
+        slabs.predecessors,
+        [Predecessor {
+            task: "2".into(),
+            kind: LinkType::FinishStart,
+            lag: 16.0 * 3600.0
+        }]
+    );
+    assert_eq!((report.links, report.links_outside), (1, 0));
+
+    // A cycle, and a link of no known type.
+    let cycle = LINKED.replace(
+        "<Task><UID>2</UID><Name>Walls</Name><WBS>1.1</WBS><OutlineLevel>2</OutlineLevel>",
+        "<Task><UID>2</UID><Name>Walls</Name><WBS>1.1</WBS><OutlineLevel>2</OutlineLevel>\
+         <PredecessorLink><PredecessorUID>5</PredecessorUID></PredecessorLink>",
+    );
+    let e = msproject::read(&write(dir.path(), "cycle.xml", &cycle))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("cycle.xml")
+            && e.contains("PredecessorLink")
+            && e.contains("2 -> 3 -> 4 -> 5 -> 2"),
+        "{e}"
+    );
+    let bad = LINKED.replace("<Type>3</Type>", "<Type>7</Type>");
+    let e = msproject::read(&write(dir.path(), "bad.xml", &bad))
+        .unwrap_err()
+        .to_string();
+    assert!(
+        e.contains("Task[3]/PredecessorLink[0]/Type") && e.contains("\"7\""),
+        "{e}"
+    );
+}
+
+/// The tiny model with property sets: the wall's own (fire rating, and
+/// external) and its type's (a rating the wall's own set overrides, and an
+/// acoustic rating).
+fn tiny_with_psets(dir: &Path) -> PathBuf {
+    let text = std::fs::read_to_string(tiny()).unwrap();
+    let psets = "\
+#300=IFCPROPERTYSINGLEVALUE('FireRating',$,IFCLABEL('REI60'),$);
+#301=IFCPROPERTYSINGLEVALUE('IsExternal',$,IFCBOOLEAN(.T.),$);
+#302=IFCPROPERTYSET('3PsetTinyHdlod00000001',$,'Pset_WallCommon',$,(#300,#301));
+#303=IFCRELDEFINESBYPROPERTIES('3RelPTinyHdlod00000001',$,$,$,(#40),#302);
+#310=IFCPROPERTYSINGLEVALUE('FireRating',$,IFCLABEL('REI30'),$);
+#311=IFCPROPERTYSINGLEVALUE('AcousticRating',$,IFCLABEL('45 dB'),$);
+#312=IFCPROPERTYSET('3PsetTinyHdlod00000002',$,'Pset_WallCommon',$,(#310,#311));
+#313=IFCWALLTYPE('3TypeTinyHdlod00000001',$,'brick wall',$,$,(#312),$,$,$,.SOLIDWALL.);
+#314=IFCRELDEFINESBYTYPE('3RelTTinyHdlod00000001',$,$,$,(#40),#313);
+ENDSEC;
+END-ISO-10303-21;";
+    let at = text.rfind("ENDSEC;").unwrap();
+    let path = dir.join("tiny-psets.ifc");
+    std::fs::write(&path, format!("{}{psets}\n", &text[..at])).unwrap();
+    path
+}
+
+#[test]
+fn rules_select_by_property_set_values() {
+    let dir = tempfile::tempdir().unwrap();
+    let links = rules(
+        dir.path(),
+        r#"[{"name": "fire-rated external walls", "task": "2",
+             "select": {"properties": {"Pset_WallCommon.FireRating": "REI6?",
+                                       "Pset_WallCommon.IsExternal": "true",
+                                       "Pset_WallCommon.AcousticRating": "45*"}}}]"#,
+    );
+    let options = Options {
+        name: "tiny".into(),
+        schedule: Some(write(dir.path(), "plan.xml", PLAN)),
+        links: Some(links),
+        ..Options::default()
+    };
+    let (scene, report) = import(&[tiny_with_psets(dir.path())], &options, &|_| {}).unwrap();
+    assert_eq!(report.rules[0].matched, 1);
+    let wall = scene
+        .objects
+        .iter()
+        .find(|o| o.id == "2WallTinyHdlod00000001")
+        .unwrap();
+    // Only the properties a rule names are imported; the element's own
+    // value wins over its type's.
+    let psets: Vec<(&str, &str)> = wall
+        .properties
+        .iter()
+        .filter(|(k, _)| k.starts_with("Pset_"))
+        .map(|(k, v)| (k.as_str(), v.as_str()))
+        .collect();
+    assert_eq!(
+        psets,
+        [
+            ("Pset_WallCommon.AcousticRating", "45 dB"),
+            ("Pset_WallCommon.FireRating", "REI60"),
+            ("Pset_WallCommon.IsExternal", "true")
+        ]
+    );
+    let slab = scene
+        .objects
+        .iter()
+        .find(|o| o.id == "2SlabTinyHdlod00000001")
+        .unwrap();
+    assert!(!slab.properties.keys().any(|k| k.starts_with("Pset_")));
 }

@@ -188,6 +188,11 @@ fn skipped_objects_are_left_out_and_may_not_be_scheduled() {
     let mut j = site.json();
     j["objects"]["B-1"] = json!({"skip": true});
     j["tasks"].as_array_mut().unwrap().remove(1);
+    // The scaffolding followed the task removed.
+    j["tasks"][1]
+        .as_object_mut()
+        .unwrap()
+        .remove("predecessors");
     site.write_json(&j);
     let scene = load(&site.dir).unwrap();
     assert_eq!(scene.objects.len(), 3);
@@ -404,6 +409,42 @@ fn bad_actual_and_baseline_dates_and_parents_are_named() {
     assert_names(&e, &["parent", "cycle"]);
     let e = Site::new().error_after(|j| j["tasks"][0]["actual_start"] = json!("soon"));
     assert_names(&e, &["tasks[0] \"T1\".actual_start"]);
+}
+
+#[test]
+fn bad_links_are_named() {
+    // The sample's scaffolding (T3) follows the beams (T2), FF + 1 day.
+    let e = Site::new().error_after(|j| j["tasks"][2]["predecessors"][0]["task"] = json!("T9"));
+    assert_names(
+        &e,
+        &[
+            "tasks[2] \"T3\".predecessors[0]",
+            "\"T9\" is not the id of a task",
+        ],
+    );
+    let e = Site::new().error_after(|j| j["tasks"][2]["predecessors"][0]["task"] = json!("T3"));
+    assert_names(
+        &e,
+        &["tasks[2] \"T3\".predecessors[0]", "cannot follow itself"],
+    );
+    let e = Site::new().error_after(|j| j["tasks"][2]["predecessors"][0]["type"] = json!("XX"));
+    assert_names(&e, &["tasks[2].predecessors[0].type", "XX"]);
+    let e = Site::new().error_after(|j| j["tasks"][2]["predecessors"][0]["lag"] = json!(1e12));
+    assert_names(&e, &["tasks[2] \"T3\".predecessors[0].lag", "out of range"]);
+    // T1 after T3, T2 after T1, T3 after T2: a cycle, named task by task.
+    let e = Site::new().error_after(|j| {
+        j["tasks"][0]["predecessors"] = json!([{"task": "T3"}]);
+        j["tasks"][1]["predecessors"] = json!([{"task": "T1", "type": "SS", "lag": -3600}]);
+    });
+    assert_names(
+        &e,
+        &[
+            "scene.json",
+            "predecessors",
+            "cycle",
+            "T1 -> T2 -> T3 -> T1",
+        ],
+    );
 }
 
 #[test]

@@ -10,8 +10,8 @@ use std::sync::OnceLock;
 
 use hdlod::build::{BuildConfig, Silent, build_to};
 use hdlod::scene::status::{Dates, Progress};
-use hdlod::scene::{Class, Scene, format};
-use hdlod::tree::objects::{ObjectTables, ObjectsRecord};
+use hdlod::scene::{Class, LinkType, Scene, format};
+use hdlod::tree::objects::{LinkEntry, ObjectTables, ObjectsRecord};
 use hdlod::tree::{Tree, load};
 
 struct Built {
@@ -54,6 +54,28 @@ fn the_written_table_follows_the_schema() {
     common::assert_matches_schema(
         &serde_json::from_str(&text).unwrap(),
         "tree-objects.schema.json",
+    );
+}
+
+/// The scene's links become links by task index, as the schema says.
+#[test]
+fn links_by_task_index() {
+    let scene = common::sample_scene();
+    let tables = ObjectTables::of(&scene, &[]);
+    // The scaffolding (T3) is struck a day after the beams (T2) finish.
+    assert_eq!(
+        tables.tasks()[2].predecessors,
+        [LinkEntry {
+            task: 1,
+            kind: LinkType::FinishFinish,
+            lag: 86_400.0
+        }]
+    );
+    let record = serde_json::to_value(tables.to_record(&scene.time)).unwrap();
+    common::assert_matches_schema(&record, "tree-objects.schema.json");
+    assert_eq!(
+        record["tasks"][2]["predecessors"],
+        serde_json::json!([{"task": 1, "type": "FF", "lag": 86400.0}])
     );
 }
 

@@ -270,3 +270,106 @@ fn imports_an_as_built_log_beside_the_plan() {
     let err = text(&out.stderr);
     assert!(err.contains("plan.xml") && err.contains(".csv"), "{err}");
 }
+
+#[test]
+fn imports_a_p6_schedule_with_its_links_and_inspects_them() {
+    let tmp = tempfile::tempdir().unwrap();
+    let scene = tmp.path().join("p6");
+    let model = fixture("tiny.ifc");
+    let xer = fixture("../schedules/tiny.xer");
+    let rules = tmp.path().join("links.json");
+    std::fs::write(
+        &rules,
+        r#"{"format": "hdlod-links/1", "rules": [
+            {"name": "walls by level", "select": {"class": "IfcWall*"},
+             "tasks": {"codes": {"Trade": "WALLS"}}, "match": {"storey": "code:Level"}},
+            {"name": "slab", "select": {"class": "IfcSlab"}, "task": "A1010"}]}"#,
+    )
+    .unwrap();
+    let args = |project: Option<&'static str>| {
+        let mut a: Vec<&OsStr> = vec![
+            "import".as_ref(),
+            "ifc".as_ref(),
+            model.as_os_str(),
+            "--schedule".as_ref(),
+            xer.as_os_str(),
+            "--links".as_ref(),
+            rules.as_os_str(),
+            "--out".as_ref(),
+            scene.as_os_str(),
+            "--json".as_ref(),
+        ];
+        if let Some(p) = project {
+            a.extend::<[&OsStr; 2]>(["--project".as_ref(), p.as_ref()]);
+        }
+        a
+    };
+    // Two projects in the file: the error lists them.
+    let out = hdlod(&args(None));
+    assert!(!out.status.success());
+    let e = text(&out.stderr);
+    assert!(
+        e.contains("--project") && e.contains("TINY") && e.contains("OTHER"),
+        "{e}"
+    );
+
+    let out = hdlod(&args(Some("TINY")));
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    common::assert_matches_schema(&report, "import-report.schema.json");
+    assert_eq!(
+        (report["links"].as_u64(), report["unmatched_tasks"].as_u64()),
+        (Some(1), Some(2))
+    );
+    let json: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(scene.join("scene.json")).unwrap()).unwrap();
+    common::assert_matches_schema(&json, "scene.schema.json");
+    let slab = json["tasks"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["id"] == "A1010")
+        .unwrap();
+    assert_eq!(
+        slab["predecessors"],
+        serde_json::json!([{"task": "A1000", "type": "FS", "lag": 57600.0}])
+    );
+
+    let out = hdlod(&["inspect".as_ref(), scene.as_os_str(), "--json".as_ref()]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    common::assert_matches_schema(&summary, "inspect.schema.json");
+    assert_eq!(
+        summary["schedule"],
+        serde_json::json!({"tasks": 6, "summary_tasks": 2, "depth": 3, "linked_tasks": 2, "links": 1})
+    );
+    let out = hdlod(&["inspect".as_ref(), scene.as_os_str()]);
+    assert!(
+        text(&out.stdout)
+            .contains("2 summary tasks, 3 levels of work breakdown; 2 tasks linked by 1 links")
+    );
+}
+
+#[test]
+fn bench_xer_reads_the_site_schedule_it_writes() {
+    let tmp = tempfile::tempdir().unwrap();
+    let xer = tmp.path().join("site.xer");
+    let out = hdlod(&[
+        "bench".as_ref(),
+        "xer".as_ref(),
+        "--scale".as_ref(),
+        "tiny".as_ref(),
+        "--repeats".as_ref(),
+        "1".as_ref(),
+        "--out".as_ref(),
+        xer.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let n = |k: &str| report[k].as_u64().unwrap();
+    // Every activity and every WBS node below the project's is a task.
+    assert!(n("activities") > 500 && n("links") > 0);
+    assert_eq!(n("tasks"), n("activities") + n("wbs_nodes") - 1);
+    assert!(xer.is_file());
+}

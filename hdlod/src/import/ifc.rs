@@ -4,13 +4,14 @@
 //! booleans, openings subtracted from their hosts) over the STEP decoder of
 //! `ifc-lite-core`. This file adds what a 4D scene needs around the meshes:
 //! GlobalIds, storeys, colours (item style, then material style, then a
-//! default per class) and the count of what was left out and why.
+//! default per class), the property-set values the linking rules name
+//! (`psets.rs`) and the count of what was left out and why.
 //!
 //! References: ISO 10303-21 (STEP physical files), IFC 2x3 TC1 and IFC 4.0
 //! ADD2 TC1 (buildingSMART): `IfcRelContainedInSpatialStructure`,
 //! `IfcRelAggregates`, `IfcStyledItem`, `IfcMaterialDefinitionRepresentation`.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::io::Read;
 use std::path::Path;
 
@@ -32,6 +33,8 @@ pub struct Element {
     pub name: String,
     /// Name of the `IfcBuildingStorey` holding the element (or its whole).
     pub storey: Option<String>,
+    /// The property-set values asked for (`Pset.Property` -> value).
+    pub properties: BTreeMap<String, String>,
     /// The mesh in metres, relative to `origin`; vertex colours carry the
     /// styles of its parts when they differ.
     pub mesh: Mesh,
@@ -50,7 +53,7 @@ pub struct Model {
     pub elements: Vec<Element>,
     /// Entities left out: IFC class -> reason -> count.
     pub skipped: BTreeMap<String, BTreeMap<String, usize>>,
-    /// IFC4 tasks of the file (none for IFC2x3).
+    /// The tasks of the file's work schedules.
     pub tasks: Vec<ScheduleTask>,
 }
 
@@ -110,6 +113,12 @@ fn record_id(step: &[u8], at: usize) -> String {
 /// naming the entity; an element that cannot be meshed is skipped and
 /// counted.
 pub fn read(path: &Path) -> Result<Model> {
+    read_with(path, &HashSet::new())
+}
+
+/// [`read`], with the values of the property-set properties `psets`
+/// (`Pset_WallCommon.FireRating`) of each element.
+pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
     let step = read_step(path)?;
     let mut model = Model {
         schema: header_schema(&step).ok_or_else(|| {
@@ -126,6 +135,17 @@ pub fn read(path: &Path) -> Result<Model> {
 
     let colors = Styles::read(&index, &mut decoder, path)?;
     let storeys = storeys(&index, &mut decoder, path)?;
+    let mut values = super::psets::read(
+        path,
+        &mut decoder,
+        &index
+            .of_type(IfcType::IfcRelDefinesByProperties)
+            .collect::<Vec<_>>(),
+        &index
+            .of_type(IfcType::IfcRelDefinesByType)
+            .collect::<Vec<_>>(),
+        psets,
+    )?;
     let voids = ifc_lite_geometry::void_index_from_content(&step, &mut decoder);
     let router = GeometryRouter::with_units(&step, &mut decoder);
 
@@ -200,6 +220,7 @@ pub fn read(path: &Path) -> Result<Model> {
             class,
             name: entity.get_string(2).unwrap_or_default().to_string(),
             storey: storeys.get(&id).cloned(),
+            properties: values.remove(&id).unwrap_or_default(),
             mesh,
             origin,
             color,

@@ -1,9 +1,11 @@
 //! Import of BIM models and their 4D schedules into an `hdlod-scene/1`
-//! scene (docs/import.md): IFC geometry ([`ifc`]), schedules from IFC4
-//! tasks ([`ifc_tasks`]), Microsoft Project XML ([`msproject`]) or a CSV of
-//! element-task links ([`links_csv`]), linking rules ([`rules`]) for
-//! schedules that name no elements, and as-built logs whose dates are the
-//! actual dates of the plan's tasks ([`actual`]).
+//! scene (docs/import.md): IFC geometry ([`ifc`]), schedules from IFC work
+//! schedules ([`ifc_tasks`]), Primavera P6 XER ([`xer`]) and XML
+//! ([`pmxml`]), Microsoft Project XML ([`msproject`]), spreadsheets
+//! ([`xlsx`]) or a CSV of element-task links ([`links_csv`]), with their
+//! work breakdown and logic links; linking rules ([`rules`]) for schedules
+//! that name no elements, and as-built logs whose dates are the actual
+//! dates of the plan's tasks ([`actual`]).
 //!
 //! The result is an ordinary [`Scene`]: one object per IFC element, id = its
 //! GlobalId, z up, metres; its tasks drive the visibility as everywhere else
@@ -14,7 +16,12 @@ pub mod ifc;
 pub mod ifc_tasks;
 pub mod links_csv;
 pub mod msproject;
+pub mod pmxml;
+mod psets;
 pub mod rules;
+mod wbs;
+pub mod xer;
+pub mod xlsx;
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
@@ -26,10 +33,15 @@ use rayon::prelude::*;
 use serde::Serialize;
 
 use crate::error::{Error, Result};
+use crate::scene::links::{find_cycle, show_cycle};
 use crate::scene::{
-    Actual, Dates, Object, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
+    Actual, Dates, Object, Predecessor, Scene, ScheduleOptions, Span, Task, TaskType, Up,
+    Visibility,
 };
 use crate::time::{TimeSpan, format_date};
+
+/// A start and a finish.
+pub type Dated = (DateTime<Utc>, DateTime<Utc>);
 
 /// A task as a schedule file gives it, with absolute dates.
 #[derive(Debug, Clone, PartialEq)]
@@ -45,16 +57,30 @@ pub struct ScheduleTask {
     /// What was recorded of its execution.
     pub actual: Recorded,
     /// An earlier plan's start and finish.
-    pub baseline: Option<(DateTime<Utc>, DateTime<Utc>)>,
+    pub baseline: Option<Dated>,
+    /// The critical path method's early and late dates, where the schedule
+    /// gives them (P6).
+    pub early: Option<Dated>,
+    pub late: Option<Dated>,
     /// The id of its summary task in the same schedule, if any.
     pub parent: Option<String>,
+    /// The tasks it follows, by id in the same schedule.
+    pub predecessors: Vec<Predecessor>,
+    /// Its place in the work breakdown as the planner codes it (P6's WBS
+    /// code path `TWR.L01.FRM`, Project's `WBS` field `1.2.3`).
+    pub wbs: Option<String>,
+    /// Activity codes: code type -> value (P6).
+    pub codes: BTreeMap<String, String>,
+    /// User-defined and custom fields: name -> value (P6 user fields,
+    /// Project's extended attributes, spreadsheet columns).
+    pub fields: BTreeMap<String, String>,
     /// GlobalIds of the elements the schedule itself links to the task.
     pub objects: Vec<String>,
 }
 
 impl ScheduleTask {
-    /// A planned task: no type, actual or baseline dates, parent or
-    /// elements.
+    /// A planned task: no type, actual, baseline, early or late dates,
+    /// parent, links, codes, fields or elements.
     pub fn planned(
         id: impl Into<String>,
         name: impl Into<String>,
@@ -69,9 +95,51 @@ impl ScheduleTask {
             finish,
             actual: Recorded::default(),
             baseline: None,
+            early: None,
+            late: None,
             parent: None,
+            predecessors: Vec::new(),
+            wbs: None,
+            codes: BTreeMap::new(),
+            fields: BTreeMap::new(),
             objects: Vec::new(),
         }
+    }
+}
+
+impl ScheduleTask {
+    /// A user or custom field by name, else the CPM date of that name
+    /// (`early_start`, `early_finish`, `late_start`, `late_finish`, as ISO
+    /// 8601), for the linking rules.
+    pub fn field(&self, name: &str) -> Option<String> {
+        if let Some(v) = self.fields.get(name) {
+            return Some(v.clone());
+        }
+        let (span, end) = match name {
+            "early_start" => (self.early, false),
+            "early_finish" => (self.early, true),
+            "late_start" => (self.late, false),
+            "late_finish" => (self.late, true),
+            _ => return None,
+        };
+        span.map(|(s, f)| format_date(if end { f } else { s }))
+    }
+}
+
+/// The links of a schedule's tasks form no cycle: an error naming the
+/// file, `at` (the table or element of the links) and the tasks of a
+/// cycle.
+pub fn check_links(path: &Path, at: &str, tasks: &[ScheduleTask]) -> Result<()> {
+    let ids: Vec<&str> = tasks.iter().map(|t| t.id.as_str()).collect();
+    match find_cycle(&ids, |i| {
+        tasks[i].predecessors.iter().map(|p| p.task.as_str())
+    }) {
+        Some(cycle) => Err(Error::invalid(
+            path,
+            at,
+            format!("the links form a cycle: {}", show_cycle(&ids, &cycle)),
+        )),
+        None => Ok(()),
     }
 }
 
@@ -103,8 +171,9 @@ impl Recorded {
 pub struct Options {
     /// The scene's name.
     pub name: String,
-    /// A schedule: `.xml` (Microsoft Project), `.csv` (element-task links)
-    /// or `.ifc`/`.ifczip` (IFC4 tasks).
+    /// A schedule: `.xer` (Primavera P6), `.xml` (Microsoft Project or P6
+    /// XML), `.xlsx` (a task list), `.csv` (element-task links) or
+    /// `.ifc`/`.ifczip` (IFC work schedules).
     pub schedule: Option<PathBuf>,
     /// Linking rules (`hdlod-links/1`).
     pub links: Option<PathBuf>,
@@ -113,6 +182,18 @@ pub struct Options {
     pub actual: Vec<PathBuf>,
     /// The dates the scene's presence follows.
     pub dates: Dates,
+    /// The project to read of a schedule file that holds several (P6 XER
+    /// or XML): its short name or id.
+    pub project: Option<String>,
+}
+
+/// What a schedule reader needs besides the file.
+#[derive(Debug, Clone, Default)]
+pub struct Source {
+    /// The project of a file of several (P6).
+    pub project: Option<String>,
+    /// The columns of a spreadsheet, from the rules file.
+    pub mapping: Option<xlsx::Mapping>,
 }
 
 /// What an import did (schemas/import-report.schema.json).
@@ -131,6 +212,14 @@ pub struct Report {
     pub summary_tasks: usize,
     /// Tasks of the scene with an actual start (from any source).
     pub actual_tasks: usize,
+    /// Links between the scene's tasks, and links of its tasks to tasks it
+    /// does not hold (left out).
+    pub links: usize,
+    pub links_outside: usize,
+    /// Tasks of the schedule, summary tasks aside, that act on no object,
+    /// and a few of them (`id "name"`).
+    pub unmatched_tasks: usize,
+    pub unmatched_task_examples: Vec<String>,
     /// What the as-built logs gave, when there are any.
     #[serde(skip_serializing_if = "Option::is_none")]
     pub actual: Option<actual::Report>,
@@ -152,7 +241,7 @@ pub struct FileReport {
     pub triangles: usize,
     /// Entities left out of this file.
     pub skipped: usize,
-    /// IFC4 tasks found in the file.
+    /// Tasks found in the file (IFC4 and IFC2x3 work schedules).
     pub tasks: usize,
     pub seconds: f64,
 }
@@ -160,8 +249,11 @@ pub struct FileReport {
 #[derive(Debug, Clone, Serialize)]
 pub struct RuleReport {
     pub name: String,
+    /// The (first) task the rule assigns.
     pub task: String,
     pub task_name: String,
+    /// The tasks it assigns: one, or those its task selector matched.
+    pub tasks: usize,
     #[serde(rename = "type")]
     pub kind: TaskType,
     pub matched: usize,
@@ -172,6 +264,9 @@ pub struct TimeReport {
     pub start: String,
     pub end: String,
 }
+
+/// How many unmatched tasks the report names.
+const EXAMPLES: usize = 10;
 
 /// Imports IFC models, a schedule and linking rules into a scene. Files are
 /// read in parallel; `progress` is called as each one is done. Problems that
@@ -187,11 +282,15 @@ pub fn import(
         return Err(Error::argument("models", "no IFC model given"));
     }
     let name = &options.name;
+    let psets = match &options.links {
+        Some(links) => rules::property_sets(links)?,
+        None => HashSet::new(),
+    };
     let read: Vec<(f64, ifc::Model)> = models
         .par_iter()
         .map(|path| {
             let t = Instant::now();
-            let model = ifc::read(path)?;
+            let model = ifc::read_with(path, &psets)?;
             progress(path);
             Ok((t.elapsed().as_secs_f64(), model))
         })
@@ -239,6 +338,7 @@ pub fn import(
             if let Some(s) = e.storey {
                 properties.insert(rules::STOREY.to_string(), s);
             }
+            properties.extend(e.properties);
             objects.push(Object {
                 id: e.id,
                 mesh: meshes.len(),
@@ -275,7 +375,19 @@ pub fn import(
     }
 
     if let Some(path) = &options.schedule {
-        schedule.extend(read_schedule(path)?);
+        let source = Source {
+            project: options.project.clone(),
+            mapping: match &options.links {
+                Some(links) => rules::read_mapping(links)?,
+                None => None,
+            },
+        };
+        schedule.extend(read_schedule(path, &source)?);
+    } else if options.project.is_some() {
+        return Err(Error::argument(
+            "project",
+            "a project is chosen of a --schedule file; none is given",
+        ));
     }
     if !options.actual.is_empty() {
         let logs = options
@@ -330,12 +442,18 @@ pub fn import(
         ));
     }
     for rule in &rules {
-        let task = &schedule[rule.task];
-        let kind = rule.kind.or(task.kind).unwrap_or(TaskType::Construct);
+        let first = &schedule[rule.tasks[0]];
         let mut matched = 0;
-        for o in objects.iter().filter(|o| rule.selects(o)) {
-            add((rule.task, kind), &o.id);
-            matched += 1;
+        for o in &objects {
+            let tasks = rule.tasks_of(o);
+            for &k in tasks {
+                let kind = rule
+                    .kind
+                    .or(schedule[k].kind)
+                    .unwrap_or(TaskType::Construct);
+                add((k, kind), &o.id);
+            }
+            matched += usize::from(!tasks.is_empty());
         }
         if matched == 0 {
             report
@@ -344,9 +462,10 @@ pub fn import(
         }
         report.rules.push(RuleReport {
             name: rule.name.clone(),
-            task: task.id.clone(),
-            task_name: task.name.clone(),
-            kind,
+            task: first.id.clone(),
+            task_name: first.name.clone(),
+            tasks: rule.tasks.len(),
+            kind: rule.kind.or(first.kind).unwrap_or(TaskType::Construct),
             matched,
         });
     }
@@ -361,6 +480,24 @@ pub fn import(
             .iter()
             .filter(|o| !linked.contains(o.id.as_str()))
             .map(|o| o.id.clone())
+            .collect();
+        // Tasks that act on nothing, summary tasks aside (their work is
+        // that of the tasks below them).
+        let acting: HashSet<usize> = groups.iter().map(|((k, _), _)| *k).collect();
+        let first = first_by_id(&schedule);
+        let summaries: HashSet<usize> = schedule
+            .iter()
+            .filter_map(|t| t.parent.as_deref().and_then(|p| first.get(p).copied()))
+            .collect();
+        let idle: Vec<&ScheduleTask> = (0..schedule.len())
+            .filter(|k| !acting.contains(k) && !summaries.contains(k))
+            .map(|k| &schedule[k])
+            .collect();
+        report.unmatched_tasks = idle.len();
+        report.unmatched_task_examples = idle
+            .iter()
+            .take(EXAMPLES)
+            .map(|t| format!("{} {:?}", t.id, t.name))
             .collect();
     }
 
@@ -438,6 +575,7 @@ pub fn import(
                 finish: at(f),
             }),
             parent: None,
+            predecessors: Vec::new(),
             objects: objects.clone(),
         });
     }
@@ -453,6 +591,36 @@ pub fn import(
             .cloned();
     }
     break_cycles(&mut tasks, &mut report.warnings);
+    // Links between tasks of the scene; a link to a task the scene does not
+    // hold (one acting on no element) is counted, not kept.
+    for ((k, ..), task) in rows.iter().zip(&mut tasks) {
+        for p in &schedule[*k].predecessors {
+            match first.get(p.task.as_str()).and_then(|j| scene_id.get(j)) {
+                Some(id) if *id != task.id => {
+                    task.predecessors.push(Predecessor {
+                        task: id.clone(),
+                        ..p.clone()
+                    });
+                    report.links += 1;
+                }
+                _ => report.links_outside += 1,
+            }
+        }
+    }
+    // Each schedule is checked as it is read; tasks of several sources
+    // sharing ids could still close a cycle.
+    let ids: Vec<&str> = tasks.iter().map(|t| t.id.as_str()).collect();
+    if let Some(cycle) = find_cycle(&ids, |i| {
+        tasks[i].predecessors.iter().map(|p| p.task.as_str())
+    }) {
+        return Err(Error::argument(
+            "schedule",
+            format!(
+                "the links of the scene's tasks form a cycle: {}",
+                show_cycle(&ids, &cycle)
+            ),
+        ));
+    }
     report.actual_tasks = tasks.iter().filter(|t| t.actual.start.is_some()).count();
 
     let mut scene = Scene {
@@ -553,11 +721,37 @@ fn extension(path: &Path) -> String {
         .unwrap_or_default()
 }
 
-/// Reads a schedule by its extension.
-pub fn read_schedule(path: &Path) -> Result<Vec<ScheduleTask>> {
-    match extension(path).as_str() {
+/// Whether an `.xml` file is P6 XML rather than Project XML: its root
+/// element, `APIBusinessObjects`, opens its first few kilobytes.
+fn is_p6_xml(path: &Path) -> Result<bool> {
+    use std::io::Read;
+    let mut head = Vec::with_capacity(4096);
+    std::fs::File::open(path)
+        .and_then(|f| f.take(4096).read_to_end(&mut head))
+        .map_err(|e| Error::io(path, e))?;
+    Ok(String::from_utf8_lossy(&head).contains("<APIBusinessObjects"))
+}
+
+/// Reads a schedule by its extension (and, for `.xml`, its root element).
+pub fn read_schedule(path: &Path, source: &Source) -> Result<Vec<ScheduleTask>> {
+    let ext = extension(path);
+    let p6_xml = ext == "xml" && is_p6_xml(path)?;
+    let multi = ext == "xer" || p6_xml;
+    if source.project.is_some() && !multi {
+        return Err(Error::argument(
+            "project",
+            format!(
+                "{}: only a Primavera P6 file (.xer, P6 XML) holds several projects",
+                path.display()
+            ),
+        ));
+    }
+    match ext.as_str() {
+        "xer" => xer::read(path, source.project.as_deref()),
+        "xml" if p6_xml => pmxml::read(path, source.project.as_deref()),
         "xml" => msproject::read(path),
         "csv" => links_csv::read(path),
+        "xlsx" => xlsx::read(path, &source.mapping.clone().unwrap_or_default()),
         "ifc" | "ifczip" => {
             let step = ifc::read_step(path)?;
             let schema = ifc::header_schema(&step).ok_or_else(|| {
@@ -568,8 +762,9 @@ pub fn read_schedule(path: &Path) -> Result<Vec<ScheduleTask>> {
         _ => Err(Error::argument(
             "schedule",
             format!(
-                "{}: unknown schedule format; expected .xml (Microsoft Project), .csv \
-                 (element-task links) or .ifc/.ifczip (IFC4 tasks)",
+                "{}: unknown schedule format; expected .xer (Primavera P6), .xml (Microsoft \
+                 Project or P6 XML), .xlsx (a task list), .csv (element-task links) or .ifc/.ifczip \
+                 (IFC work schedules)",
                 path.display()
             ),
         )),

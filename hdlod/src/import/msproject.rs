@@ -10,18 +10,33 @@
 //! `Baseline` with `Number` 0, else the lowest-numbered one with a start and
 //! a finish (Project keeps up to eleven, 0 to 10).
 //!
+//! Links are the task's `PredecessorLink`s (`PredecessorUID`; `Type` 0 FF,
+//! 1 FS, 2 SF, 3 SS; `LinkLag` in tenths of a minute; percent lags,
+//! `LagFormat` 19 and 20, are read as none); a link to another project
+//! (`CrossProject` 1) is left out. Custom fields are the task's
+//! `ExtendedAttribute` values, named by the project's `ExtendedAttributes`
+//! definitions (`Alias`, else `FieldName`, such as `Text1`), and the
+//! task's `WBS` code (else its `OutlineNumber`) is its place in the work
+//! breakdown: both are there for the linking rules.
+//!
 //! Reference: Microsoft Office Project XML Data Interchange Schema
-//! (mspdi_pj12.xsd): `Project/Tasks/Task` with `UID`, `Name`, `OutlineLevel`,
-//! `Summary`, `Start`, `Finish`, `ActualStart`, `ActualFinish` and
-//! `Baseline` (`Number`, `Start`, `Finish`).
+//! (mspdi_pj12.xsd): `Project/Tasks/Task` with `UID`, `Name`, `WBS`,
+//! `OutlineNumber`, `OutlineLevel`, `Summary`, `Start`, `Finish`,
+//! `ActualStart`, `ActualFinish`, `Baseline` (`Number`, `Start`, `Finish`),
+//! `PredecessorLink` (`PredecessorUID`, `Type`, `CrossProject`, `LinkLag`,
+//! `LagFormat`) and `ExtendedAttribute` (`FieldID`, `Value`);
+//! `Project/ExtendedAttributes/ExtendedAttribute` (`FieldID`, `FieldName`,
+//! `Alias`).
 
+use std::collections::HashMap;
 use std::path::Path;
 
 use chrono::{DateTime, Utc};
 use roxmltree::Node;
 
-use super::{Recorded, ScheduleTask};
+use super::{Recorded, ScheduleTask, check_links};
 use crate::error::{Error, Result};
+use crate::scene::{LinkType, Predecessor};
 use crate::time::parse_date;
 
 /// The text of the first child element `name`, trimmed, if not empty.
@@ -46,6 +61,7 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
             "not a Microsoft Project XML file (the root element is not <Project>)",
         ));
     }
+    let names = field_names(root);
     let mut tasks = Vec::new();
     // The open summary tasks by outline level: name and UID.
     let mut outline: Vec<Option<(String, String)>> = Vec::new();
@@ -106,14 +122,105 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
             date("ActualFinish", &at("ActualFinish"))?,
         )
         .map_err(|m| Error::invalid(path, at("ActualFinish"), format!("task {uid}: {m}")))?;
+        let fields = task
+            .children()
+            .filter(|c| c.tag_name().name() == "ExtendedAttribute")
+            .filter_map(|a| {
+                let id = child(a, "FieldID")?;
+                let value = child(a, "Value")?;
+                let name = names.get(id).cloned().unwrap_or_else(|| id.to_string());
+                Some((name, value.to_string()))
+            })
+            .collect();
         tasks.push(ScheduleTask {
             actual,
             baseline: baseline(path, task, &at, uid)?,
             parent,
+            predecessors: links(path, task, &at)?,
+            wbs: child(task, "WBS")
+                .or(child(task, "OutlineNumber"))
+                .map(str::to_string),
+            fields,
             ..ScheduleTask::planned(uid, full_name, start, finish)
         });
     }
+    // Links to tasks without dates (not read) are left out with them.
+    let known: std::collections::HashSet<String> = tasks.iter().map(|t| t.id.clone()).collect();
+    for t in &mut tasks {
+        t.predecessors.retain(|p| known.contains(&p.task));
+    }
+    check_links(path, "Tasks/Task/PredecessorLink", &tasks)?;
     Ok(tasks)
+}
+
+/// The names of the project's custom fields by `FieldID`: the alias a
+/// planner gave, else the field's own name.
+fn field_names(root: Node) -> HashMap<String, String> {
+    root.children()
+        .filter(|c| c.tag_name().name() == "ExtendedAttributes")
+        .flat_map(|l| l.children())
+        .filter(|c| c.tag_name().name() == "ExtendedAttribute")
+        .filter_map(|a| {
+            let id = child(a, "FieldID")?;
+            let name = child(a, "Alias").or(child(a, "FieldName"))?;
+            Some((id.to_string(), name.to_string()))
+        })
+        .collect()
+}
+
+/// A task's `PredecessorLink`s within the project.
+fn links(path: &Path, task: Node, at: &dyn Fn(&str) -> String) -> Result<Vec<Predecessor>> {
+    let mut out = Vec::new();
+    for (j, link) in task
+        .children()
+        .filter(|c| c.tag_name().name() == "PredecessorLink")
+        .enumerate()
+    {
+        let field = |f: &str| at(&format!("PredecessorLink[{j}]/{f}"));
+        if child(link, "CrossProject") == Some("1") {
+            continue;
+        }
+        let Some(uid) = child(link, "PredecessorUID") else {
+            return Err(Error::invalid(path, field("PredecessorUID"), "missing"));
+        };
+        let kind = match child(link, "Type").unwrap_or("1") {
+            "0" => LinkType::FinishFinish,
+            "1" => LinkType::FinishStart,
+            "2" => LinkType::StartFinish,
+            "3" => LinkType::StartStart,
+            other => {
+                return Err(Error::invalid(
+                    path,
+                    field("Type"),
+                    format!("{other:?} is not a link type (0 FF, 1 FS, 2 SF, 3 SS)"),
+                ));
+            }
+        };
+        let percent = matches!(child(link, "LagFormat"), Some("19" | "20"));
+        let lag = match child(link, "LinkLag") {
+            Some(_) if percent => 0.0,
+            Some(l) => {
+                l.parse::<f64>()
+                    .ok()
+                    .filter(|l| l.is_finite() && l.abs() < 1e10)
+                    .ok_or_else(|| {
+                        Error::invalid(
+                            path,
+                            field("LinkLag"),
+                            format!("{l:?} is not a lag in tenths of a minute"),
+                        )
+                    })?
+                    * 6.0
+            }
+            None => 0.0,
+        };
+        out.push(Predecessor {
+            task: uid.to_string(),
+            kind,
+            lag,
+        });
+    }
+    Ok(out)
 }
 
 /// Baseline 0, else the lowest-numbered baseline with both dates.

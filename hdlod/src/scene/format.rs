@@ -15,9 +15,10 @@ use glam::{Quat, Vec3};
 use serde::{Deserialize, Serialize};
 
 use super::appearance::{Profile, ProfileFile};
+use super::links::{LinkType, find_cycle, show_cycle};
 use super::{
-    Actual, Georeference, Keyframe, Motion, Object, Scene, ScheduleOptions, Span, Task, TaskType,
-    Up, Visibility,
+    Actual, Georeference, Keyframe, Motion, Object, Predecessor, Scene, ScheduleOptions, Span,
+    Task, TaskType, Up, Visibility,
 };
 use crate::error::{Error, Result};
 use crate::io::glb::GlbBuilder;
@@ -97,7 +98,25 @@ struct TaskFile {
     /// The id of its summary task.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     parent: Option<String>,
+    /// The tasks it follows.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    predecessors: Vec<PredecessorFile>,
     objects: Vec<String>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct PredecessorFile {
+    task: String,
+    #[serde(rename = "type", default)]
+    kind: LinkType,
+    /// Seconds.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    lag: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -290,8 +309,41 @@ impl Loader<'_> {
                 actual,
                 baseline,
                 parent: t.parent.clone(),
+                predecessors: t
+                    .predecessors
+                    .iter()
+                    .map(|p| Predecessor {
+                        task: p.task.clone(),
+                        kind: p.kind,
+                        lag: p.lag,
+                    })
+                    .collect(),
                 objects: t.objects.clone(),
             });
+        }
+        // Links name other tasks, and form no cycle.
+        for (i, t) in f.tasks.iter().enumerate() {
+            for (j, p) in t.predecessors.iter().enumerate() {
+                let at = format!("tasks[{i}] {:?}.predecessors[{j}]", t.id);
+                if !task_ids.contains_key(p.task.as_str()) {
+                    return Err(self.err(at, format!("{:?} is not the id of a task", p.task)));
+                }
+                if p.task == t.id {
+                    return Err(self.err(at, "a task cannot follow itself"));
+                }
+                if !p.lag.is_finite() || p.lag.abs() > MAX_SECONDS {
+                    return Err(self.err(format!("{at}.lag"), format!("{} is out of range", p.lag)));
+                }
+            }
+        }
+        let ids: Vec<&str> = f.tasks.iter().map(|t| t.id.as_str()).collect();
+        if let Some(cycle) = find_cycle(&ids, |i| {
+            f.tasks[i].predecessors.iter().map(|p| p.task.as_str())
+        }) {
+            return Err(self.err(
+                format!("tasks[{}] {:?}.predecessors", cycle[0], ids[cycle[0]]),
+                format!("the links form a cycle: {}", show_cycle(&ids, &cycle)),
+            ));
         }
         // Parents name tasks, and no task is its own ancestor.
         for (i, t) in f.tasks.iter().enumerate() {
@@ -504,6 +556,8 @@ fn check(scene: &Scene) -> Result<()> {
         );
     }
     let in_range = |t: f64| t.abs() <= MAX_SECONDS;
+    let task_ids: Vec<&str> = scene.tasks.iter().map(|t| t.id.as_str()).collect();
+    let is_task: std::collections::HashSet<&str> = task_ids.iter().copied().collect();
     if !(in_range(scene.time.seconds) && scene.time.seconds > 0.0) {
         return bad(
             "scene time".into(),
@@ -574,13 +628,29 @@ fn check(scene: &Scene) -> Result<()> {
             );
         }
         if let Some(p) = &t.parent
-            && !scene.tasks.iter().any(|o| &o.id == p)
+            && !is_task.contains(p.as_str())
         {
             return bad(at, format!("parent {p:?} is not a task"));
         }
         if let Some(id) = t.objects.iter().find(|id| !ids.contains_key(id.as_str())) {
             return bad(at, format!("object {id:?} does not exist"));
         }
+        for p in &t.predecessors {
+            if p.task == t.id || !is_task.contains(p.task.as_str()) {
+                return bad(at, format!("predecessor {:?} is not another task", p.task));
+            }
+            if !in_range(p.lag) {
+                return bad(at, format!("lag {} is out of range", p.lag));
+            }
+        }
+    }
+    if let Some(cycle) = find_cycle(&task_ids, |i| {
+        scene.tasks[i].predecessors.iter().map(|p| p.task.as_str())
+    }) {
+        return bad(
+            "tasks".into(),
+            format!("the links form a cycle: {}", show_cycle(&task_ids, &cycle)),
+        );
     }
     Ok(())
 }
@@ -671,6 +741,15 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
                 baseline_start: t.baseline.map(|b| time(b.start)),
                 baseline_finish: t.baseline.map(|b| time(b.finish)),
                 parent: t.parent.clone(),
+                predecessors: t
+                    .predecessors
+                    .iter()
+                    .map(|p| PredecessorFile {
+                        task: p.task.clone(),
+                        kind: p.kind,
+                        lag: p.lag,
+                    })
+                    .collect(),
                 objects: t.objects.clone(),
             })
             .collect(),

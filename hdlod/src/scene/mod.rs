@@ -6,6 +6,7 @@
 pub mod appearance;
 pub mod format;
 mod georef;
+pub mod links;
 mod motion;
 mod schedule;
 pub mod status;
@@ -22,10 +23,11 @@ use crate::time::TimeSpan;
 
 pub use appearance::Profile;
 pub use georef::Georeference;
+pub use links::{LinkType, Predecessor};
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
 pub use status::{Actual, Dates, Span, TaskDates};
-pub use summary::{Bounds, Counts, SceneSummary, TimeSummary};
+pub use summary::{Bounds, Counts, SceneSummary, ScheduleSummary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
 
 /// The names of the properties the IFC import gives an element (the
@@ -96,12 +98,15 @@ pub struct Task {
     pub baseline: Option<Span>,
     /// The id of its summary task in the work breakdown, if any.
     pub parent: Option<String>,
+    /// The tasks it follows (the schedule's logic links).
+    pub predecessors: Vec<Predecessor>,
     /// Ids of the objects the task acts on.
     pub objects: Vec<String>,
 }
 
 impl Task {
-    /// A planned task with no actual or baseline dates and no parent.
+    /// A planned task with no actual or baseline dates, no parent and no
+    /// predecessors.
     pub fn planned(
         id: impl Into<String>,
         name: impl Into<String>,
@@ -119,6 +124,7 @@ impl Task {
             actual: Actual::default(),
             baseline: None,
             parent: None,
+            predecessors: Vec::new(),
             objects,
         }
     }

@@ -17,7 +17,7 @@ use super::Cluster;
 use crate::error::{Error, Result};
 use crate::scene::appearance::{Look, Profile, ProfileFile};
 use crate::scene::status::{Actual, Dates, Deviation, Progress, Span, TaskDates};
-use crate::scene::{Class, Scene, TaskType, Visibility, property};
+use crate::scene::{Class, LinkType, Scene, TaskType, Visibility, property};
 use crate::time::{TimeSpan, format_date};
 
 /// The value of the file's `format` field.
@@ -71,8 +71,25 @@ pub struct TaskEntry {
     pub dates: TaskDates,
     /// The index of its summary task, if any.
     pub parent: Option<u32>,
+    /// The tasks it follows, by index.
+    pub predecessors: Vec<LinkEntry>,
     /// Indices of the objects it acts on, increasing.
     pub objects: Vec<u32>,
+}
+
+/// A logic link to a predecessor, by the predecessor's task index.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct LinkEntry {
+    pub task: u32,
+    #[serde(rename = "type")]
+    pub kind: LinkType,
+    /// Seconds.
+    #[serde(default, skip_serializing_if = "is_zero")]
+    pub lag: f64,
+}
+
+fn is_zero(x: &f64) -> bool {
+    *x == 0.0
 }
 
 /// An element at a time: the task that governs its look, where that task
@@ -191,6 +208,17 @@ impl ObjectTables {
                     kind: t.kind,
                     dates: t.dates(),
                     parent: t.parent.as_deref().and_then(|p| task_index.get(p).copied()),
+                    predecessors: t
+                        .predecessors
+                        .iter()
+                        .filter_map(|p| {
+                            Some(LinkEntry {
+                                task: *task_index.get(p.task.as_str())?,
+                                kind: p.kind,
+                                lag: p.lag,
+                            })
+                        })
+                        .collect(),
                     objects,
                 }
             })
@@ -436,6 +464,19 @@ impl ObjectTables {
                     "the baseline must be finite, its finish not before its start".into(),
                 ));
             }
+            if let Some(p) = t
+                .predecessors
+                .iter()
+                .find(|p| p.task as usize >= m || p.task as usize == k || !p.lag.is_finite())
+            {
+                return Err(bad(
+                    at("predecessors"),
+                    format!(
+                        "link to task {} (lag {}): another task's index below {m}, a finite lag",
+                        p.task, p.lag
+                    ),
+                ));
+            }
             if t.parent.is_some_and(|p| p as usize >= m || p as usize == k) {
                 return Err(bad(
                     at("parent"),
@@ -522,6 +563,7 @@ impl ObjectTables {
                         baseline_start: d.baseline.map(|b| b.start),
                         baseline_finish: d.baseline.map(|b| b.finish),
                         parent: t.parent,
+                        predecessors: t.predecessors.clone(),
                         objects: t.objects.clone(),
                     }
                 })
@@ -588,6 +630,7 @@ impl ObjectTables {
                         .map(|(start, finish)| Span { start, finish }),
                 },
                 parent: r.parent,
+                predecessors: r.predecessors,
                 objects: r.objects,
             })
             .collect();
@@ -757,6 +800,8 @@ pub struct TaskRecord {
     pub baseline_finish: Option<f64>,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub parent: Option<u32>,
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    pub predecessors: Vec<LinkEntry>,
     pub objects: Vec<u32>,
 }
 
@@ -778,6 +823,7 @@ mod tests {
                 baseline: None,
             },
             parent: None,
+            predecessors: Vec::new(),
             objects: vec![0],
         };
         let late = Actual {

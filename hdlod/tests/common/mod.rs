@@ -11,8 +11,8 @@ use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
 use hdlod::scene::appearance::Look;
 use hdlod::scene::{
-    Actual, Georeference, Instant, Keyframe, Motion, Object, Profile, Scene, ScheduleOptions, Span,
-    Task, TaskType, Up, Visibility,
+    Actual, Georeference, Instant, Keyframe, LinkType, Motion, Object, Predecessor, Profile, Scene,
+    ScheduleOptions, Span, Task, TaskType, Up, Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 
@@ -135,14 +135,23 @@ pub fn sample_scene() -> Scene {
                     vec!["B-1".into()],
                 )
             },
-            Task::planned(
-                "T3",
-                "Scaffolding",
-                TaskType::Temporary,
-                0.5,
-                6.0 * day,
-                vec!["S-1".into()],
-            ),
+            // The scaffold stands from the start; it is struck a day
+            // after the beams are done.
+            Task {
+                predecessors: vec![Predecessor {
+                    task: "T2".into(),
+                    kind: LinkType::FinishFinish,
+                    lag: day,
+                }],
+                ..Task::planned(
+                    "T3",
+                    "Scaffolding",
+                    TaskType::Temporary,
+                    0.5,
+                    6.0 * day,
+                    vec!["S-1".into()],
+                )
+            },
         ],
         schedule_options: ScheduleOptions {
             construct_at: Instant::Finish,

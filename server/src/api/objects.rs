@@ -21,7 +21,7 @@ use axum::response::{IntoResponse, Response};
 use hdlod::scene::status::{Deviation, Progress};
 use hdlod::scene::{Class, property};
 use hdlod::time::{TimeValue, format_date};
-use hdlod::tree::objects::{ObjectEntry, ObjectTables, TaskEntry};
+use hdlod::tree::objects::{LinkEntry, ObjectEntry, ObjectTables, TaskEntry};
 use serde::Serialize;
 
 use super::error::ApiError;
@@ -243,6 +243,9 @@ struct TaskItem<'a> {
     /// The index of its summary task.
     #[serde(skip_serializing_if = "Option::is_none")]
     parent: Option<u32>,
+    /// The tasks it follows, by index.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    predecessors: &'a [LinkEntry],
     url: String,
     /// Where it stands at the request's time, when one is given, on the
     /// dates the tree was built on.
@@ -277,6 +280,7 @@ impl<'a> TaskItem<'a> {
             baseline_start: d.baseline.map(|b| b.start),
             baseline_finish: d.baseline.map(|b| b.finish),
             parent: t.parent,
+            predecessors: &t.predecessors,
             url: task_url(&s.tree.scene, &t.id),
             state: at.map(|x| d.progress(x, tables.dates())),
             deviation: at.and_then(|x| d.deviation(x)),

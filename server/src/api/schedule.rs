@@ -19,6 +19,7 @@ use axum::response::Response;
 use hdlod::scene::status::Dates;
 use hdlod::time::format_date;
 use hdlod::tree::ObjectTables;
+use hdlod::tree::objects::LinkEntry;
 use serde::Serialize;
 
 use super::cached::Cached;
@@ -59,6 +60,9 @@ struct TaskRow<'a> {
     /// The index of its summary task.
     #[serde(skip_serializing_if = "Option::is_none")]
     parent: Option<u32>,
+    /// The tasks it follows, by index, with the link's type and lag.
+    #[serde(skip_serializing_if = "<[_]>::is_empty")]
+    predecessors: &'a [LinkEntry],
     /// Its objects' indices (the feature ids of their vertices).
     objects: &'a [u32],
 }
@@ -86,6 +90,7 @@ fn schedule_of(s: &LoadedScene, tables: &ObjectTables) -> Cached {
                     baseline_start: d.baseline.map(|b| b.start),
                     baseline_finish: d.baseline.map(|b| b.finish),
                     parent: t.parent,
+                    predecessors: &t.predecessors,
                     objects: &t.objects,
                 }
             })

@@ -1,4 +1,4 @@
-//! `hdlod import ifc MODEL.ifc|.ifczip ... [--schedule FILE] [--actual LOG.csv]...
+//! `hdlod import ifc MODEL.ifc|.ifczip ... [--schedule FILE [--project ID]] [--actual LOG.csv]...
 //! [--links RULES.json] [--dates planned|actual] --out SCENE [--name NAME]
 //! [--json]`: BIM models and their schedule, with what was built when, into
 //! an `hdlod-scene/1` scene (docs/import.md).
@@ -23,11 +23,17 @@ pub struct Args {
     /// The IFC models (.ifc or .ifczip); their elements make one scene.
     #[arg(required = true)]
     models: Vec<PathBuf>,
-    /// A schedule: Microsoft Project XML (.xml), element-task links (.csv)
-    /// or IFC4 tasks (.ifc/.ifczip). IFC4 tasks inside the models are
+    /// A schedule: Primavera P6 (.xer, or P6 XML .xml), Microsoft Project
+    /// XML (.xml), a task list (.xlsx), element-task links (.csv) or IFC
+    /// work schedules (.ifc/.ifczip). The tasks inside the models are
     /// always read.
     #[arg(long)]
     schedule: Option<PathBuf>,
+    /// The project to read of a P6 schedule that holds several: its short
+    /// name (or proj_id). Without it, such a file is an error that lists
+    /// them.
+    #[arg(long, value_name = "ID")]
+    project: Option<String>,
     /// An as-built log (.csv, element-task rows): its dates are the actual
     /// dates of the schedule's tasks, matched by task id, else by name.
     /// Repeatable.
@@ -73,6 +79,7 @@ pub fn run(command: Import) -> anyhow::Result<()> {
         schedule: args.schedule.clone(),
         links: args.links.clone(),
         actual: args.actual.clone(),
+        project: args.project.clone(),
         dates: match args.dates {
             DatesArg::Planned => Dates::Planned,
             DatesArg::Actual => Dates::Actual,
@@ -159,6 +166,19 @@ fn print_report(r: &Report, out: &str) {
                 "  {} summary tasks kept (without objects) to group them",
                 r.summary_tasks
             );
+        }
+        if r.links + r.links_outside > 0 {
+            println!(
+                "  {} links between the scene's tasks; {} to tasks acting on no object left out",
+                r.links, r.links_outside
+            );
+        }
+        println!(
+            "  {} tasks (summary tasks aside) act on no object",
+            r.unmatched_tasks
+        );
+        for t in &r.unmatched_task_examples {
+            println!("  unmatched task: {t}");
         }
     }
     if let Some(a) = &r.actual {

@@ -89,6 +89,16 @@ fn table(s: &SceneSummary) -> String {
             .unwrap_or_default();
         out += &format!("{name:<16} {:>10}\n", thousands(*n));
     }
+    let w = &s.schedule;
+    out += &format!(
+        "\nschedule {} tasks: {} summary tasks, {} levels of work breakdown; {} tasks linked by {} \
+         links\n",
+        thousands(w.tasks),
+        thousands(w.summary_tasks),
+        w.depth,
+        thousands(w.linked_tasks),
+        thousands(w.links)
+    );
     out
 }
 

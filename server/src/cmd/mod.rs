@@ -3,6 +3,8 @@ pub mod bench_build;
 pub mod bench_identity;
 pub mod bench_objects;
 pub mod bench_simplify;
+#[cfg(feature = "ifc")]
+pub mod bench_xer;
 pub mod build;
 pub mod cut;
 pub mod demo;
