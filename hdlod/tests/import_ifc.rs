@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use hdlod::import::{Options, Recorded, ifc, import};
-use hdlod::scene::{TaskType, VisibilityType};
+use hdlod::scene::{NamedType, TaskType, VisibilityType};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -81,7 +81,8 @@ fn tiny_model_elements_in_metres_with_storey_and_style() {
 #[test]
 fn ifc4_tasks_drive_visibility() {
     let model = ifc::read(&tiny()).unwrap();
-    let tasks: Vec<(&str, Option<TaskType>, &[String])> = model
+    // Each task keeps its IFC type's name beside our type.
+    let tasks: Vec<(&str, Option<NamedType>, &[String])> = model
         .tasks
         .iter()
         .map(|t| (t.id.as_str(), t.kind, t.objects.as_slice()))
@@ -91,12 +92,18 @@ fn ifc4_tasks_drive_visibility() {
         [
             (
                 "T1",
-                Some(TaskType::Construct),
+                Some(NamedType {
+                    kind: TaskType::Construct,
+                    ifc: Some("CONSTRUCTION")
+                }),
                 &["2WallTinyHdlod00000001".to_string()][..]
             ),
             (
                 "T2",
-                Some(TaskType::Demolish),
+                Some(NamedType {
+                    kind: TaskType::Demolish,
+                    ifc: Some("DEMOLITION")
+                }),
                 &["2SlabTinyHdlod00000001".to_string()][..]
             ),
         ]
@@ -118,6 +125,15 @@ fn ifc4_tasks_drive_visibility() {
     let slab = &scene.objects[1];
     assert_eq!(wall.visibility.kind(span), VisibilityType::Appearing);
     assert_eq!(slab.visibility.kind(span), VisibilityType::Disappearing);
+    // The scene keeps the IFC names, through its file too.
+    let named = |s: &hdlod::scene::Scene| -> Vec<Option<&str>> {
+        s.tasks.iter().map(|t| t.ifc_type).collect()
+    };
+    assert_eq!(named(&scene), [Some("CONSTRUCTION"), Some("DEMOLITION")]);
+    let dir = tempfile::tempdir().unwrap();
+    hdlod::scene::format::save(&scene, dir.path()).unwrap();
+    let again = hdlod::scene::format::load(&dir.path().join("scene.json")).unwrap();
+    assert_eq!(named(&again), named(&scene));
     let removed = scene
         .time
         .seconds_of(hdlod::time::parse_date("2024-02-02T17:00:00").unwrap());

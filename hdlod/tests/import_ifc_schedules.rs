@@ -160,7 +160,10 @@ fn ifc2x3_schedule_time_controls() {
         (d("2024-01-08T08:00:00"), d("2024-01-12T17:00:00"))
     );
     assert_eq!(cols.actual.start, Some(d("2024-01-08T09:30:00")));
-    assert_eq!(cols.kind, Some(hdlod::scene::TaskType::Construct));
+    // IFC2x3 names the type in ObjectType; the name is kept beside ours.
+    let kind = cols.kind.unwrap();
+    assert_eq!(kind.kind, hdlod::scene::TaskType::Construct);
+    assert_eq!(kind.ifc, Some("CONSTRUCTION"));
     assert_eq!(cols.fields["work_schedule"], "Frame");
     // A bare calendar date is its midnight; the lag is seconds.
     assert_eq!(

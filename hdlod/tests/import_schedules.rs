@@ -108,7 +108,11 @@ fn link_csv_groups_rows_by_task() {
 
     let typed = "guid,task,start,finish,type\nA,T,2024-01-01,2024-01-02,DEMOLITION\n";
     let tasks = links_csv::read(&write(dir.path(), "typed.csv", typed)).unwrap();
-    assert_eq!(tasks[0].kind, Some(TaskType::Demolish));
+    let kind = tasks[0].kind.unwrap();
+    assert_eq!(
+        (kind.kind, kind.ifc),
+        (TaskType::Demolish, Some("DEMOLITION"))
+    );
 
     let e = links_csv::read(&write(
         dir.path(),

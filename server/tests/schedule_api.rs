@@ -178,3 +178,91 @@ fn a_scene_profile_and_actual_dates_reach_the_answers() {
         "object {i} is present from its task's actual start: {intervals:?}"
     );
 }
+
+/// Tasks the schedule typed INSTALLATION and CONSTRUCTION both construct,
+/// and keep their names through the tree: the answers give each task's IFC
+/// type beside its type, and a profile's INSTALLATION looks reach the
+/// profile answer apart from construct's.
+#[test]
+fn ifc_task_types_keep_their_names_through_the_tree() {
+    let dir = tempfile::tempdir().unwrap();
+    let scene_dir = dir.path().join("scene");
+    std::fs::create_dir(&scene_dir).unwrap();
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    std::fs::copy(
+        fixture.join("skyscraper-tiny.glb"),
+        scene_dir.join("skyscraper-tiny.glb"),
+    )
+    .unwrap();
+    let mut scene = scene_json();
+    let tasks = scene["tasks"].as_array_mut().unwrap();
+    let mut construct = tasks
+        .iter_mut()
+        .filter(|t| t["type"] == "construct" && !t["objects"].as_array().unwrap().is_empty());
+    let installed = construct.next().unwrap();
+    installed["type"] = json!("installation");
+    let installed = installed["id"].as_str().unwrap().to_string();
+    let built = construct.next().unwrap();
+    built["type"] = json!("CONSTRUCTION");
+    let built = built["id"].as_str().unwrap().to_string();
+    scene["appearance"] = json!({
+        "format": "hdlod-appearance/1",
+        "types": {"INSTALLATION": {"active": {"color": "#0000ff"}}}
+    });
+    std::fs::write(
+        scene_dir.join("scene.json"),
+        serde_json::to_vec_pretty(&scene).unwrap(),
+    )
+    .unwrap();
+    let tree = dir.path().join("tree");
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        scene_dir.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+    ]));
+    let server = Server::start(&tree);
+    let doc = server.get_json("/api/v1/openapi.json");
+
+    let schedule = server.get_json(&format!("/api/v1/scenes/{SCENE}/schedule"));
+    assert_component(&doc, "Schedule", &schedule);
+    let find = |id: &str| {
+        schedule["tasks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .find(|t| t["id"] == id)
+            .unwrap()
+            .clone()
+    };
+    for (id, ifc) in [(&installed, "INSTALLATION"), (&built, "CONSTRUCTION")] {
+        let row = find(id);
+        assert_eq!(
+            (&row["type"], &row["ifc_type"]),
+            (&json!("construct"), &json!(ifc))
+        );
+        let task = server.get_json(&format!("/api/v1/scenes/{SCENE}/tasks/{id}"));
+        assert_component(&doc, "Task", &task);
+        assert_eq!(task["ifc_type"], ifc, "{task}");
+    }
+    // Tasks the scene typed with our names have none.
+    assert!(
+        schedule["tasks"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|t| t.get("ifc_type").is_some())
+            .count()
+            == 2
+    );
+
+    let profile = server.get_json(&format!("/api/v1/scenes/{SCENE}/appearance"));
+    assert_component(&doc, "Appearance", &profile);
+    assert_eq!(
+        profile["types"]["INSTALLATION"]["active"]["color"],
+        "#0000ff"
+    );
+    // The phases it leaves out are construct's; CONSTRUCTION has no entry.
+    assert_eq!(profile["types"]["INSTALLATION"]["after"], "model");
+    assert!(profile["types"].get("CONSTRUCTION").is_none(), "{profile}");
+}

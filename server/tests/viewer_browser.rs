@@ -476,6 +476,11 @@ fn the_viewer_reviews_the_schedule_in_chromium() {
     assert_eq!(looks["defaultActive"]["hex"], "#2fb344");
     assert_eq!(f(&looks["defaultActive"]["transparency"]), 0.5);
     assert_eq!(looks["temporaryAfter"]["kind"], "hidden");
+    // An IFC type the profile names apart looks its own way in the phases
+    // it gives, its type's in the others; one it does not name, its type's.
+    assert_eq!(looks["installation"]["hex"], "#00ffff");
+    assert_eq!(looks["installationLate"]["hex"], "#ff0000");
+    assert_eq!(looks["construction"], looks["onTime"]);
     let errors = rules["errors"].as_array().unwrap();
     for (error, field) in errors.iter().zip([
         "types.paint",

@@ -25,17 +25,22 @@ export const DEVIATION_NAMES = ["early", "on_time", "late"];
 
 export const PHASES = ["before", "active", "after", "early", "late"];
 
-// TaskType::parse: our names or the IFC ones, any case; -1 for none.
-const TYPE_NAMES = {
-  CONSTRUCT: 0, CONSTRUCTION: 0, INSTALLATION: 0,
-  DEMOLISH: 1, DEMOLITION: 1, DISMANTLE: 1, DISPOSAL: 1, REMOVAL: 1,
-  TEMPORARY: 2,
-  MAINTAIN: 3, MAINTENANCE: 3, OPERATION: 3, ATTENDANCE: 3, LOGISTIC: 3, MOVE: 3,
+// The IFC task types (IfcTaskTypeEnum) that name one of ours, as in
+// hdlod/src/scene/schedule.rs: name -> index into TASK_TYPES.
+export const IFC_TASK_TYPES = {
+  CONSTRUCTION: 0, INSTALLATION: 0,
+  DEMOLITION: 1, DISMANTLE: 1, DISPOSAL: 1, REMOVAL: 1,
+  MAINTENANCE: 3, OPERATION: 3, ATTENDANCE: 3, LOGISTIC: 3, MOVE: 3,
 };
 
-export function taskType(name) {
-  const k = TYPE_NAMES[String(name).toUpperCase()];
-  return k === undefined ? -1 : k;
+// NamedType::parse: our names or the IFC ones, any case, as {kind, ifc}
+// (ifc the upper-case IFC name, or null); null for neither.
+export function namedType(name) {
+  const upper = String(name).toUpperCase();
+  const ours = TASK_TYPES.indexOf(upper.toLowerCase());
+  if (ours >= 0) return { kind: ours, ifc: null };
+  const kind = IFC_TASK_TYPES[upper];
+  return kind === undefined ? null : { kind, ifc: upper };
 }
 
 function has(x) {
@@ -98,6 +103,7 @@ export const DEFAULT_PROFILE = Object.freeze({
     typeLooks(colourLook("#f2c21b"), HIDDEN),
     typeLooks(MODEL, MODEL),
   ],
+  ifc: {},
 });
 
 function isObject(v) {
@@ -126,8 +132,10 @@ function parseLook(value, field, at) {
 
 // Profile::from_file: a parsed hdlod-appearance/1 file checked, errors
 // naming the field (prefixed by `at`, e.g. the file's name and a colon).
-// A type left out, or given as {}, keeps the defaults; a phase left out of
-// a given type is "model"; early and late left out keep the phase's look.
+// One of our types left out, or given as {}, keeps the defaults; a phase
+// left out of one of our types is "model", of an IFC type its type's;
+// early and late left out keep the phase's look. `ifc` holds the IFC
+// types named apart (INSTALLATION beside CONSTRUCTION).
 export function parseProfile(file, at = "") {
   if (!isObject(file)) throw new Error(`${at}an appearance profile is a JSON object`);
   for (const key of Object.keys(file)) {
@@ -137,38 +145,50 @@ export function parseProfile(file, at = "") {
     throw new Error(`${at}format: ${JSON.stringify(file.format)} is not supported (expected "hdlod-appearance/1")`);
   }
   if (has(file.name) && typeof file.name !== "string") throw new Error(`${at}name: not a string`);
-  const types = DEFAULT_PROFILE.types.map((t) => ({ ...t }));
-  const given = [null, null, null, null];
   const entries = has(file.types) ? file.types : {};
   if (!isObject(entries)) throw new Error(`${at}types: not an object`);
+  const keys = [];
+  const given = new Map();
   for (const [key, entry] of Object.entries(entries)) {
-    const kind = taskType(key);
-    if (kind < 0) throw new Error(`${at}types.${key}: ${JSON.stringify(key)} is not a task type; use ${TASK_TYPES.join(", ")} (or an IFC task type name)`);
-    if (given[kind] !== null) throw new Error(`${at}types.${key}: names the same task type as types.${given[kind]} (${TASK_TYPES[kind]})`);
-    given[kind] = key;
+    const named = namedType(key);
+    if (!named) throw new Error(`${at}types.${key}: ${JSON.stringify(key)} is not a task type; use ${TASK_TYPES.join(", ")} (or an IFC task type name)`);
+    const canonical = named.ifc || TASK_TYPES[named.kind];
+    if (given.has(canonical)) throw new Error(`${at}types.${key}: names the same task type as types.${given.get(canonical)}`);
+    given.set(canonical, key);
     if (!isObject(entry)) throw new Error(`${at}types.${key}: not an object`);
     for (const phase of Object.keys(entry)) {
       if (!PHASES.includes(phase)) throw new Error(`${at}types.${key}.${phase}: unknown field`);
     }
-    if (!PHASES.some((p) => has(entry[p]))) continue;
-    const phase = (p, fallback) => (has(entry[p]) ? parseLook(entry[p], `types.${key}.${p}`, at) : fallback);
-    types[kind] = {
-      before: phase("before", MODEL),
-      active: phase("active", MODEL),
-      after: phase("after", MODEL),
-      early: phase("early", null),
-      late: phase("late", null),
-    };
+    keys.push({ key, entry, named });
   }
-  return { name: has(file.name) ? file.name : "unnamed", types };
+  // Our types first: an IFC type's phases left out are its type's.
+  keys.sort((a, b) => (a.named.ifc ? 1 : 0) - (b.named.ifc ? 1 : 0));
+  const types = DEFAULT_PROFILE.types.map((t) => ({ ...t }));
+  const ifc = {};
+  for (const { key, entry, named } of keys) {
+    const phase = (p, fallback) => (has(entry[p]) ? parseLook(entry[p], `types.${key}.${p}`, at) : fallback);
+    const own = types[named.kind];
+    if (named.ifc) {
+      ifc[named.ifc] = Object.fromEntries(PHASES.map((p) => [p, phase(p, own[p])]));
+    } else if (PHASES.some((p) => has(entry[p]))) {
+      types[named.kind] = {
+        before: phase("before", MODEL),
+        active: phase("active", MODEL),
+        after: phase("after", MODEL),
+        early: phase("early", null),
+        late: phase("late", null),
+      };
+    }
+  }
+  return { name: has(file.name) ? file.name : "unnamed", types, ifc };
 }
 
 // Profile::look: the look of an element under a task of type `kind` (an
-// index into TASK_TYPES) at `prog`, `dev` the task's deviation (null
-// without actual dates). Early and late looks, when given, override the
-// phase's while the task deviates.
-export function look(profile, kind, prog, dev) {
-  const looks = profile.types[kind];
+// index into TASK_TYPES; `ifc` the IFC type its schedule named, or null)
+// at `prog`, `dev` the task's deviation (null without actual dates). Early
+// and late looks, when given, override the phase's while the task deviates.
+export function look(profile, kind, prog, dev, ifc = null) {
+  const looks = (ifc && profile.ifc && profile.ifc[ifc]) || profile.types[kind];
   const special = dev === EARLY ? looks.early : dev === LATE ? looks.late : null;
   if (special) return special;
   return prog === NOT_STARTED ? looks.before : prog === IN_PROGRESS ? looks.active : looks.after;

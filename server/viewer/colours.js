@@ -159,7 +159,7 @@ export class FeatureColours {
   fillAppearance(out) {
     const s = standings(this.tasks, this.t, this.dates);
     const looks = this.tasks.map((task, k) =>
-      lookBytes(look(this.profile, TASK_TYPES.indexOf(task.type), s.progress[k], s.deviation[k] < 0 ? null : s.deviation[k])));
+      lookBytes(look(this.profile, TASK_TYPES.indexOf(task.type), s.progress[k], s.deviation[k] < 0 ? null : s.deviation[k], task.ifc_type)));
     for (let i = 0; i < this.count; i++) {
       const k = governing(this.taskOf, this.offsets[i], this.offsets[i + 1], s);
       if (k >= 0) out.set(looks[k], 4 * i);

@@ -188,12 +188,15 @@ function renderLegend() {
     html = [0, 1, 2, 3, 4, 5, 6].map((l) => entry(hex(levelColour(l)), l === 6 ? "6+" : String(l))).join("") + ' <span class="note">(HDLOD level; 0: original objects)</span>';
   } else if (mode === "appearance") {
     const profile = viewer.colours.profile;
-    const used = new Set(viewer.schedule ? viewer.schedule.tasks.map((t) => t.type) : TASK_TYPES);
-    const rows = TASK_TYPES.map((type, kind) => {
-      if (!used.has(type)) return "";
-      const looks = profile.types[kind];
+    // A row per type the schedule uses; an IFC type the profile gives
+    // looks of its own gets its own row.
+    const tasks = viewer.schedule ? viewer.schedule.tasks : TASK_TYPES.map((type) => ({ type }));
+    const used = new Set(tasks.map((t) => (t.ifc_type && profile.ifc[t.ifc_type] ? t.ifc_type : t.type)));
+    const names = [...TASK_TYPES, ...Object.keys(profile.ifc).sort()];
+    const rows = names.filter((name) => used.has(name)).map((name) => {
+      const looks = profile.ifc[name] || profile.types[TASK_TYPES.indexOf(name)];
       const phases = PHASES.filter((p) => looks[p]).map((p) => lookEntry(p, looks[p])).join("");
-      return `<div data-type="${type}"><span class="type">${type}</span>${phases}</div>`;
+      return `<div data-type="${name}"><span class="type">${name}</span>${phases}</div>`;
     }).join("");
     const from = viewer.profileSource ? (viewer.profileSource.startsWith("data:") ? " (loaded)" : ` (${escapeHtml(viewer.profileSource)})`) : "";
     html = `<div class="note">appearance profile <b data-field="profile">${escapeHtml(profile.name)}</b>${from}; ${entry(null, "own colour")}</div>${rows}`;

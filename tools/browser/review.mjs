@@ -121,7 +121,7 @@ try {
         return { error: e.message };
       }
     };
-    const lateRed = parse('{"format": "hdlod-appearance/1", "name": "late red", "types": {"CONSTRUCTION": {"active": {"color": "#0000ff", "transparency": 0.25}, "late": {"color": "#ff0000"}}, "demolish": {}}}').profile;
+    const lateRed = parse('{"format": "hdlod-appearance/1", "name": "late red", "types": {"installation": {"active": {"color": "#00ffff"}}, "construct": {"active": {"color": "#0000ff", "transparency": 0.25}, "late": {"color": "#ff0000"}}, "demolish": {}}}').profile;
     const looks = {
       late: a.look(lateRed, 0, a.IN_PROGRESS, a.LATE),
       onTime: a.look(lateRed, 0, a.IN_PROGRESS, a.ON_TIME),
@@ -129,12 +129,15 @@ try {
       demolishAfter: a.look(lateRed, 1, a.FINISHED, null),
       defaultActive: a.look(a.DEFAULT_PROFILE, 0, a.IN_PROGRESS, null),
       temporaryAfter: a.look(a.DEFAULT_PROFILE, 2, a.FINISHED, null),
+      installation: a.look(lateRed, 0, a.IN_PROGRESS, null, "INSTALLATION"),
+      installationLate: a.look(lateRed, 0, a.IN_PROGRESS, a.LATE, "INSTALLATION"),
+      construction: a.look(lateRed, 0, a.IN_PROGRESS, null, "CONSTRUCTION"),
     };
     const errors = [
       '{"format": "hdlod-appearance/1", "types": {"paint": {}}}',
       '{"format": "hdlod-appearance/1", "types": {"construct": {"after": "gone"}}}',
       '{"format": "hdlod-appearance/1", "types": {"construct": {"active": {"color": "green"}}}}',
-      '{"format": "hdlod-appearance/1", "types": {"construct": {}, "INSTALLATION": {}}}',
+      '{"format": "hdlod-appearance/1", "types": {"INSTALLATION": {}, "installation": {}}}',
       '{"format": "hdlod-appearance/2"}',
     ].map((j) => parse(j).error || null);
     return { progress, deviation, governed, looks, errors, name: lateRed.name };

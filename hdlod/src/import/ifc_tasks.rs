@@ -55,7 +55,7 @@ use ifc_lite_core::{DecodedEntity, EntityDecoder, EntityScanner, IfcType};
 
 use super::{Recorded, ScheduleTask, check_links};
 use crate::error::{Error, Result};
-use crate::scene::{LinkType, Predecessor, TaskType};
+use crate::scene::{LinkType, NamedType, Predecessor, TaskType};
 use crate::time::parse_date;
 
 /// A task's dates as its `IfcTaskTime` gives them, or as the tasks nested
@@ -301,7 +301,7 @@ pub fn read(path: &Path, schema: &str, step: &[u8]) -> Result<Vec<ScheduleTask>>
         };
         let predefined = t.get(12).and_then(|v| v.as_enum()).unwrap_or("NOTDEFINED");
         let kind =
-            TaskType::parse(predefined).or_else(|| t.get_string(4).and_then(TaskType::parse));
+            NamedType::parse(predefined).or_else(|| t.get_string(4).and_then(NamedType::parse));
         let task_id = t
             .get_string(5)
             .filter(|s| !s.is_empty())
@@ -421,7 +421,7 @@ pub fn read(path: &Path, schema: &str, step: &[u8]) -> Result<Vec<ScheduleTask>>
             let Some(product) = guid(&mut d, related)? else {
                 continue;
             };
-            if tasks[k].kind.unwrap_or(TaskType::Construct) == TaskType::Construct {
+            if tasks[k].kind.map_or(TaskType::Construct, |t| t.kind) == TaskType::Construct {
                 consumed.push((k, product));
             } else {
                 tasks[k].objects.push(product);
@@ -440,7 +440,7 @@ pub fn read(path: &Path, schema: &str, step: &[u8]) -> Result<Vec<ScheduleTask>>
                 tasks.push(ScheduleTask {
                     id,
                     name: format!("{} (consumed inputs)", t.name),
-                    kind: Some(TaskType::Demolish),
+                    kind: Some(TaskType::Demolish.into()),
                     objects: vec![product],
                     ..t
                 });

@@ -15,7 +15,7 @@ use chrono::{DateTime, NaiveDate, Utc};
 
 use super::ScheduleTask;
 use crate::error::{Error, Result};
-use crate::scene::TaskType;
+use crate::scene::{NamedType, TaskType};
 use crate::time::parse_date;
 
 pub(super) const GUID: &[&str] = &["guid", "globalid", "element", "elementguid", "element_guid"];
@@ -126,7 +126,7 @@ pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
                 }
                 let f = end_of(field(finish), f);
                 let kind = match kind.map(field).filter(|k| !k.is_empty()) {
-                    Some(k) => Some(TaskType::parse(k).ok_or_else(|| {
+                    Some(k) => Some(NamedType::parse(k).ok_or_else(|| {
                         Error::invalid(
                             path,
                             at(kind.unwrap_or(0)),

@@ -35,8 +35,8 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::scene::links::{find_cycle, show_cycle};
 use crate::scene::{
-    Actual, Dates, Object, Predecessor, Scene, ScheduleOptions, Span, Task, TaskType, Up,
-    Visibility,
+    Actual, Dates, NamedType, Object, Predecessor, Scene, ScheduleOptions, Span, Task, TaskType,
+    Up, Visibility,
 };
 use crate::time::{TimeSpan, format_date};
 
@@ -50,7 +50,7 @@ pub struct ScheduleTask {
     pub name: String,
     /// The type the schedule gives, if any (a rule may set it; the default
     /// is construct).
-    pub kind: Option<TaskType>,
+    pub kind: Option<NamedType>,
     /// The planned start and finish.
     pub start: DateTime<Utc>,
     pub finish: DateTime<Utc>,
@@ -415,9 +415,9 @@ pub fn import(
     report.tasks = schedule.len();
 
     // (task, type) -> object ids, in order of first use.
-    let mut groups: Vec<((usize, TaskType), Vec<String>)> = Vec::new();
-    let mut group_of: HashMap<(usize, TaskType), usize> = HashMap::new();
-    let mut add = |key: (usize, TaskType), id: &str| {
+    let mut groups: Vec<((usize, NamedType), Vec<String>)> = Vec::new();
+    let mut group_of: HashMap<(usize, NamedType), usize> = HashMap::new();
+    let mut add = |key: (usize, NamedType), id: &str| {
         let g = *group_of.entry(key).or_insert_with(|| {
             groups.push((key, Vec::new()));
             groups.len() - 1
@@ -427,7 +427,7 @@ pub fn import(
     let known: HashSet<&str> = objects.iter().map(|o| o.id.as_str()).collect();
     let mut unknown = 0usize;
     for (k, t) in schedule.iter().enumerate() {
-        let kind = t.kind.unwrap_or(TaskType::Construct);
+        let kind = t.kind.unwrap_or(TaskType::Construct.into());
         for id in &t.objects {
             if known.contains(id.as_str()) {
                 add((k, kind), id);
@@ -450,7 +450,7 @@ pub fn import(
                 let kind = rule
                     .kind
                     .or(schedule[k].kind)
-                    .unwrap_or(TaskType::Construct);
+                    .unwrap_or(TaskType::Construct.into());
                 add((k, kind), &o.id);
             }
             matched += usize::from(!tasks.is_empty());
@@ -465,7 +465,10 @@ pub fn import(
             task: first.id.clone(),
             task_name: first.name.clone(),
             tasks: rule.tasks.len(),
-            kind: rule.kind.or(first.kind).unwrap_or(TaskType::Construct),
+            kind: rule
+                .kind
+                .or(first.kind)
+                .map_or(TaskType::Construct, |t| t.kind),
             matched,
         });
     }
@@ -536,14 +539,14 @@ pub fn import(
     };
 
     report.scene_tasks = groups.len();
-    let mut rows: Vec<(usize, TaskType, Vec<String>)> = groups
+    let mut rows: Vec<(usize, NamedType, Vec<String>)> = groups
         .into_iter()
         .map(|((k, kind), objects)| (k, kind, objects))
         .collect();
     let summaries = summary_rows(&schedule, rows.iter().map(|r| r.0));
     report.summary_tasks = summaries.len();
     rows.extend(summaries.into_iter().map(|k| {
-        let kind = schedule[k].kind.unwrap_or(TaskType::Construct);
+        let kind = schedule[k].kind.unwrap_or(TaskType::Construct.into());
         (k, kind, Vec::new())
     }));
 
@@ -555,7 +558,7 @@ pub fn import(
         let t = &schedule[*k];
         let mut id = t.id.clone();
         if !ids.insert(id.clone()) {
-            id = format!("{}:{}", t.id, type_name(*kind));
+            id = format!("{}:{}", t.id, kind.name());
             ids.insert(id.clone());
         }
         scene_id.entry(*k).or_insert_with(|| id.clone());
@@ -563,7 +566,8 @@ pub fn import(
         tasks.push(Task {
             id,
             name: t.name.clone(),
-            kind: *kind,
+            kind: kind.kind,
+            ifc_type: kind.ifc,
             start: at(t.start),
             finish: at(t.finish),
             actual: Actual {
@@ -702,15 +706,6 @@ fn break_cycles(tasks: &mut [Task], warnings: &mut Vec<String>) {
             }
             at = p;
         }
-    }
-}
-
-fn type_name(kind: TaskType) -> &'static str {
-    match kind {
-        TaskType::Construct => "construct",
-        TaskType::Demolish => "demolish",
-        TaskType::Temporary => "temporary",
-        TaskType::Maintain => "maintain",
     }
 }
 

@@ -19,7 +19,7 @@ use serde::Deserialize;
 use super::ScheduleTask;
 use super::xlsx::{FIELDS, Mapping};
 use crate::error::{Error, Result};
-use crate::scene::{Object, TaskType};
+use crate::scene::{NamedType, Object, TaskType};
 
 /// The value of the `format` field.
 pub const FORMAT: &str = "hdlod-links/1";
@@ -141,7 +141,7 @@ pub struct Rule {
     /// its tasks by their value of the task attribute (normalised).
     join: Option<(String, HashMap<String, Vec<usize>>)>,
     /// The type the rule gives, else the task's own, else construct.
-    pub kind: Option<TaskType>,
+    pub kind: Option<NamedType>,
 }
 
 impl Rule {
@@ -370,7 +370,7 @@ pub fn read(path: &Path, tasks: &[ScheduleTask]) -> Result<Vec<Rule>> {
             }
         };
         let kind = match &r.kind {
-            Some(k) => Some(TaskType::parse(k).ok_or_else(|| {
+            Some(k) => Some(NamedType::parse(k).ok_or_else(|| {
                 bad(
                     "type",
                     format!("unknown type {k:?}; expected {}", TaskType::NAMES),

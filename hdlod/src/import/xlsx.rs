@@ -28,7 +28,7 @@ use serde::Deserialize;
 use super::links_csv::parse_csv_date;
 use super::{Recorded, ScheduleTask, check_links};
 use crate::error::{Error, Result};
-use crate::scene::{LinkType, Predecessor, TaskType};
+use crate::scene::{LinkType, NamedType, Predecessor, TaskType};
 
 /// The columns read as what they are; the others are custom fields.
 pub const FIELDS: [&str; 12] = [
@@ -240,7 +240,7 @@ pub fn read(path: &Path, mapping: &Mapping) -> Result<Vec<ScheduleTask>> {
         };
         let kind = match value("type").as_str() {
             "" => None,
-            t => Some(TaskType::parse(t).ok_or_else(|| {
+            t => Some(NamedType::parse(t).ok_or_else(|| {
                 Error::invalid(
                     path,
                     at("type"),

@@ -16,8 +16,8 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::TaskType;
 use super::status::{Deviation, Progress};
+use super::{NamedType, TaskType};
 use crate::error::{Error, Result};
 
 /// The value of the `format` field.
@@ -48,12 +48,16 @@ pub struct TypeLooks {
     pub late: Option<Look>,
 }
 
-/// A whole profile: the looks of each task type.
+/// A whole profile: the looks of each task type, and of the IFC task types
+/// it names apart.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Profile {
     pub name: String,
     /// Indexed by [`TaskType::index`].
     pub types: [TypeLooks; 4],
+    /// By IFC name (`INSTALLATION`): for tasks of that IFC type, in place
+    /// of their type's looks.
+    pub ifc: BTreeMap<&'static str, TypeLooks>,
 }
 
 impl Default for Profile {
@@ -77,6 +81,7 @@ impl Default for Profile {
                 looks(colour(0xf2c21b, 0.0), Look::Hidden),
                 looks(Look::Model, Look::Model),
             ],
+            ifc: BTreeMap::new(),
         }
     }
 }
@@ -85,8 +90,17 @@ impl Profile {
     /// The look of an element under a task of type `kind` at `progress`,
     /// `deviation` being the task's against its plan, when it has actual
     /// dates.
-    pub fn look(&self, kind: TaskType, progress: Progress, deviation: Option<Deviation>) -> Look {
-        let looks = &self.types[kind.index()];
+    pub fn look(
+        &self,
+        kind: impl Into<NamedType>,
+        progress: Progress,
+        deviation: Option<Deviation>,
+    ) -> Look {
+        let kind = kind.into();
+        let looks = kind
+            .ifc
+            .and_then(|name| self.ifc.get(name))
+            .unwrap_or(&self.types[kind.kind.index()]);
         let special = match deviation {
             Some(Deviation::Early) => looks.early,
             Some(Deviation::Late) => looks.late,
@@ -119,53 +133,72 @@ impl Profile {
                 format!("{:?} is not supported (expected {FORMAT:?})", f.format),
             ));
         }
-        let mut types = Profile::default().types;
-        let mut given: [Option<&str>; 4] = [None; 4];
+        // Our types first: an IFC type's phases left out are its type's.
+        let mut keys: Vec<(&String, &TypeFile, NamedType)> = Vec::new();
         for (key, entry) in &f.types {
-            let field = |phase: &str| format!("types.{key}.{phase}");
-            let kind = TaskType::parse(key).ok_or_else(|| {
+            let named = NamedType::parse(key).ok_or_else(|| {
                 err(
                     format!("types.{key}"),
                     format!("{key:?} is not a task type; use {}", TaskType::NAMES),
                 )
             })?;
-            if let Some(first) = given[kind.index()].replace(key) {
+            if let Some((first, ..)) = keys.iter().find(|(_, _, n)| *n == named) {
                 return Err(err(
                     format!("types.{key}"),
-                    format!(
-                        "names the same task type as types.{first} ({})",
-                        kind.name()
-                    ),
+                    format!("names the same task type as types.{first}"),
                 ));
             }
-            let look = |e: &Option<EntryFile>, phase: &str, default: Look| -> Result<Look> {
+            keys.push((key, entry, named));
+        }
+        keys.sort_by_key(|(_, _, named)| named.ifc.is_some());
+        let mut types = Profile::default().types;
+        let mut ifc = BTreeMap::new();
+        for (key, entry, named) in keys {
+            let field = |phase: &str| format!("types.{key}.{phase}");
+            let phase = |e: &Option<EntryFile>, name: &str| -> Result<Option<Look>> {
                 e.as_ref()
-                    .map_or(Ok(default), |e| e.look().map_err(|m| err(field(phase), m)))
+                    .map(|e| e.look().map_err(|m| err(field(name), m)))
+                    .transpose()
             };
-            // A type named with no phase at all keeps the defaults: `{}` is
-            // "as usual", not "plain".
-            if entry.is_empty() {
-                continue;
+            let (before, active, after, early, late) = (
+                phase(&entry.before, "before")?,
+                phase(&entry.active, "active")?,
+                phase(&entry.after, "after")?,
+                phase(&entry.early, "early")?,
+                phase(&entry.late, "late")?,
+            );
+            let kind = &mut types[named.kind.index()];
+            match named.ifc {
+                // A type named with no phase at all keeps the defaults: `{}`
+                // is "as usual", not "plain".
+                None if !entry.is_empty() => {
+                    *kind = TypeLooks {
+                        before: before.unwrap_or(Look::Model),
+                        active: active.unwrap_or(Look::Model),
+                        after: after.unwrap_or(Look::Model),
+                        early,
+                        late,
+                    }
+                }
+                None => {}
+                Some(name) => {
+                    ifc.insert(
+                        name,
+                        TypeLooks {
+                            before: before.unwrap_or(kind.before),
+                            active: active.unwrap_or(kind.active),
+                            after: after.unwrap_or(kind.after),
+                            early: early.or(kind.early),
+                            late: late.or(kind.late),
+                        },
+                    );
+                }
             }
-            types[kind.index()] = TypeLooks {
-                before: look(&entry.before, "before", Look::Model)?,
-                active: look(&entry.active, "active", Look::Model)?,
-                after: look(&entry.after, "after", Look::Model)?,
-                early: entry
-                    .early
-                    .as_ref()
-                    .map(|e| e.look().map_err(|m| err(field("early"), m)))
-                    .transpose()?,
-                late: entry
-                    .late
-                    .as_ref()
-                    .map(|e| e.look().map_err(|m| err(field("late"), m)))
-                    .transpose()?,
-            };
         }
         Ok(Profile {
             name: f.name.unwrap_or_else(|| "unnamed".into()),
             types,
+            ifc,
         })
     }
 
@@ -177,10 +210,11 @@ impl Profile {
             name: Some(self.name.clone()),
             types: TaskType::ALL
                 .iter()
-                .map(|&k| {
-                    let t = &self.types[k.index()];
+                .map(|&k| (k.name(), &self.types[k.index()]))
+                .chain(self.ifc.iter().map(|(&name, t)| (name, t)))
+                .map(|(name, t)| {
                     (
-                        k.name().to_string(),
+                        name.to_string(),
                         TypeFile {
                             before: entry(t.before),
                             active: entry(t.active),
@@ -328,8 +362,8 @@ mod tests {
     fn a_profile_round_trips_and_late_overrides_the_phase() {
         let p = parse(
             r##"{"format": "hdlod-appearance/1", "name": "late red",
-                 "types": {"CONSTRUCTION": {"active": {"color": "#0000ff", "transparency": 0.25},
-                                            "late": {"color": "#ff0000"}},
+                 "types": {"construct": {"active": {"color": "#0000ff", "transparency": 0.25},
+                                         "late": {"color": "#ff0000"}},
                            "demolish": {}}}"##,
         )
         .unwrap();
@@ -360,6 +394,46 @@ mod tests {
     }
 
     #[test]
+    fn ifc_task_types_of_one_type_look_apart() {
+        let p = parse(
+            r##"{"format": "hdlod-appearance/1",
+                 "types": {"construct": {"active": {"color": "#00ff00"}, "late": {"color": "#ff0000"}},
+                           "installation": {"active": {"color": "#0000ff"}}}}"##,
+        )
+        .unwrap();
+        let named = |name: &str| NamedType::parse(name).unwrap();
+        let blue = Look::Colour {
+            rgb: [0, 0, 255],
+            transparency: 0.0,
+        };
+        let green = Look::Colour {
+            rgb: [0, 255, 0],
+            transparency: 0.0,
+        };
+        assert_eq!(p.look(named("INSTALLATION"), Progress::Active, None), blue);
+        // CONSTRUCTION has no entry of its own: construct's looks.
+        assert_eq!(p.look(named("CONSTRUCTION"), Progress::Active, None), green);
+        assert_eq!(p.look(TaskType::Construct, Progress::Active, None), green);
+        // The phases INSTALLATION leaves out are construct's.
+        let late = p.look(
+            named("INSTALLATION"),
+            Progress::Active,
+            Some(Deviation::Late),
+        );
+        assert_eq!(
+            late,
+            p.look(TaskType::Construct, Progress::Active, Some(Deviation::Late))
+        );
+        assert_eq!(
+            p.look(named("INSTALLATION"), Progress::Finished, None),
+            Look::Model
+        );
+        let again = Profile::from_file(p.to_file(), Path::new("p.json"), "").unwrap();
+        assert_eq!(again, p);
+        assert!(again.to_file().types.contains_key("INSTALLATION"));
+    }
+
+    #[test]
     fn bad_profiles_name_the_field() {
         let e = parse(r#"{"format": "hdlod-appearance/1", "types": {"paint": {}}}"#).unwrap_err();
         assert!(e.to_string().contains("types.paint"), "{e}");
@@ -373,7 +447,7 @@ mod tests {
         .unwrap_err();
         assert!(e.to_string().contains("#rrggbb"), "{e}");
         let e = parse(
-            r#"{"format": "hdlod-appearance/1", "types": {"construct": {}, "INSTALLATION": {}}}"#,
+            r#"{"format": "hdlod-appearance/1", "types": {"INSTALLATION": {}, "installation": {}}}"#,
         )
         .unwrap_err();
         assert!(e.to_string().contains("same task type"), "{e}");

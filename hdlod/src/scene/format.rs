@@ -17,8 +17,8 @@ use serde::{Deserialize, Serialize};
 use super::appearance::{Profile, ProfileFile};
 use super::links::{LinkType, find_cycle, show_cycle};
 use super::{
-    Actual, Georeference, Keyframe, Motion, Object, Predecessor, Scene, ScheduleOptions, Span,
-    Task, TaskType, Up, Visibility,
+    Actual, Georeference, Keyframe, Motion, NamedType, Object, Predecessor, Scene, ScheduleOptions,
+    Span, Task, TaskType, Up, Visibility,
 };
 use crate::error::{Error, Result};
 use crate::io::glb::GlbBuilder;
@@ -237,7 +237,7 @@ impl Loader<'_> {
             if let Some(first) = task_ids.insert(t.id.as_str(), i) {
                 return Err(self.err(at, format!("the id is also the id of tasks[{first}]")));
             }
-            let kind = TaskType::parse(&t.kind).ok_or_else(|| {
+            let named = NamedType::parse(&t.kind).ok_or_else(|| {
                 self.err(
                     format!("{at}.type"),
                     format!("{:?} is not a task type; use {}", t.kind, TaskType::NAMES),
@@ -303,7 +303,8 @@ impl Loader<'_> {
             tasks.push(Task {
                 id: t.id.clone(),
                 name: t.name.clone(),
-                kind,
+                kind: named.kind,
+                ifc_type: named.ifc,
                 start,
                 finish,
                 actual,
@@ -733,7 +734,7 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
             .map(|t| TaskFile {
                 id: t.id.clone(),
                 name: t.name.clone(),
-                kind: t.kind.name().into(),
+                kind: t.ifc_type.unwrap_or(t.kind.name()).into(),
                 start: time(t.start),
                 finish: time(t.finish),
                 actual_start: t.actual.start.map(time),

@@ -25,7 +25,7 @@ pub use appearance::Profile;
 pub use georef::Georeference;
 pub use links::{LinkType, Predecessor};
 pub use motion::{Keyframe, Motion};
-pub use schedule::{Action, Instant, ScheduleOptions, TaskType, compose};
+pub use schedule::{Action, Instant, NamedType, ScheduleOptions, TaskType, compose};
 pub use status::{Actual, Dates, Span, TaskDates};
 pub use summary::{Bounds, Counts, SceneSummary, ScheduleSummary, TimeSummary};
 pub use visibility::{Visibility, VisibilityType};
@@ -89,6 +89,9 @@ pub struct Task {
     pub id: String,
     pub name: String,
     pub kind: TaskType,
+    /// The IFC task type its schedule named, if any (`INSTALLATION`): a
+    /// profile may give it looks of its own.
+    pub ifc_type: Option<&'static str>,
     /// The planned start and finish.
     pub start: f64,
     pub finish: f64,
@@ -119,6 +122,7 @@ impl Task {
             id: id.into(),
             name: name.into(),
             kind,
+            ifc_type: None,
             start,
             finish,
             actual: Actual::default(),

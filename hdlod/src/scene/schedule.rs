@@ -21,18 +21,25 @@ pub enum TaskType {
     Maintain,
 }
 
+/// The IFC task types (`IfcTaskTypeEnum`) that name one of ours.
+const IFC_NAMES: [(&str, TaskType); 11] = [
+    ("CONSTRUCTION", TaskType::Construct),
+    ("INSTALLATION", TaskType::Construct),
+    ("DEMOLITION", TaskType::Demolish),
+    ("DISMANTLE", TaskType::Demolish),
+    ("DISPOSAL", TaskType::Demolish),
+    ("REMOVAL", TaskType::Demolish),
+    ("MAINTENANCE", TaskType::Maintain),
+    ("OPERATION", TaskType::Maintain),
+    ("ATTENDANCE", TaskType::Maintain),
+    ("LOGISTIC", TaskType::Maintain),
+    ("MOVE", TaskType::Maintain),
+];
+
 impl TaskType {
     /// Parses our names and the IFC `IfcTaskTypeEnum` names (any case).
     pub fn parse(name: &str) -> Option<TaskType> {
-        Some(match name.to_ascii_uppercase().as_str() {
-            "CONSTRUCT" | "CONSTRUCTION" | "INSTALLATION" => TaskType::Construct,
-            "DEMOLISH" | "DEMOLITION" | "DISMANTLE" | "DISPOSAL" | "REMOVAL" => TaskType::Demolish,
-            "TEMPORARY" => TaskType::Temporary,
-            "MAINTAIN" | "MAINTENANCE" | "OPERATION" | "ATTENDANCE" | "LOGISTIC" | "MOVE" => {
-                TaskType::Maintain
-            }
-            _ => return None,
-        })
+        NamedType::parse(name).map(|t| t.kind)
     }
 
     pub const ALL: [TaskType; 4] = [
@@ -61,6 +68,47 @@ impl TaskType {
     pub const NAMES: &'static str = "construct, demolish, temporary, maintain (or the IFC names \
          CONSTRUCTION, INSTALLATION, DEMOLITION, DISMANTLE, DISPOSAL, REMOVAL, MAINTENANCE, \
          OPERATION, ATTENDANCE, LOGISTIC, MOVE)";
+}
+
+/// A task type as its schedule names it: what the task does and, when the
+/// schedule gave an IFC task type, that name. Several IFC types do the same
+/// (INSTALLATION and CONSTRUCTION both construct), and planners colour them
+/// apart, so the name is kept beside the type.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub struct NamedType {
+    pub kind: TaskType,
+    /// The IFC name, upper case, as in [`IFC_NAMES`].
+    pub ifc: Option<&'static str>,
+}
+
+impl NamedType {
+    /// Our names and the IFC names, any case.
+    pub fn parse(name: &str) -> Option<NamedType> {
+        if let Some(&kind) = TaskType::ALL
+            .iter()
+            .find(|k| k.name().eq_ignore_ascii_case(name))
+        {
+            return Some(kind.into());
+        }
+        let &(ifc, kind) = IFC_NAMES
+            .iter()
+            .find(|(n, _)| n.eq_ignore_ascii_case(name))?;
+        Some(NamedType {
+            kind,
+            ifc: Some(ifc),
+        })
+    }
+
+    /// The name files use: the IFC name if there is one, else ours.
+    pub fn name(self) -> &'static str {
+        self.ifc.unwrap_or(self.kind.name())
+    }
+}
+
+impl From<TaskType> for NamedType {
+    fn from(kind: TaskType) -> NamedType {
+        NamedType { kind, ifc: None }
+    }
 }
 
 /// The instant inside a task at which its effect happens.
@@ -272,5 +320,9 @@ mod tests {
         assert_eq!(TaskType::parse("temporary"), Some(TaskType::Temporary));
         assert_eq!(TaskType::parse("OPERATION"), Some(TaskType::Maintain));
         assert_eq!(TaskType::parse("party"), None);
+        let installation = NamedType::parse("installation").unwrap();
+        assert_eq!(installation.kind, TaskType::Construct);
+        assert_eq!(installation.name(), "INSTALLATION");
+        assert_eq!(NamedType::parse("Construct").unwrap().name(), "construct");
     }
 }

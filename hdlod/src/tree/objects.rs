@@ -17,7 +17,7 @@ use super::Cluster;
 use crate::error::{Error, Result};
 use crate::scene::appearance::{Look, Profile, ProfileFile};
 use crate::scene::status::{Actual, Dates, Deviation, Progress, Span, TaskDates};
-use crate::scene::{Class, LinkType, Scene, TaskType, Visibility, property};
+use crate::scene::{Class, LinkType, NamedType, Scene, TaskType, Visibility, property};
 use crate::time::{TimeSpan, format_date};
 
 /// The value of the file's `format` field.
@@ -67,6 +67,8 @@ pub struct TaskEntry {
     pub id: String,
     pub name: Option<String>,
     pub kind: TaskType,
+    /// The IFC task type its schedule named, if any.
+    pub ifc_type: Option<&'static str>,
     /// Planned, actual and baseline dates.
     pub dates: TaskDates,
     /// The index of its summary task, if any.
@@ -75,6 +77,16 @@ pub struct TaskEntry {
     pub predecessors: Vec<LinkEntry>,
     /// Indices of the objects it acts on, increasing.
     pub objects: Vec<u32>,
+}
+
+impl TaskEntry {
+    /// Its type with the IFC name it was given.
+    pub fn named(&self) -> NamedType {
+        NamedType {
+            kind: self.kind,
+            ifc: self.ifc_type,
+        }
+    }
 }
 
 /// A logic link to a predecessor, by the predecessor's task index.
@@ -206,6 +218,7 @@ impl ObjectTables {
                     id: t.id.clone(),
                     name: Some(t.name.clone()).filter(|n| !n.is_empty()),
                     kind: t.kind,
+                    ifc_type: t.ifc_type,
                     dates: t.dates(),
                     parent: t.parent.as_deref().and_then(|p| task_index.get(p).copied()),
                     predecessors: t
@@ -329,7 +342,7 @@ impl ObjectTables {
             task: Some(k),
             progress: Some(progress),
             deviation,
-            look: profile.look(task.kind, progress, deviation),
+            look: profile.look(task.named(), progress, deviation),
         }
     }
 
@@ -554,6 +567,7 @@ impl ObjectTables {
                         id: t.id.clone(),
                         name: t.name.clone(),
                         kind: t.kind,
+                        ifc_type: t.ifc_type.map(str::to_owned),
                         start: d.start,
                         finish: d.finish,
                         start_date: format_date(time.date_at(d.start)),
@@ -610,13 +624,31 @@ impl ObjectTables {
                 clusters: r.clusters,
             });
         }
-        let tasks = record
-            .tasks
-            .into_iter()
-            .map(|r| TaskEntry {
+        let mut tasks = Vec::with_capacity(record.tasks.len());
+        for (k, r) in record.tasks.into_iter().enumerate() {
+            let ifc_type = match &r.ifc_type {
+                None => None,
+                Some(name) => Some(
+                    NamedType::parse(name)
+                        .filter(|t| t.kind == r.kind)
+                        .and_then(|t| t.ifc)
+                        .ok_or_else(|| {
+                            Error::invalid(
+                                file,
+                                format!("tasks[{k}].ifc_type"),
+                                format!(
+                                    "{name:?} is not an IFC task type that does {}",
+                                    r.kind.name()
+                                ),
+                            )
+                        })?,
+                ),
+            };
+            tasks.push(TaskEntry {
                 id: r.id,
                 name: r.name,
                 kind: r.kind,
+                ifc_type,
                 dates: TaskDates {
                     start: r.start,
                     finish: r.finish,
@@ -632,8 +664,8 @@ impl ObjectTables {
                 parent: r.parent,
                 predecessors: r.predecessors,
                 objects: r.objects,
-            })
-            .collect();
+            });
+        }
         let appearance = record
             .appearance
             .map(|p| Profile::from_file(p, file, "appearance."))
@@ -786,6 +818,9 @@ pub struct TaskRecord {
     pub name: Option<String>,
     #[serde(rename = "type")]
     pub kind: TaskType,
+    /// The IFC task type its schedule named (`INSTALLATION`), when it did.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub ifc_type: Option<String>,
     pub start: f64,
     pub finish: f64,
     pub start_date: String,
@@ -816,6 +851,7 @@ mod tests {
             id: format!("T{k}"),
             name: None,
             kind: TaskType::Construct,
+            ifc_type: None,
             dates: TaskDates {
                 start,
                 finish,

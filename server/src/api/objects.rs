@@ -228,6 +228,9 @@ struct TaskItem<'a> {
     name: Option<&'a str>,
     #[serde(rename = "type")]
     kind: &'static str,
+    /// The IFC task type its schedule named, when it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ifc_type: Option<&'static str>,
     start: f64,
     finish: f64,
     start_date: String,
@@ -271,6 +274,7 @@ impl<'a> TaskItem<'a> {
             id: &t.id,
             name: t.name.as_deref(),
             kind: t.kind.name(),
+            ifc_type: t.ifc_type,
             start: d.start,
             finish: d.finish,
             start_date: date(d.start),

@@ -47,6 +47,9 @@ struct TaskRow<'a> {
     name: Option<&'a str>,
     #[serde(rename = "type")]
     kind: &'static str,
+    /// The IFC task type its schedule named, when it did.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    ifc_type: Option<&'static str>,
     start: f64,
     finish: f64,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -83,6 +86,7 @@ fn schedule_of(s: &LoadedScene, tables: &ObjectTables) -> Cached {
                     id: &t.id,
                     name: t.name.as_deref(),
                     kind: t.kind.name(),
+                    ifc_type: t.ifc_type,
                     start: d.start,
                     finish: d.finish,
                     actual_start: d.actual.start,
