@@ -12,7 +12,9 @@ mod common;
 use std::path::Path;
 use std::process::Command;
 
-use common::{SCENE, Server, assert_content_type, browser_ready, build_tree, repo};
+use common::{
+    SCENE, Server, assert_content_type, assert_success, browser_ready, build_tree, hdlod, repo,
+};
 use serde_json::Value;
 
 fn f(v: &Value) -> f64 {
@@ -700,17 +702,84 @@ fn the_viewer_reviews_the_schedule_in_chromium() {
     );
     assert_eq!(broken["profile"], "magenta work");
 
-    // The Gantt chart with 5,000 tasks draws only the rows in view, in a
-    // few milliseconds a frame.
+    // The Gantt chart with 5,000 tasks draws only the rows in view (its
+    // frame time is reported, not asserted: docs/benchmarks.md).
     let bench = &out["ganttBench"];
     assert_eq!(f(&bench["tasks"]), 5000.0);
     assert!(f(&bench["rowsDrawn"]) < 40.0, "{bench}");
     assert_eq!(bench["revealed"], true);
-    assert!(f(&bench["medianMs"]) < 16.0, "{bench}");
     eprintln!(
         "Gantt, 5,000 tasks: frame median {:.1} ms, p95 {:.1} ms; layout {:.1} ms",
         f(&bench["medianMs"]),
         f(&bench["p95Ms"]),
         f(&bench["layoutMs"])
+    );
+}
+
+/// The small site (`hdlod fixture skyscraper --scale small`): lowering the
+/// pixel error from 8 to 0.05 brings over 1,500 new clusters in one cut,
+/// and the browser refuses the first request of every 7th GLB
+/// (`tools/browser/loads.mjs`). The page loads at most 8 at a time, tries
+/// the refused ones again by itself, and ends drawing exactly the server's
+/// cut with nothing missing.
+#[test]
+fn the_viewer_loads_every_cluster_of_a_large_cut_in_chromium() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let scene = dir.path().join("scene");
+    let tree = dir.path().join("tree");
+    assert_success(&hdlod(&[
+        "fixture".as_ref(),
+        "skyscraper".as_ref(),
+        "--scale".as_ref(),
+        "small".as_ref(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+    ]));
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        scene.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+    ]));
+    let server = Server::start(&tree);
+    let run = Command::new("node")
+        .arg(repo().join("tools/browser/loads.mjs"))
+        .args([server.base.as_str(), "skyscraper-small", "2024-12-01"])
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "driver failed: {}\n{stdout}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out: Value = serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
+    assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
+    let (before, after, requests) = (&out["before"], &out["after"], &out["requests"]);
+    let added = f(&after["clusters"]) - f(&before["clusters"]);
+    assert!(
+        added > 1500.0,
+        "only {added} new clusters: {before} {requests}"
+    );
+    assert!(f(&requests["refused"]) >= 200.0, "{requests}");
+    // None missing: the drawn cut is the server's for the same request.
+    assert_eq!(f(&after["missing"]), 0.0, "{after}");
+    assert_eq!(after["error"], Value::Null);
+    assert_eq!(ids(&after["ids"]), ids(&out["serverCut"]));
+    // Every refused request was tried again, and no more than 8 were in
+    // flight at once, as the page and the browser both count.
+    assert!(
+        f(&after["loadRetries"]) >= f(&requests["refused"]),
+        "{out:#}"
+    );
+    assert!(f(&after["loadsPeak"]) <= 8.0, "{after}");
+    assert!(f(&requests["peak"]) <= 8.0, "{requests}");
+    eprintln!(
+        "{added} new clusters in one cut, {} requests refused and retried, at most {} in flight",
+        requests["refused"], requests["peak"]
     );
 }

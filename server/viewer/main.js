@@ -47,6 +47,8 @@ const viewer = {
   colourMode: "vertex",
   playing: false,
   clusters: new Map(), // id -> {info (cut cluster), gpu, transform}
+  missing: new Map(), // id -> {info, transform}: in the cut, geometry not loaded yet
+  missingTimer: null,
   stats: null, // the last answer's stats
   latency: 0,
   frameMs: 0,
@@ -292,25 +294,66 @@ async function onMessage(msg, request, millis) {
   }
   const loads = await Promise.allSettled(msg.add.map((c) => cache.get(c.geometry)));
   const failed = loads.filter((l) => l.status === "rejected").map((l) => l.reason.message);
-  if (msg.reset) viewer.clusters.clear();
-  for (const id of msg.remove) viewer.clusters.delete(id);
+  if (msg.reset) {
+    viewer.clusters.clear();
+    viewer.missing.clear();
+  }
+  for (const id of msg.remove) {
+    viewer.clusters.delete(id);
+    viewer.missing.delete(id);
+  }
   msg.add.forEach((c, i) => {
-    if (loads[i].status === "fulfilled") {
-      viewer.clusters.set(c.id, { info: c, gpu: loads[i].value, transform: c.transform && new Float32Array(c.transform) });
-    }
+    const transform = c.transform && new Float32Array(c.transform);
+    if (loads[i].status === "fulfilled") viewer.clusters.set(c.id, { info: c, gpu: loads[i].value, transform });
+    else viewer.missing.set(c.id, { info: c, transform });
   });
   for (const u of msg.update) {
-    const held = viewer.clusters.get(u.id);
+    const held = viewer.clusters.get(u.id) || viewer.missing.get(u.id);
     if (held) held.transform = u.transform && new Float32Array(u.transform);
   }
+  if (viewer.missing.size > 0) retryMissingLater();
   viewer.stats = msg.stats;
   viewer.latency = millis;
   viewer.seq = msg.seq;
   viewer.lastRequest = request;
   viewer.needsDraw = true;
   updateStats();
-  if (failed.length) showMessage(`Could not load ${failed.length} cluster(s): ${failed[0]}`);
-  else if (viewer.error && viewer.error.startsWith("Could not load")) showMessage(null);
+  if (failed.length) showMessage(`Could not load ${failed.length} cluster(s): ${failed[0]}; trying again.`);
+  else if (viewer.missing.size === 0 && viewer.error && viewer.error.startsWith("Could not load")) showMessage(null);
+}
+
+// The server counts a cluster it sent as held, so the page itself asks
+// again for the geometry it could not load, every few seconds while the
+// cluster stays in the cut, without waiting for the view to change.
+const MISSING_RETRY_MS = 3000;
+
+function retryMissingLater() {
+  if (viewer.missingTimer === null) viewer.missingTimer = setTimeout(retryMissing, MISSING_RETRY_MS);
+}
+
+async function retryMissing() {
+  const wanted = [...viewer.missing.entries()];
+  const loads = await Promise.allSettled(wanted.map(([, m]) => cache.get(m.info.geometry)));
+  viewer.missingTimer = null;
+  let failed = null;
+  wanted.forEach(([id, m], i) => {
+    // Only if the cut still holds it as it was.
+    if (viewer.missing.get(id) !== m) return;
+    if (loads[i].status === "rejected") {
+      failed = failed || loads[i].reason.message;
+      return;
+    }
+    viewer.missing.delete(id);
+    viewer.clusters.set(id, { info: m.info, gpu: loads[i].value, transform: m.transform });
+    viewer.needsDraw = true;
+  });
+  updateStats();
+  if (viewer.missing.size > 0) {
+    showMessage(`Could not load ${viewer.missing.size} cluster(s): ${failed || "still loading"}; trying again.`);
+    retryMissingLater();
+  } else if (viewer.error && viewer.error.startsWith("Could not load")) {
+    showMessage(null);
+  }
 }
 
 function tint(c) {
@@ -372,6 +415,7 @@ function updateStats() {
   const ratio = tri > 0 ? (s.baseline_triangles / tri).toFixed(1) + "x" : "-";
   const lines = [
     `clusters drawn   ${number(viewer.clusters.size)}`,
+    ...(viewer.missing.size > 0 ? [`clusters loading ${number(viewer.missing.size)} (retrying)`] : []),
     `triangles drawn  ${number(tri)}`,
     `baseline         ${number(s.baseline_triangles)} tris`,
     `                 ${number(s.baseline_objects)} objects`,
@@ -650,6 +694,9 @@ function testHook() {
         glbBytes: cache ? cache.bytes : 0,
         glbFiles: cache ? cache.files : 0,
         loading: cache ? cache.loading : 0,
+        missing: viewer.missing.size,
+        loadsPeak: cache ? cache.peak : 0,
+        loadRetries: cache ? cache.retries : 0,
         latencyMs: viewer.latency,
         frameMs: viewer.frameMs,
         seq: viewer.seq,
@@ -684,7 +731,7 @@ function testHook() {
     // True when the drawn cut answers the current view, nothing loads and
     // the colour mode has what it needs.
     settled() {
-      if (!viewer.ready || connection.busy() || cache.loading > 0 || !viewer.lastRequest) return false;
+      if (!viewer.ready || connection.busy() || cache.loading > 0 || viewer.missing.size > 0 || !viewer.lastRequest) return false;
       if (viewer.review.pending) return false;
       const c = viewer.review.categories[viewer.colourMode];
       if (c && c.pending) return false;

@@ -73,6 +73,27 @@ export class CutConnection {
   }
 }
 
+// At most MAX_LOADS geometry requests are in flight and the rest wait in
+// the page: a browser refuses fetches ("Failed to fetch") when a cut brings
+// a thousand or more at once, and one origin serves six at a time over
+// HTTP/1.1 anyway. A request that fails is tried again after each of
+// RETRY_MS in turn before the load fails; an answer that will not change
+// (a 4xx but 408 and 429, or a GLB that does not parse) is not retried.
+const MAX_LOADS = 8;
+const RETRY_MS = [250, 1000, 4000];
+
+class Permanent extends Error {}
+
+async function fetchBuffer(url) {
+  const r = await fetch(url);
+  if (!r.ok) {
+    const message = `${url}: HTTP ${r.status}`;
+    const again = r.status >= 500 || r.status === 408 || r.status === 429;
+    throw again ? new Error(message) : new Permanent(message);
+  }
+  return r.arrayBuffer();
+}
+
 // GLBs are content-addressed (the hash is in the URL): each is fetched and
 // uploaded once and kept for the session.
 export class GeometryCache {
@@ -82,17 +103,18 @@ export class GeometryCache {
     this.bytes = 0;
     this.files = 0;
     this.loading = 0;
+    // Requests in flight, the most at once, and failed attempts tried again.
+    this.active = 0;
+    this.peak = 0;
+    this.retries = 0;
+    this.queue = [];
   }
 
   get(url) {
     let entry = this.entries.get(url);
     if (!entry) {
       this.loading++;
-      entry = fetch(url)
-        .then((r) => {
-          if (!r.ok) throw new Error(`${url}: HTTP ${r.status}`);
-          return r.arrayBuffer();
-        })
+      entry = this.fetchRetrying(url)
         .then((buffer) => {
           let mesh;
           try {
@@ -105,7 +127,8 @@ export class GeometryCache {
           return this.renderer.upload(mesh);
         })
         .catch((e) => {
-          // A failed load is tried again the next time the cut needs it.
+          // A failed load can be asked for again (the page retries the
+          // clusters it misses).
           this.entries.delete(url);
           throw e;
         })
@@ -113,5 +136,39 @@ export class GeometryCache {
       this.entries.set(url, entry);
     }
     return entry;
+  }
+
+  async fetchRetrying(url) {
+    for (let attempt = 0; ; attempt++) {
+      try {
+        return await this.limited(() => fetchBuffer(url));
+      } catch (e) {
+        if (e instanceof Permanent || attempt >= RETRY_MS.length) throw e;
+        this.retries++;
+        await new Promise((r) => setTimeout(r, RETRY_MS[attempt]));
+      }
+    }
+  }
+
+  // job() started once fewer than MAX_LOADS are in flight, in call order.
+  limited(job) {
+    return new Promise((resolve, reject) => {
+      this.queue.push({ job, resolve, reject });
+      this.pump();
+    });
+  }
+
+  pump() {
+    while (this.active < MAX_LOADS && this.queue.length > 0) {
+      const { job, resolve, reject } = this.queue.shift();
+      this.active++;
+      this.peak = Math.max(this.peak, this.active);
+      job()
+        .then(resolve, reject)
+        .finally(() => {
+          this.active--;
+          this.pump();
+        });
+    }
   }
 }
