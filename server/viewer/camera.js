@@ -50,6 +50,7 @@ export class Camera {
     this.target = c;
     this.sceneCentre = c.slice();
     this.sceneRadius = r;
+    this.sceneBox = [bounds.min.slice(), bounds.max.slice()];
     this.azimuth = Math.PI / 4;
     this.elevation = Math.PI / 6;
     this.distance = r / Math.sin((FOV_Y_DEG * Math.PI) / 360);
@@ -70,12 +71,21 @@ export class Camera {
   }
 
   nearFar() {
-    // The far plane holds the whole scene from wherever the eye is; the near
-    // plane is a fixed share of it so the depth buffer keeps its precision.
+    // The far plane holds the whole scene from wherever the eye is. The
+    // near plane is as far out as nothing of the scene is nearer: from
+    // outside the scene's box, most of the way to it; inside, a fixed share
+    // of the far plane. Depth precision falls with the square of the
+    // distance over the near plane's, and surfaces a few centimetres apart
+    // (a site pad on the ground) fight at a distance when it is small.
     const e = this.eye();
     const toCentre = Math.hypot(...e.map((x, i) => x - this.sceneCentre[i]));
     const far = toCentre + 2 * this.sceneRadius;
-    return [Math.max(far * 1e-4, 0.05), far];
+    let toBox = 0;
+    if (this.sceneBox) {
+      const [lo, hi] = this.sceneBox;
+      toBox = Math.hypot(...e.map((x, i) => Math.max(lo[i] - x, 0, x - hi[i])));
+    }
+    return [Math.max(far * 1e-4, 0.05, 0.9 * toBox), far];
   }
 
   matrices(aspect) {

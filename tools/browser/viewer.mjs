@@ -18,6 +18,37 @@ const WIDTH = 960;
 const HEIGHT = 600;
 const out = { errors: [], screenshots: [] };
 
+async function padCoverage() {
+  const p = await browser.newPage({ viewport: { width: WIDTH, height: HEIGHT } });
+  try {
+    await p.goto(`${base}/?scene=${encodeURIComponent(scene)}`);
+    await settlePage(p);
+    const found = await p.evaluate(async (name) => {
+      const r = await fetch(`/api/v1/scenes/${encodeURIComponent(name)}/objects?q=SITE-GROUND&limit=1`);
+      return (await r.json()).items;
+    }, scene);
+    if (found.length === 0) return null;
+    const pad = found[0].index;
+    const res = {};
+    for (const pe of [0.02, 1]) {
+      await pageHook(p, (v, pe) => {
+        v.setDistanceFactor(2);
+        v.setPixelError(pe);
+      }, pe);
+      await settlePage(p);
+      const shown = await pageHook(p, (v) => v.featureCoverage());
+      await pageHook(p, (v) => v.search("GROUND-", "hide"));
+      await settlePage(p);
+      const alone = await pageHook(p, (v) => v.featureCoverage());
+      await pageHook(p, (v) => v.search("", "highlight"));
+      res[String(pe)] = { shown: shown[pad] || 0, alone: alone[pad] || 0 };
+    }
+    return res;
+  } finally {
+    await p.close();
+  }
+}
+
 const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: WIDTH, height: HEIGHT } });
@@ -331,6 +362,12 @@ try {
   // The server's counters before a second page loads the link's view.
   out.metrics = await page.evaluate(async () => (await fetch("/metrics")).text());
   await roundTrip();
+
+  // Thin surfaces on the ground at a distance: the site pad (5 cm thick)
+  // over the ground tiles, twice as far as the framing view, at full detail
+  // (its leaf) and at 1 px (its parent, a quad), with and without the
+  // ground: the pad must not lose pixels to the ground behind it.
+  out.pad = await padCoverage();
 
   // Readable messages: an unknown scene, then a server that is not there.
   faults = true;
