@@ -13,7 +13,8 @@ use std::path::Path;
 use std::process::Command;
 
 use common::{
-    SCENE, Server, assert_content_type, assert_success, browser_ready, build_tree, hdlod, repo,
+    SCENE, Server, assert_content_type, assert_success, assert_valid, browser_ready, build_tree,
+    hdlod, repo, schema,
 };
 use serde_json::Value;
 
@@ -791,4 +792,54 @@ fn the_viewer_loads_every_cluster_of_a_large_cut_in_chromium() {
         "{added} new clusters in one cut, {} requests refused and retried, at most {} in flight",
         requests["refused"], requests["peak"]
     );
+}
+
+/// `hdlod bench image` on the tiny site: every cell of table 2 rendered at
+/// 1 px and at full detail, the report following its schema, full detail
+/// drawing leaves only and more triangles than the cut, the pictures kept.
+#[test]
+fn hdlod_bench_image_compares_the_cut_with_full_detail() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tree = build_tree(dir.path());
+    let pictures = dir.path().join("pictures");
+    let out = hdlod(&[
+        "bench".as_ref(),
+        "image".as_ref(),
+        tree.as_os_str(),
+        "--json".as_ref(),
+        "--width".as_ref(),
+        "640".as_ref(),
+        "--height".as_ref(),
+        "360".as_ref(),
+        "--out".as_ref(),
+        pictures.as_os_str(),
+        "--tools".as_ref(),
+        repo().join("tools").as_os_str(),
+    ]);
+    assert_success(&out);
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_valid(
+        &schema("bench-image.schema.json"),
+        &report,
+        "bench image --json",
+    );
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 12);
+    let mut differs = 0;
+    for c in cells {
+        let (cut, full) = (&c["cut"], &c["full"]);
+        assert_eq!(full["leaves"], full["clusters"], "{c}");
+        assert!(f(&full["triangles"]) > f(&cut["triangles"]), "{c}");
+        assert!(f(&c["scenePixels"]) > 1000.0, "{c}");
+        assert!(f(&c["share48"]) <= f(&c["share16"]), "{c}");
+        differs += usize::from(f(&c["share16"]) > 0.0);
+        for p in c["pictures"].as_array().unwrap() {
+            assert!(pictures.join(p.as_str().unwrap()).is_file(), "{p}");
+        }
+    }
+    // The cut is coarser than full detail, and it shows somewhere.
+    assert!(differs > 0);
 }

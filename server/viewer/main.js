@@ -686,6 +686,8 @@ function testHook() {
         distance: camera && camera.distance,
         eye: camera && camera.eye(),
         clusters: viewer.clusters.size,
+        // Drawn clusters that are leaves (original objects, level 0).
+        leafClusters: [...viewer.clusters.values()].filter((c) => c.info.level === 0).length,
         triangles: drawnTriangles(),
         ids: [...viewer.clusters.keys()].sort((a, b) => a - b),
         serverStats: viewer.stats,

@@ -2,7 +2,7 @@
 //! (`hdlod_fixtures::paper`), printed and written into docs/benchmarks.md.
 //! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
 //! their view at a fixed rate, bounded in time, reporting update latency.
-//! `build`, `simplify`, `objects` and `xer` are in their own files.
+//! `build`, `simplify`, `objects`, `image` and `xer` are in their own files.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -30,6 +30,9 @@ pub enum Bench {
     Features(super::bench_identity::FeaturesArgs),
     /// Loading a tree's object and task tables, and a search of them.
     Objects(super::bench_objects::Args),
+    /// What the eye sees: each cell rendered in headless chromium at the
+    /// pixel budget and at full detail, the pictures compared.
+    Image(super::bench_image::Args),
     /// Reading a Primavera P6 XER of tens of thousands of activities made
     /// from the generated site's schedule.
     #[cfg(feature = "ifc")]
@@ -81,6 +84,7 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
         Bench::Presence(a) => super::bench_identity::presence(a),
         Bench::Features(a) => super::bench_identity::features(a),
         Bench::Objects(a) => super::bench_objects::run(a),
+        Bench::Image(a) => super::bench_image::run(a),
         #[cfg(feature = "ifc")]
         Bench::Xer(a) => super::bench_xer::run(a),
         Bench::Ws(a) => ws(a),

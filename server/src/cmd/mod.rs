@@ -1,6 +1,7 @@
 pub mod bench;
 pub mod bench_build;
 pub mod bench_identity;
+pub mod bench_image;
 pub mod bench_objects;
 pub mod bench_simplify;
 #[cfg(feature = "ifc")]

@@ -1,0 +1,155 @@
+//! `hdlod bench image TREE [--json]`: what the eye sees of the cut. The
+//! tree is served on loopback and `tools/browser/image.mjs` renders each
+//! cell of table 2 in headless chromium through the web viewer twice, the
+//! cut at the pixel budget and full detail (every present leaf), and
+//! compares the pictures over the scene's pixels: the share that differ by
+//! more than 16/255 and 48/255 in some channel, and the PSNR. The pictures
+//! are kept in `--out`. Needs `node` and the npm tools of `tools/`
+//! (`npm ci --prefix tools`, as `scripts/test` runs) and Debian's chromium.
+
+use std::path::PathBuf;
+use std::process::Command;
+
+use anyhow::{Context, bail};
+use serde::{Deserialize, Serialize};
+
+use crate::api::{self, AppState, Cors};
+
+#[derive(clap::Args)]
+pub struct Args {
+    /// The tree.
+    tree: PathBuf,
+    /// Print the JSON report instead of the table.
+    #[arg(long)]
+    json: bool,
+    /// The browser window, in CSS pixels.
+    #[arg(long, default_value_t = 1280)]
+    width: u32,
+    #[arg(long, default_value_t = 720)]
+    height: u32,
+    /// The cut's pixel error.
+    #[arg(long, default_value_t = 1.0)]
+    pixel_error: f64,
+    /// Where the picture pairs go.
+    #[arg(long, default_value = "target/bench-image")]
+    out: PathBuf,
+    /// The repository's `tools` directory (the driver and its npm packages).
+    #[arg(long, default_value = "tools")]
+    tools: PathBuf,
+}
+
+/// The driver's report (`tools/browser/image.mjs`).
+#[derive(Debug, Serialize, Deserialize)]
+struct Report {
+    width: u32,
+    height: u32,
+    #[serde(rename = "pixelError")]
+    pixel_error: f64,
+    cells: Vec<Cell>,
+    errors: Vec<String>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+struct Cell {
+    time: String,
+    screen: String,
+    cut: Render,
+    full: Render,
+    #[serde(rename = "scenePixels")]
+    scene_pixels: u64,
+    share16: f64,
+    share48: f64,
+    /// None when the pictures are equal.
+    psnr: Option<f64>,
+    pictures: Vec<String>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+struct Render {
+    triangles: u64,
+    clusters: u64,
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    leaves: Option<u64>,
+}
+
+pub fn run(args: Args) -> anyhow::Result<()> {
+    let driver = args.tools.join("browser/image.mjs");
+    if !driver.is_file() {
+        bail!(
+            "{} not found: run from the repository's root or give --tools DIR",
+            driver.display()
+        );
+    }
+    let state = AppState::load(vec![args.tree.clone()])?;
+    let scene = state
+        .scenes()
+        .keys()
+        .next()
+        .cloned()
+        .context("the tree holds no scene")?;
+    let runtime = tokio::runtime::Runtime::new()?;
+    let listener = runtime
+        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
+        .context("cannot listen on loopback")?;
+    let base = format!("http://{}", listener.local_addr()?);
+    runtime.spawn(async move {
+        let _ = axum::serve(listener, api::router(state, &Cors::default())).await;
+    });
+    eprintln!(
+        "rendering the 12 cells of {scene:?} twice at {}x{} (pictures in {})",
+        args.width,
+        args.height,
+        args.out.display()
+    );
+    let run = Command::new("node")
+        .arg(&driver)
+        .arg(&base)
+        .arg(&scene)
+        .arg(args.width.to_string())
+        .arg(args.height.to_string())
+        .arg(args.pixel_error.to_string())
+        .arg(&args.out)
+        .output()
+        .context("cannot run node (the driver needs node and tools/node_modules)")?;
+    if !run.status.success() {
+        bail!(
+            "the driver failed: {}",
+            String::from_utf8_lossy(&run.stderr)
+        );
+    }
+    let report: Report = serde_json::from_slice(&run.stdout).with_context(|| {
+        format!(
+            "the driver's report is not JSON: {}",
+            String::from_utf8_lossy(&run.stdout)
+        )
+    })?;
+    if let Some(e) = report.errors.first() {
+        bail!("the page failed: {e} ({} errors)", report.errors.len());
+    }
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+        return Ok(());
+    }
+    println!(
+        "Scene `{scene}`, {}x{}, pixel error {}; full detail: every present leaf.\n",
+        report.width, report.height, report.pixel_error
+    );
+    println!(
+        "| time | screen | cut triangles | full triangles | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|");
+    for c in &report.cells {
+        println!(
+            "| {} | {} | {} | {} | {} | {:.2}% | {:.2}% | {} |",
+            c.time,
+            c.screen,
+            c.cut.triangles,
+            c.full.triangles,
+            c.scene_pixels,
+            100.0 * c.share16,
+            100.0 * c.share48,
+            c.psnr.map_or("equal".into(), |p| format!("{p:.1}"))
+        );
+    }
+    Ok(())
+}

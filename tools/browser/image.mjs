@@ -1,0 +1,105 @@
+// What the eye sees of the cut, for `hdlod bench image` (server/src/cmd/bench_image.rs):
+//   node tools/browser/image.mjs BASE_URL SCENE WIDTH HEIGHT PIXEL_ERROR OUT_DIR
+// renders each cell of table 2 (the start, 1/3, 2/3 and end of the period;
+// the camera of the table at 1, 2 and 4 times the distance where the scene
+// fills the view) twice in the web viewer: the cut at PIXEL_ERROR, and full
+// detail, the cut at a vanishing pixel error, which refines every cluster
+// with any error down to the leaves (the original objects). Both pictures
+// are kept in OUT_DIR; one JSON object goes to stdout with, per cell, the
+// pixels of the scene (off the background in either picture), the share
+// of them that differ by more than 16/255 and by more than 48/255 in some
+// channel, the PSNR over them, and the triangles and clusters of each.
+import { mkdirSync, writeFileSync } from "node:fs";
+import { join } from "node:path";
+import { launch } from "./launch.mjs";
+import { BACKGROUND, canvasShot, hook, settle } from "./page.mjs";
+
+const [base, scene, width, height, pixelError, outDir] = process.argv.slice(2);
+if (!outDir) {
+  console.error("usage: node image.mjs BASE_URL SCENE WIDTH HEIGHT PIXEL_ERROR OUT_DIR");
+  process.exit(2);
+}
+mkdirSync(outDir, { recursive: true });
+const FULL_DETAIL = 1e-6;
+const SCREENS = [["1/1", 1], ["1/4", 2], ["1/16", 4]];
+const TIMES = [["start", 0], ["1/3", 1 / 3], ["2/3", 2 / 3], ["end", 1]];
+const out = { width: Number(width), height: Number(height), pixelError: Number(pixelError), cells: [], errors: [] };
+
+// Two canvas pictures compared over the scene's pixels, decoded by the page.
+function difference(page, a, b) {
+  return page.evaluate(async ([da, db, bg]) => {
+    const load = async (d) => {
+      const img = await createImageBitmap(await (await fetch(`data:image/png;base64,${d}`)).blob());
+      const c = new OffscreenCanvas(img.width, img.height);
+      const g = c.getContext("2d");
+      g.drawImage(img, 0, 0);
+      return g.getImageData(0, 0, img.width, img.height).data;
+    };
+    const [pa, pb] = [await load(da), await load(db)];
+    const off = (px, i) => Math.abs(px[i] - bg[0]) + Math.abs(px[i + 1] - bg[1]) + Math.abs(px[i + 2] - bg[2]) > 12;
+    let scene = 0;
+    let over16 = 0;
+    let over48 = 0;
+    let squares = 0;
+    for (let i = 0; i < pa.length; i += 4) {
+      if (!off(pa, i) && !off(pb, i)) continue;
+      scene++;
+      let worst = 0;
+      for (let k = 0; k < 3; k++) {
+        const d = Math.abs(pa[i + k] - pb[i + k]);
+        worst = Math.max(worst, d);
+        squares += d * d;
+      }
+      if (worst > 16) over16++;
+      if (worst > 48) over48++;
+    }
+    const mse = scene > 0 ? squares / (3 * scene) : 0;
+    return { scenePixels: scene, over16, over48, psnr: mse > 0 ? 10 * Math.log10((255 * 255) / mse) : null };
+  }, [a.toString("base64"), b.toString("base64"), BACKGROUND]);
+}
+
+const browser = await launch();
+try {
+  const page = await browser.newPage({ viewport: { width: out.width, height: out.height } });
+  page.on("pageerror", (e) => out.errors.push(`page error: ${e.message}`));
+  page.on("console", (m) => {
+    if (m.type() === "error") out.errors.push(`console: ${m.text()}`);
+  });
+  await page.goto(`${base}/?scene=${encodeURIComponent(scene)}&pixel_error=${pixelError}`);
+  const first = await settle(page);
+  const render = async (pe, name) => {
+    await hook(page, (v, p) => v.setPixelError(p), pe);
+    const s = await settle(page);
+    const png = await canvasShot(page);
+    writeFileSync(join(outDir, `${name}.png`), png);
+    return { png, triangles: s.triangles, clusters: s.clusters, leaves: s.leafClusters };
+  };
+  for (const [screen, factor] of SCREENS) {
+    for (const [time, fraction] of TIMES) {
+      await hook(page, (v, [f, t]) => {
+        v.setDistanceFactor(f);
+        v.setTime(t);
+      }, [factor, first.span * fraction]);
+      const tag = `${time.replace("/", "_")}-${screen.replace("/", "_")}`;
+      const cut = await render(out.pixelError, `${tag}-cut`);
+      const full = await render(FULL_DETAIL, `${tag}-full`);
+      const d = await difference(page, cut.png, full.png);
+      out.cells.push({
+        time,
+        screen,
+        cut: { triangles: cut.triangles, clusters: cut.clusters },
+        full: { triangles: full.triangles, clusters: full.clusters, leaves: full.leaves },
+        scenePixels: d.scenePixels,
+        share16: d.scenePixels > 0 ? d.over16 / d.scenePixels : 0,
+        share48: d.scenePixels > 0 ? d.over48 / d.scenePixels : 0,
+        psnr: d.psnr,
+        pictures: [`${tag}-cut.png`, `${tag}-full.png`],
+      });
+    }
+  }
+} catch (e) {
+  out.errors.push(`driver: ${e.stack || e}`);
+} finally {
+  await browser.close();
+}
+console.log(JSON.stringify(out));
