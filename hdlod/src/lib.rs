@@ -10,6 +10,7 @@
 //! one never depends on. See `docs/ARCHITECTURE.md` for the map.
 
 pub mod build;
+pub mod debris;
 pub mod error;
 pub mod geometry;
 #[cfg(feature = "ifc")]

@@ -108,3 +108,65 @@ fn demo_generates_builds_and_serves() {
             .is_file()
     );
 }
+
+/// A build killed with SIGKILL leaves its temporary beside the target; the
+/// next build to that target removes it, and the temporaries of processes
+/// still alive (this test's own PID stands for a build running elsewhere)
+/// stay. `hdlod fixture --out` cleans up after itself the same way.
+#[test]
+fn a_build_removes_what_killed_builds_left() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = tmp.path().join("tree");
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    let temporaries = || -> Vec<String> {
+        let mut names: Vec<String> = std::fs::read_dir(tmp.path())
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .filter(|n| n.starts_with(".tree.") || n.starts_with(".scene."))
+            .collect();
+        names.sort();
+        names
+    };
+
+    let mut build = std::process::Command::new(env!("CARGO_BIN_EXE_hdlod"))
+        .args([
+            "build".as_ref(),
+            fixture.as_os_str(),
+            "--out".as_ref(),
+            tree.as_os_str(),
+        ])
+        .stdout(std::process::Stdio::null())
+        .stderr(std::process::Stdio::null())
+        .spawn()
+        .unwrap();
+    let started = std::time::Instant::now();
+    while temporaries().is_empty() && started.elapsed().as_secs() < 60 {
+        std::thread::sleep(std::time::Duration::from_millis(5));
+    }
+    build.kill().unwrap();
+    build.wait().unwrap();
+    let killed = temporaries();
+    assert_eq!(killed.len(), 1, "{killed:?}");
+    assert!(killed[0].starts_with(&format!(".tree.tmp-{}-", build.id())));
+
+    let alive = format!(".tree.tmp-{}-0", std::process::id());
+    let scene_alive = format!(".scene.tmp-{}", std::process::id());
+    for name in [alive.as_str(), ".scene.tmp-4194999", scene_alive.as_str()] {
+        std::fs::create_dir(tmp.path().join(name)).unwrap();
+    }
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        fixture.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+    ]));
+    assert_success(&hdlod(&[
+        "fixture".as_ref(),
+        "skyscraper".as_ref(),
+        "--out".as_ref(),
+        tmp.path().join("scene").as_os_str(),
+    ]));
+    let mut left = vec![scene_alive, alive];
+    left.sort();
+    assert_eq!(temporaries(), left);
+}

@@ -510,6 +510,7 @@ pub fn save(scene: &Scene, dir: &Path) -> Result<()> {
         .to_string_lossy()
         .into_owned();
     std::fs::create_dir_all(&parent).map_err(|e| Error::io(&parent, e))?;
+    crate::debris::remove_stale(dir);
     let tmp = parent.join(format!(".{leaf}.tmp-{}", std::process::id()));
     let write = || -> Result<()> {
         if tmp.exists() {

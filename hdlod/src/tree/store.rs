@@ -49,6 +49,7 @@ impl TreeWriter {
         if let Some(parent) = target.parent().filter(|p| !p.as_os_str().is_empty()) {
             fs::create_dir_all(parent).map_err(|e| Error::io(parent, e))?;
         }
+        crate::debris::remove_stale(&target);
         let tmp = sibling(&target, "tmp");
         let geometry = tmp.join(GEOMETRY_DIR);
         fs::create_dir_all(&geometry).map_err(|e| Error::io(&geometry, e))?;
