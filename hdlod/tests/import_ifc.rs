@@ -10,7 +10,7 @@ use std::path::{Path, PathBuf};
 
 use glam::Vec3;
 use hdlod::import::{Options, Recorded, ifc, import};
-use hdlod::scene::{NamedType, TaskType, VisibilityType};
+use hdlod::scene::{Georeference, NamedType, Projected, TaskType, VisibilityType};
 
 fn root() -> PathBuf {
     Path::new(env!("CARGO_MANIFEST_DIR")).join("..")
@@ -269,6 +269,42 @@ fn ifc4_actual_dates_and_nested_tasks() {
     );
 }
 
+/// IFC4's IfcMapConversion and IfcProjectedCRS on the tiny model: the
+/// scene's origin in RD New (EPSG:28992), millimetres read as the
+/// project's unit, the x axis turned 30 degrees anticlockwise from grid
+/// east; placed on Earth near Rotterdam.
+#[test]
+fn ifc4_map_conversion_gives_a_projected_origin() {
+    let text = std::fs::read_to_string(tiny()).unwrap().replace(
+        "#20=IFCGEOMETRICREPRESENTATIONCONTEXT($,'Model',3,1.E-05,#21,$);",
+        "#20=IFCGEOMETRICREPRESENTATIONCONTEXT($,'Model',3,1.E-05,#21,$);\n\
+         #900=IFCPROJECTEDCRS('EPSG:28992','Amersfoort / RD New','EPSG:4289',$,$,$,$);\n\
+         #901=IFCMAPCONVERSION(#20,#900,92000000.,437000000.,2000.,0.8660254037844387,0.5,$);",
+    );
+    let dir = tempfile::tempdir().unwrap();
+    let path = write(dir.path(), "mapped.ifc", &text);
+    let (scene, report) = import(&[path], &Options::default(), &|_| {}).unwrap();
+    assert!(report.warnings.is_empty(), "{:?}", report.warnings);
+    let Some(Georeference::Projected(p)) = scene.georeference else {
+        panic!("{:?}", scene.georeference);
+    };
+    assert!((p.heading + 30.0).abs() < 1e-9, "{p:?}");
+    assert_eq!(
+        p,
+        Projected {
+            crs: Some(28992),
+            easting: 92_000.0,
+            northing: 437_000.0,
+            height: 2.0,
+            scale: 1.0,
+            ..p
+        }
+    );
+    let on_earth = scene.georeference.unwrap().geographic().unwrap().unwrap();
+    assert!((on_earth.latitude - 51.92).abs() < 0.01, "{on_earth:?}");
+    assert!((on_earth.longitude - 4.48).abs() < 0.01, "{on_earth:?}");
+}
+
 #[test]
 fn broken_step_names_the_file_and_the_entity() {
     let dir = tempfile::tempdir().unwrap();
@@ -388,6 +424,14 @@ fn schependomlaan_rises_storey_by_storey() {
     }
     let size = hi - lo;
     assert!(size.max_element() < 30.0 && size.z > 10.0, "{size}");
+    // Every model's IfcSite: 52 deg 9' N, 5 deg 23' E, 20,000 mm up; the
+    // building stands near its IFC origin, which stays the scene's.
+    let Some(Georeference::Geographic(g)) = scene.georeference else {
+        panic!("{:?}", scene.georeference);
+    };
+    assert!((g.latitude - (52.0 + 9.0 / 60.0)).abs() < 1e-9, "{g:?}");
+    assert!((g.longitude - (5.0 + 23.0 / 60.0)).abs() < 1e-9, "{g:?}");
+    assert!((g.height - 20.0).abs() < 1e-9 && g.heading == 0.0, "{g:?}");
 }
 
 /// The real building as planned against as built: the as-built event log

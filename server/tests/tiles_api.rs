@@ -41,9 +41,13 @@ fn served_slices_follow_the_schemas() {
     for path in [
         "/api/v1/scenes/{scene}/tiles/tileset.json",
         "/api/v1/scenes/{scene}/tiles/{time}/{id}.json",
+        "/api/v1/scenes/{scene}/tiles/content/{version}/{id}.glb",
+        "/api/v1/scenes/{scene}/tiles/{time}/content/{id}.glb",
     ] {
         assert!(doc["paths"].get(path).is_some(), "{path} documented");
     }
+    // Content URIs of every date, to find those dates share.
+    let mut seen: Vec<Vec<String>> = Vec::new();
     for time in ["0", "2024-05-03T05:40:00Z", "2024-06-15", "15613200"] {
         let answer = http
             .get(server.url(&tiles_path(&format!("?time={time}"))))
@@ -65,23 +69,35 @@ fn served_slices_follow_the_schemas() {
             tileset["asset"].get("tilesetVersion").is_none(),
             "no per-date content URLs in Cesium"
         );
-        // Content resolves to the slice's own content, which is served.
+        // Content resolves to content the same at every date, which is
+        // served as immutable.
         let mut content = Vec::new();
         uris(&tileset["root"], &mut content);
         if time != "0" {
             assert!(!content.is_empty(), "time {time}: the site has content");
         }
         for uri in content.iter().take(3) {
-            let seconds = tileset["extras"]["time"].as_f64().unwrap();
-            assert!(uri.starts_with(&format!("{seconds}/content/")), "{uri}");
-            let glb = http
-                .get(server.url(&format!("/api/v1/scenes/{SCENE}/tiles/{uri}")))
-                .send()
-                .unwrap();
+            assert!(uri.starts_with("content/"), "{uri}");
+            let url = server.url(&format!("/api/v1/scenes/{SCENE}/tiles/{uri}"));
+            let glb = http.get(&url).send().unwrap();
             assert_eq!(glb.status(), StatusCode::OK, "{uri}");
             assert_content_type(&glb, "model/gltf-binary");
+            let cache = glb.headers()["cache-control"].to_str().unwrap();
+            assert!(cache.contains("immutable"), "{cache}");
+            let etag = glb.headers()["etag"].clone();
+            let again = http.get(&url).header("If-None-Match", etag).send().unwrap();
+            assert_eq!(again.status(), StatusCode::NOT_MODIFIED, "{uri}");
         }
+        seen.push(content);
     }
+    // Later dates name many of the GLBs earlier ones named, by the same
+    // URLs.
+    let shared = seen[3].iter().filter(|u| seen[2].contains(u)).count();
+    assert!(
+        shared * 2 > seen[2].len(),
+        "{shared} of {} shared",
+        seen[2].len()
+    );
 }
 
 #[test]
@@ -116,6 +132,17 @@ fn bad_tile_requests_name_the_field() {
     error(&sub("5204400/0.json"), StatusCode::NOT_FOUND, "subtree");
     error(&sub("5204400/x.json"), StatusCode::NOT_FOUND, "subtree");
     error(&sub("soon/1.json"), StatusCode::NOT_FOUND, "time");
+    error(&sub("status-soon/1.json"), StatusCode::NOT_FOUND, "time");
+    error(
+        &tiles_path("?time=0&status=maybe"),
+        StatusCode::BAD_REQUEST,
+        "status",
+    );
+    error(
+        &sub("content/0123456789abcdef/1.glb"),
+        StatusCode::NOT_FOUND,
+        "version",
+    );
 }
 
 fn export(tree: &Path, time: &str, out: &Path, max_bytes: Option<&str>) -> std::process::Output {
@@ -187,10 +214,12 @@ fn exported_slices_match_the_served_ones_and_pass_the_validators() {
     let server = Server::start(&tree);
     let served = server.get_json(&tiles_path(&format!("?time={time}")));
     let on_disk = read_json(&whole.join("tileset.json"));
-    let seconds = served["extras"]["time"].as_f64().unwrap();
+    let mut content = Vec::new();
+    uris(&served["root"], &mut content);
+    let version = content[0].split('/').nth(1).unwrap().to_owned();
     let served = serde_json::to_string(&served)
         .unwrap()
-        .replace(&format!("\"{seconds}/content/"), "\"content/");
+        .replace(&format!("\"content/{version}/"), "\"content/");
     assert_eq!(served, serde_json::to_string(&on_disk).unwrap());
 
     // A second export replaces the first whole, leaving nothing beside it.
@@ -271,9 +300,9 @@ fn column(json: &Value, bin: &[u8], name: &str) -> Vec<String> {
         .collect()
 }
 
-/// A slice's content carries each element's task status and look at its
-/// time, renumbered per tile with the scene-wide index kept, as the task
-/// answers give them.
+/// Content carries each element's properties, and with `status=true` the
+/// slice's its task status and look at its time, renumbered per tile with
+/// the scene-wide index kept, as the object and task answers give them.
 #[test]
 fn slice_content_carries_the_elements_task_status() {
     let dir = tempfile::tempdir().unwrap();
@@ -288,7 +317,40 @@ fn slice_content_carries_the_elements_task_status() {
         .find(|t| t["type"] == "construct" && t["objects"].as_array().unwrap().len() > 3)
         .unwrap();
     let t = (task["start"].as_f64().unwrap() + task["finish"].as_f64().unwrap()) / 2.0;
+    // The default: the same at every date, no state.
     let tileset = server.get_json(&tiles_path(&format!("?time={t}")));
+    let mut content = Vec::new();
+    uris(&tileset["root"], &mut content);
+    let bytes = http
+        .get(server.url(&format!("/api/v1/scenes/{SCENE}/tiles/{}", content[0])))
+        .send()
+        .unwrap()
+        .bytes()
+        .unwrap();
+    let (json, bin) = glb_chunks(&bytes);
+    let properties = &json["extensions"]["EXT_structural_metadata"]["schema"]["classes"]["element"]
+        ["properties"];
+    for name in [
+        "id",
+        "index",
+        "name",
+        "class",
+        "storey",
+        "task",
+        "task_name",
+    ] {
+        assert!(properties.get(name).is_some(), "{name}: {properties}");
+    }
+    assert!(properties.get("status").is_none(), "{properties}");
+    let first = column(&json, &bin, "index")[0].clone();
+    let object = server.get_json(&format!("/api/v1/scenes/{SCENE}/objects/{first}?by=index"));
+    assert_eq!(column(&json, &bin, "id")[0], object["id"].as_str().unwrap());
+    assert_eq!(
+        column(&json, &bin, "name")[0],
+        object["name"].as_str().unwrap_or_default()
+    );
+
+    let tileset = server.get_json(&tiles_path(&format!("?time={t}&status=true")));
     let mut content = Vec::new();
     uris(&tileset["root"], &mut content);
     let (mut rows, mut active) = (0, 0);

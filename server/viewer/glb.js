@@ -3,8 +3,11 @@
 // NORMAL and COLOR_0 (optional), the scene object of each vertex as
 // `_FEATURE_ID_0` (EXT_mesh_features; optional), and indices. Written here rather than
 // bundling a glTF library: the viewer has no build step and this subset is
-// about a hundred lines. Nodes are ignored: cluster GLBs hold one mesh in
-// the cluster's frame, and the cut's `transform` places dynamic ones.
+// about a hundred lines. A node's `translation` is the local origin its mesh's
+// positions are stored from (the writer keeps them small for f32); it is
+// added back here. Other node transforms are not used: cluster GLBs hold
+// their mesh in the cluster's frame, and the cut's `transform` places
+// dynamic ones.
 
 const MAGIC = 0x46546c67; // "glTF"
 const JSON_CHUNK = 0x4e4f534a;
@@ -84,6 +87,11 @@ export function parseGlb(buffer) {
   }
   if (!gltf) throw new GlbError("no JSON chunk");
   if (!bin) throw new GlbError("no binary chunk");
+  // Each mesh's local origin: the translation of the node that holds it.
+  const origins = new Map();
+  for (const node of gltf.nodes || []) {
+    if (node.mesh !== undefined && node.translation) origins.set(node.mesh, node.translation);
+  }
   const parts = [];
   for (const [m, mesh] of (gltf.meshes || []).entries()) {
     for (const [p, prim] of mesh.primitives.entries()) {
@@ -99,7 +107,7 @@ export function parseGlb(buffer) {
         ? readAccessor(gltf, bin, prim.indices, `${what} indices`).data
         : Uint32Array.from({ length: pos.count }, (_, i) => i);
       if (fid && fid.length !== pos.count) throw new GlbError(`${what}: ${fid.length} feature ids for ${pos.count} vertices`);
-      parts.push({ pos, nor, col, fid, idx });
+      parts.push({ pos, nor, col, fid, idx, origin: origins.get(m) });
     }
   }
   if (!parts.length) throw new GlbError("no triangle primitive");
@@ -118,6 +126,11 @@ export function parseGlb(buffer) {
   let i = 0;
   for (const p of parts) {
     positions.set(p.pos.data, v * 3);
+    if (p.origin) {
+      for (let k = v * 3; k < (v + p.pos.count) * 3; k += 3) {
+        for (let c = 0; c < 3; c++) positions[k + c] += p.origin[c];
+      }
+    }
     if (normals) normals.set(p.nor.data, v * 3);
     if (features && p.fid) features.set(p.fid, v);
     if (colors && p.col) {

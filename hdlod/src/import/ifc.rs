@@ -17,11 +17,12 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use ifc_lite_core::{DecodedEntity, EntityDecoder, EntityScanner, IfcType};
-use ifc_lite_geometry::{GeometryRouter, SubMeshCollection};
+use ifc_lite_geometry::SubMeshCollection;
 
 use super::ScheduleTask;
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
+use crate::scene::Georeference;
 
 /// One building element of an IFC file, meshed.
 #[derive(Debug, Clone)]
@@ -55,6 +56,10 @@ pub struct Model {
     pub skipped: BTreeMap<String, BTreeMap<String, usize>>,
     /// The tasks of the file's work schedules.
     pub tasks: Vec<ScheduleTask>,
+    /// Where the IFC origin is on Earth or on a map, if the file says
+    /// (`placement.rs`), and what of it was left out.
+    pub georeference: Option<Georeference>,
+    pub georeference_warning: Option<String>,
 }
 
 impl Model {
@@ -128,6 +133,11 @@ pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
     };
     let index = Index::scan(path, &step)?;
     let mut decoder = EntityDecoder::new(&step);
+    let mut in_file_order: Vec<(u32, IfcType)> =
+        index.types.iter().map(|(&id, t)| (id, t.clone())).collect();
+    in_file_order.sort_unstable_by_key(|(id, _)| *id);
+    (model.georeference, model.georeference_warning) =
+        super::placement::read(path, &mut decoder, &in_file_order)?;
     let decode = |d: &mut EntityDecoder, id: u32| {
         d.decode_by_id(id)
             .map_err(|e| Error::invalid(path, format!("#{id}"), e.to_string()))
@@ -147,7 +157,7 @@ pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
         psets,
     )?;
     let voids = ifc_lite_geometry::void_index_from_content(&step, &mut decoder);
-    let router = GeometryRouter::with_units(&step, &mut decoder);
+    let router = super::placement::router(&mut decoder);
 
     for (id, ty) in index.products.iter().cloned() {
         let class = ty.name().to_string();

@@ -16,6 +16,7 @@ pub mod ifc;
 pub mod ifc_tasks;
 pub mod links_csv;
 pub mod msproject;
+mod placement;
 pub mod pmxml;
 mod psets;
 pub mod rules;
@@ -35,8 +36,8 @@ use serde::Serialize;
 use crate::error::{Error, Result};
 use crate::scene::links::{find_cycle, show_cycle};
 use crate::scene::{
-    Actual, Dates, NamedType, Object, Predecessor, Scene, ScheduleOptions, Span, Task, TaskType,
-    Up, Visibility,
+    Actual, Dates, Georeference, NamedType, Object, Predecessor, Scene, ScheduleOptions, Span,
+    Task, TaskType, Up, Visibility,
 };
 use crate::time::{TimeSpan, format_date};
 
@@ -299,6 +300,10 @@ pub fn import(
     let mut report = Report::default();
     let mut meshes = Vec::new();
     let mut objects: Vec<Object> = Vec::new();
+    // Each object's placement in the models' coordinates, kept in f64
+    // until the scene's origin is chosen.
+    let mut origins = Vec::new();
+    let mut georeference: Option<(Georeference, String)> = None;
     let mut seen = HashSet::new();
     let mut schedule: Vec<ScheduleTask> = Vec::new();
     for (path, (seconds, model)) in models.iter().zip(read) {
@@ -316,6 +321,16 @@ pub fn import(
             tasks: model.tasks.len(),
             seconds,
         };
+        if let Some(w) = model.georeference_warning {
+            report.warnings.push(format!("{file}: {w}"));
+        }
+        match (&georeference, model.georeference) {
+            (None, Some(g)) => georeference = Some((g, file.clone())),
+            (Some((first, from)), Some(g)) if *first != g => report.warnings.push(format!(
+                "{file}: its georeference differs from that of {from}; kept that one"
+            )),
+            _ => {}
+        }
         let mut duplicates = Vec::new();
         for e in model.elements {
             if !seen.insert(e.id.clone()) {
@@ -342,13 +357,14 @@ pub fn import(
             objects.push(Object {
                 id: e.id,
                 mesh: meshes.len(),
-                transform: Mat4::from_translation(e.origin.as_vec3()),
+                transform: Mat4::IDENTITY,
                 color: e.color,
                 visibility: Visibility::always(),
                 motion: None,
                 properties,
             });
             meshes.push(e.mesh);
+            origins.push(e.origin);
         }
         if let Some(first) = duplicates.first() {
             report.warnings.push(format!(
@@ -373,6 +389,12 @@ pub fn import(
         report.files.push(file_report);
         schedule.extend(model.tasks);
     }
+
+    let origin = placement::local_origin(&origins);
+    for (object, at) in objects.iter_mut().zip(&origins) {
+        object.transform = Mat4::from_translation((*at - origin).as_vec3());
+    }
+    let georeference = placement::at_origin(georeference.map(|(g, _)| g), origin);
 
     if let Some(path) = &options.schedule {
         let source = Source {
@@ -639,7 +661,7 @@ pub fn import(
             ..ScheduleOptions::default()
         },
         appearance: None,
-        georeference: None,
+        georeference,
     };
     scene.apply_schedule();
     report.seconds = clock.elapsed().as_secs_f64();

@@ -33,6 +33,11 @@ compile_error!("the GLB writer copies memory as little-endian bytes");
 /// which must show from both sides, and because BIM triangle soup does not
 /// wind its faces consistently. The bytes depend only on the mesh, so they
 /// can be hashed for content addressing.
+/// Positions are stored relative to the centre of the mesh's bounds, the
+/// node's `translation`: at map coordinates (hundreds of kilometres) `f32`
+/// positions alone would fall on a grid of centimetres, while offsets from
+/// a centre within the mesh keep a small mesh's vertices to well under a
+/// millimetre, and a 3D Tiles client composes the translation in `f64`.
 /// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
 /// an empty scene.
 pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
@@ -52,11 +57,12 @@ fn glb_with_features(mesh: &Mesh, table: Option<&PropertyTable>) -> Vec<u8> {
     let mut nodes = Vec::new();
     let mut features = None;
     if !mesh.is_empty() {
-        let accessors = glb.add_mesh(mesh);
+        let (local, centre) = centred(mesh);
+        let accessors = glb.add_mesh(&local);
         let material = glb.double_sided_material();
         let m = glb.add_primitive(&accessors, Some(material));
         features = accessors.features.map(|(_, count)| (m.value(), count));
-        nodes.push(glb.add_node(m, &Mat4::IDENTITY, None));
+        nodes.push(glb.add_node_at(m, centre));
     }
     let Some((m, count)) = features else {
         return glb.finish(nodes);
@@ -191,9 +197,10 @@ fn lod_to_glb(levels: &[Mesh], coverage: &[f32]) -> Vec<u8> {
     let nodes: Vec<_> = levels
         .iter()
         .map(|mesh| {
-            let accessors = glb.add_mesh(mesh);
+            let (local, centre) = centred(mesh);
+            let accessors = glb.add_mesh(&local);
             let m = glb.add_primitive(&accessors, None);
-            glb.add_node(m, &Mat4::IDENTITY, None)
+            glb.add_node_at(m, centre)
         })
         .collect();
     let lower: Vec<usize> = nodes[1..].iter().map(|n| n.value()).collect();
@@ -236,6 +243,33 @@ pub fn write_lod(levels: &[Mesh], coverage: &[f32], path: &Path) -> Result<()> {
         .map(|m| unit_normals(m).into_owned())
         .collect();
     std::fs::write(path, lod_to_glb(&levels, coverage)).map_err(|e| Error::io(path, e))
+}
+
+/// The mesh moved so that its bounds' centre is the origin, and that
+/// centre. The offsets are taken in `f64`, so the only rounding is that of
+/// the small result.
+fn centred(mesh: &Mesh) -> (std::borrow::Cow<'_, Mesh>, Vec3) {
+    let (lo, hi) = mesh.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let centre = ((lo.as_dvec3() + hi.as_dvec3()) / 2.0).as_vec3();
+    if centre == Vec3::ZERO || !centre.is_finite() {
+        return (std::borrow::Cow::Borrowed(mesh), Vec3::ZERO);
+    }
+    let c = centre.as_dvec3();
+    let positions = mesh
+        .positions
+        .iter()
+        .map(|p| (p.as_dvec3() - c).as_vec3())
+        .collect();
+    (
+        std::borrow::Cow::Owned(Mesh {
+            positions,
+            ..mesh.clone()
+        }),
+        centre,
+    )
 }
 
 /// glTF requires unit normals, and neither mesh files (horse.ply's are not
@@ -514,6 +548,20 @@ impl GlbBuilder {
             mesh: Some(mesh),
             matrix: (*transform != Mat4::IDENTITY).then(|| transform.to_cols_array()),
             extras,
+            ..Default::default()
+        })
+    }
+
+    /// A node placing `mesh` at `translation` (its local origin), none
+    /// when that is zero.
+    fn add_node_at(
+        &mut self,
+        mesh: json::Index<json::Mesh>,
+        translation: Vec3,
+    ) -> json::Index<json::Node> {
+        self.root.push(json::Node {
+            mesh: Some(mesh),
+            translation: (translation != Vec3::ZERO).then(|| translation.to_array()),
             ..Default::default()
         })
     }

@@ -22,7 +22,7 @@ use crate::geometry::Mesh;
 use crate::time::TimeSpan;
 
 pub use appearance::Profile;
-pub use georef::Georeference;
+pub use georef::{Geographic, Georeference, Projected, epsg_code};
 pub use links::{LinkType, Predecessor};
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, NamedType, ScheduleOptions, TaskType, compose};

@@ -1,8 +1,14 @@
-//! A time slice's tile content with the 4D review in it: a cluster's
-//! geometry whose elements carry their state at the slice's time as
-//! per-feature properties (`EXT_structural_metadata` over
-//! `EXT_mesh_features`), so that a 3D Tiles style colours the site by task
-//! status, deviation or appearance look (docs/tiles.md gives the styles).
+//! A tile's content: a cluster's geometry whose elements carry their
+//! properties as per-feature properties (`EXT_structural_metadata` over
+//! `EXT_mesh_features`), so that a 3D Tiles client picks an element and
+//! shows what it is, and a 3D Tiles style colours the site by it
+//! (docs/tiles.md gives the styles).
+//!
+//! By default only what never changes with the date: the element's id,
+//! index, name, class, storey and task. Such content has one URL whatever
+//! the slice's date, so a client's cache serves it to every date. With
+//! [`State`] it also holds each element's state at the slice's time (task
+//! status, deviation, look), content made for that one time.
 //!
 //! Feature ids are renumbered for the tile: row `r` of its property table
 //! is the `r`-th object of the cluster in index order, whose scene-wide
@@ -12,23 +18,29 @@
 
 use crate::geometry::Mesh;
 use crate::io::glb::{Column, PropertyTable, mesh_to_glb, mesh_to_glb_with_table};
-use crate::scene::Profile;
 use crate::scene::appearance::Look;
+use crate::scene::{Profile, property};
 use crate::tree::ObjectTables;
 
 /// The class of the property table, and the id of its schema.
 pub const CLASS: &str = "element";
 
-/// The GLB of a tile at `t`: `mesh` (the cluster's geometry) with a
-/// property table of its objects' states under `profile`; `object` names
-/// the object of a mesh without feature ids. A mesh with neither is
-/// written plain.
+/// The elements' state at a time `t` under an appearance profile.
+#[derive(Debug, Clone, Copy)]
+pub struct State<'a> {
+    pub profile: &'a Profile,
+    pub t: f64,
+}
+
+/// The GLB of a tile: `mesh` (the cluster's geometry) with a property
+/// table of its objects, and of their state when `state` is given;
+/// `object` names the object of a mesh without feature ids. A mesh with
+/// neither is written plain.
 pub fn content(
     mesh: &Mesh,
     object: Option<u32>,
     tables: &ObjectTables,
-    profile: &Profile,
-    t: f64,
+    state: Option<State>,
 ) -> Vec<u8> {
     let mut mesh = mesh.clone();
     let objects: Vec<u32> = if mesh.features.is_empty() {
@@ -46,13 +58,75 @@ pub fn content(
         }
         distinct
     };
-    mesh_to_glb_with_table(&mesh, &table(&objects, tables, profile, t))
+    mesh_to_glb_with_table(&mesh, &table(&objects, tables, state))
 }
 
-fn table(objects: &[u32], tables: &ObjectTables, profile: &Profile, t: f64) -> PropertyTable {
+fn table(objects: &[u32], tables: &ObjectTables, state: Option<State>) -> PropertyTable {
     let n = objects.len();
-    let mut ids = Vec::with_capacity(n);
-    let mut task = Vec::with_capacity(n);
+    let text = |f: &dyn Fn(u32) -> String| objects.iter().map(|&i| f(i)).collect::<Vec<_>>();
+    let entry = move |i: u32| &tables.objects()[i as usize];
+    // The task shown: the one governing at the slice's time, else the
+    // element's first (in most schedules the one that builds it).
+    let task = move |i: u32| match state {
+        Some(s) => tables.governing_task(i, s.t),
+        None => entry(i).tasks.first().copied(),
+    };
+    let task_entry = move |i: u32| task(i).map(|k| &tables.tasks()[k as usize]);
+    let mut columns = vec![
+        ("id".into(), Column::Strings(text(&|i| entry(i).id.clone()))),
+        ("index".into(), Column::U32(objects.to_vec())),
+        (
+            "name".into(),
+            Column::Strings(text(&|i| entry(i).name.clone().unwrap_or_default())),
+        ),
+        (
+            "class".into(),
+            Column::Strings(text(&|i| entry(i).class.clone().unwrap_or_default())),
+        ),
+        (
+            "storey".into(),
+            Column::Strings(text(&|i| {
+                entry(i)
+                    .properties
+                    .get(property::STOREY)
+                    .cloned()
+                    .unwrap_or_default()
+            })),
+        ),
+        (
+            "task".into(),
+            Column::Strings(text(&|i| {
+                task_entry(i).map_or_else(String::new, |k| k.id.clone())
+            })),
+        ),
+        (
+            "task_name".into(),
+            Column::Strings(text(&|i| {
+                task_entry(i)
+                    .and_then(|k| k.name.clone())
+                    .unwrap_or_default()
+            })),
+        ),
+    ];
+    if let Some(State { profile, t }) = state {
+        columns.extend(state_columns(objects, tables, profile, t));
+    }
+    PropertyTable {
+        class: CLASS.into(),
+        count: n,
+        columns,
+    }
+}
+
+/// Each element's state at `t`: its task's status and deviation and its
+/// look under `profile`.
+fn state_columns(
+    objects: &[u32],
+    tables: &ObjectTables,
+    profile: &Profile,
+    t: f64,
+) -> Vec<(String, Column)> {
+    let n = objects.len();
     let mut status = Vec::with_capacity(n);
     let mut deviation = Vec::with_capacity(n);
     let mut color = Vec::with_capacity(n);
@@ -60,12 +134,6 @@ fn table(objects: &[u32], tables: &ObjectTables, profile: &Profile, t: f64) -> P
     let mut show = Vec::with_capacity(n);
     for &i in objects {
         let state = tables.state_at(i, t, profile);
-        ids.push(tables.objects()[i as usize].id.clone());
-        task.push(
-            state
-                .task
-                .map_or_else(String::new, |k| tables.tasks()[k as usize].id.clone()),
-        );
         status.push(state.progress.map_or("", |p| p.name()).to_owned());
         deviation.push(state.deviation.map_or("", |d| d.name()).to_owned());
         let (hex, alpha, shown) = match state.look {
@@ -81,18 +149,11 @@ fn table(objects: &[u32], tables: &ObjectTables, profile: &Profile, t: f64) -> P
         transparency.push(alpha);
         show.push(shown);
     }
-    PropertyTable {
-        class: CLASS.into(),
-        count: n,
-        columns: vec![
-            ("id".into(), Column::Strings(ids)),
-            ("index".into(), Column::U32(objects.to_vec())),
-            ("task".into(), Column::Strings(task)),
-            ("status".into(), Column::Strings(status)),
-            ("deviation".into(), Column::Strings(deviation)),
-            ("color".into(), Column::Strings(color)),
-            ("transparency".into(), Column::F32(transparency)),
-            ("show".into(), Column::Bool(show)),
-        ],
-    }
+    vec![
+        ("status".into(), Column::Strings(status)),
+        ("deviation".into(), Column::Strings(deviation)),
+        ("color".into(), Column::Strings(color)),
+        ("transparency".into(), Column::F32(transparency)),
+        ("show".into(), Column::Bool(show)),
+    ]
 }

@@ -33,7 +33,7 @@ use serde::{Deserialize, Serialize};
 use crate::error::{Error, Result};
 use crate::scene::{Georeference, Up};
 use crate::time::format_date;
-use crate::tree::format::CLUSTERS_FILE;
+use crate::tree::format::{CLUSTERS_FILE, MANIFEST_FILE};
 use crate::tree::{Aabb, Tree};
 
 /// glTF's y-up to 3D Tiles' z-up: +90 degrees about x, `(x, y, z) -> (x, -z, y)`,
@@ -194,13 +194,20 @@ pub struct TimeSlice {
 /// The root tile's `transform` (see the module documentation of `tiles`):
 /// the identity for a y-up scene, the inverse of [`Y_UP_TO_Z_UP`] for a
 /// z-up one; then, for a scene placed on Earth, its east-north-up frame to
-/// ECEF.
-pub fn root_transform(up: Up, georeference: Option<&Georeference>) -> DMat4 {
+/// ECEF (none for map coordinates without a CRS). A CRS that cannot be
+/// projected is an error naming the manifest's field.
+pub fn root_transform(up: Up, georeference: Option<&Georeference>) -> Result<DMat4> {
     let local = match up {
         Up::Y => DMat4::IDENTITY,
         Up::Z => Y_UP_TO_Z_UP.inverse(),
     };
-    georeference.map_or(local, |g| g.to_ecef() * local)
+    let Some(g) = georeference else {
+        return Ok(local);
+    };
+    let to_ecef = g
+        .to_ecef()
+        .map_err(|m| Error::invalid(MANIFEST_FILE, "georeference", m))?;
+    Ok(to_ecef.map_or(local, |m| m * local))
 }
 
 /// `x` raised by a hair: the least error strictly above a child's that
@@ -339,7 +346,7 @@ pub fn tileset(tree: &Tree, t: f64, options: &Options) -> Result<Tileset> {
         Frame::Earth => tree.georeference.as_ref(),
         Frame::Local => None,
     };
-    let root = root_transform(tree.up, georeference);
+    let root = root_transform(tree.up, georeference)?;
     tile.transform = (root != DMat4::IDENTITY).then(|| root.to_cols_array());
     tile.refine = Some(Refine::Replace);
     Ok(Tileset {

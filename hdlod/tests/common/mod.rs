@@ -11,8 +11,8 @@ use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
 use hdlod::scene::appearance::Look;
 use hdlod::scene::{
-    Actual, Georeference, Instant, Keyframe, LinkType, Motion, Object, Predecessor, Profile, Scene,
-    ScheduleOptions, Span, Task, TaskType, Up, Visibility,
+    Actual, Geographic, Georeference, Instant, Keyframe, LinkType, Motion, Object, Predecessor,
+    Profile, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 
@@ -159,12 +159,12 @@ pub fn sample_scene() -> Scene {
             ..ScheduleOptions::default()
         },
         appearance: Some(sample_profile()),
-        georeference: Some(Georeference {
+        georeference: Some(Georeference::Geographic(Geographic {
             latitude: 51.9225,
             longitude: 4.4792,
             height: 2.0,
             heading: 30.0,
-        }),
+        })),
     };
     scene.tasks[0].actual = Actual {
         start: Some(day),

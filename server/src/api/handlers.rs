@@ -216,36 +216,58 @@ pub async fn geometry(
         .strip_suffix(".glb")
         .filter(|h| hdlod::tree::is_hash(h))
         .ok_or_else(|| ApiError::not_found("hash", format!("{file:?} is not HASH.glb")))?;
-    let etag = format!("\"{hash}\"");
-    let cache = HeaderValue::from_static("public, max-age=31536000, immutable");
-    let matches = headers
-        .get(header::IF_NONE_MATCH)
-        .and_then(|v| v.to_str().ok())
-        .is_some_and(|v| v.split(',').any(|t| t.trim() == etag || t.trim() == "*"));
-    let etag_value = HeaderValue::from_str(&etag).expect("hex in quotes");
-    if matches {
-        return Ok((
-            StatusCode::NOT_MODIFIED,
-            [(header::ETAG, etag_value), (header::CACHE_CONTROL, cache)],
-        )
-            .into_response());
+    let etag = HeaderValue::from_str(&format!("\"{hash}\"")).expect("hex in quotes");
+    if let Some(answer) = not_modified(&headers, &etag) {
+        return Ok(answer);
     }
     let path = s.dir.join("geometry").join(format!("{hash}.glb"));
     let bytes = tokio::fs::read(&path).await.map_err(|_| {
         ApiError::not_found("hash", format!("no geometry {hash} in scene {name:?}"))
     })?;
-    Ok((
+    Ok(immutable_glb(etag, bytes))
+}
+
+/// Content that never changes under its URL: cached for a year.
+fn immutable() -> HeaderValue {
+    HeaderValue::from_static("public, max-age=31536000, immutable")
+}
+
+/// `304 Not Modified` when the request already holds `etag` of immutable
+/// content.
+pub(super) fn not_modified(headers: &HeaderMap, etag: &HeaderValue) -> Option<Response> {
+    let matches = headers
+        .get(header::IF_NONE_MATCH)
+        .and_then(|v| v.to_str().ok())
+        .is_some_and(|v| {
+            v.split(',')
+                .any(|t| t.trim().as_bytes() == etag.as_bytes() || t.trim() == "*")
+        });
+    matches.then(|| {
+        (
+            StatusCode::NOT_MODIFIED,
+            [
+                (header::ETAG, etag.clone()),
+                (header::CACHE_CONTROL, immutable()),
+            ],
+        )
+            .into_response()
+    })
+}
+
+/// A GLB that never changes under its URL, with its ETag.
+pub(super) fn immutable_glb(etag: HeaderValue, bytes: Vec<u8>) -> Response {
+    (
         [
             (
                 header::CONTENT_TYPE,
                 HeaderValue::from_static("model/gltf-binary"),
             ),
-            (header::ETAG, etag_value),
-            (header::CACHE_CONTROL, cache),
+            (header::ETAG, etag),
+            (header::CACHE_CONTROL, immutable()),
         ],
         Body::from(bytes),
     )
-        .into_response())
+        .into_response()
 }
 
 pub async fn not_found() -> ApiError {

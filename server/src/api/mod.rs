@@ -25,6 +25,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
+use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE, OBJECTS_FILE};
 use hdlod::tree::{Baseline, Tree, TreeSummary};
 use tower_http::compression::CompressionLayer;
 
@@ -41,6 +42,10 @@ pub struct LoadedScene {
     pub summary: TreeSummary,
     pub baseline: Baseline,
     pub fragments: Fragments,
+    /// What of the tree's files its tiles' content depends on, hashed: the
+    /// content URLs carry it, so that one URL is one GLB for good and a
+    /// rebuilt tree's content has new ones.
+    pub version: String,
     /// The schedule and appearance answers, made on first request.
     pub schedule: OnceLock<cached::Cached>,
     pub appearance: OnceLock<cached::Cached>,
@@ -59,8 +64,17 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let summary = tree.summary();
     let baseline = Baseline::of(&tree);
     let fragments = Fragments::of(&tree);
+    let mut hasher = blake3::Hasher::new();
+    for file in [MANIFEST_FILE, CLUSTERS_FILE, OBJECTS_FILE] {
+        // A tree without object tables has no objects.json.
+        if let Ok(bytes) = std::fs::read(dir.join(file)) {
+            hasher.update(file.as_bytes()).update(&bytes);
+        }
+    }
+    let version = hasher.finalize().to_hex()[..16].to_owned();
     Ok(LoadedScene {
         fragments,
+        version,
         tree,
         baseline,
         dir: dir.clone(),
@@ -170,12 +184,16 @@ pub fn router(state: Arc<AppState>, cors: &Cors) -> Router {
             get(tiles::tileset),
         )
         .route(
+            "/api/v1/scenes/{scene}/tiles/content/{version}/{file}",
+            get(tiles::content),
+        )
+        .route(
             "/api/v1/scenes/{scene}/tiles/{time}/{file}",
             get(tiles::external),
         )
         .route(
             "/api/v1/scenes/{scene}/tiles/{time}/content/{file}",
-            get(tiles::content),
+            get(tiles::content_at),
         )
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)

@@ -1,101 +1,152 @@
 //! Time slices as 3D Tiles 1.1 (`hdlod::tiles`; docs/tiles.md):
 //!
 //! - `GET /api/v1/scenes/{scene}/tiles/tileset.json?time=T`: the root
-//!   tileset at `T` (ISO 8601 or seconds);
-//! - `GET /api/v1/scenes/{scene}/tiles/{seconds}/{id}.json`: its external
-//!   tilesets, which the root file names relatively (`{seconds}/{id}.json`),
-//!   so a client follows them without knowing this layout.
-//!
+//!   tileset at `T` (ISO 8601 or seconds); `&status=true` for content with
+//!   each element's state at `T`, `&frame=local` for the local frame;
+//! - `GET /api/v1/scenes/{scene}/tiles/{dir}/{id}.json`: its external
+//!   tilesets, which the root file names relatively (`{dir}` is the slice's
+//!   seconds, `status-{seconds}` for a slice with state), so a client
+//!   follows them without knowing this layout;
+//! - `GET /api/v1/scenes/{scene}/tiles/content/{version}/{cluster}.glb`:
+//!   a tile's content, the cluster's geometry with its elements' id, name,
+//!   class, storey and task as per-feature properties
+//!   (`hdlod::tiles::content`). The same for every date, so one URL is one
+//!   GLB whatever the slice, cached as immutable: `{version}` is the tree's
+//!   ([`LoadedScene::version`]), which a rebuild changes;
 //! - `GET /api/v1/scenes/{scene}/tiles/{seconds}/content/{cluster}.glb`:
-//!   a tile's content at that time, the cluster's geometry with its
-//!   elements' task status and look as per-feature properties
-//!   (`hdlod::tiles::content`).
+//!   the same with each element's task status, deviation and look at that
+//!   time, for `status=true` slices.
 //!
-//! A tree with object tables names that content; one without them points
-//! at the geometry endpoint (`../geometry/HASH.glb` from the root file),
-//! whose GLBs are content-addressed and cached forever.
+//! A tree without object tables points at the geometry endpoint
+//! (`../geometry/HASH.glb` from the root file), whose GLBs are
+//! content-addressed and cached forever.
 
 use std::sync::Arc;
 
 use axum::extract::rejection::QueryRejection;
 use axum::extract::{Path, Query, State};
-use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
+use axum::http::{HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use hdlod::scene::Profile;
 use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Frame, Options, Tileset, content, time_slice};
 use hdlod::time::TimeValue;
-use hdlod::tree::Tree;
 
-use super::AppState;
 use super::cached::Cached;
 use super::error::ApiError;
-use super::handlers::find;
+use super::handlers::{find, immutable_glb, not_modified};
+use super::{AppState, LoadedScene};
 use crate::protocol::{parse_time_query, resolve_time, within_period};
 
+/// The prefix of the directory of a slice with state.
+const STATUS: &str = "status-";
+
+/// What a slice's content holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Kind {
+    /// The same content at every date (the default).
+    Static,
+    /// Each element's state at the slice's time too.
+    Status,
+}
+
 /// The options of a slice at `t` served from `.../tiles/tileset.json`: the
-/// external tilesets sit in `.../tiles/{t}/`; the content in
+/// external tilesets sit in `.../tiles/{t}/` (`status-{t}/` with state);
+/// the content in `.../tiles/content/{version}/` or, with state,
 /// `.../tiles/{t}/content/` when the tree has object tables, else the GLBs
 /// in `.../geometry/`. The frame only matters to the root file.
-fn options(tree: &Tree, t: f64, max_bytes: usize, frame: Frame) -> Options {
-    let (dir, content) = match tree.objects {
-        Some(_) => (format!("{t}/content"), ContentNames::Cluster),
-        None => ("../geometry".to_owned(), ContentNames::Geometry),
+fn options(s: &LoadedScene, t: f64, max_bytes: usize, frame: Frame, kind: Kind) -> Options {
+    let (dir, content) = match (&s.tree.objects, kind) {
+        (None, _) => ("../geometry".to_owned(), ContentNames::Geometry),
+        (Some(_), Kind::Static) => (format!("content/{}", s.version), ContentNames::Cluster),
+        (Some(_), Kind::Status) => (format!("{t}/content"), ContentNames::Cluster),
+    };
+    let subtilesets = match kind {
+        Kind::Static => format!("{t}"),
+        Kind::Status => format!("{STATUS}{t}"),
     };
     Options {
         max_bytes,
         content,
         frame,
-        ..Options::new(dir, format!("{t}"))
+        ..Options::new(dir, subtilesets)
     }
 }
 
 /// The root file for the query's `time`.
-fn root_file(
-    tree: &Tree,
-    time: &TimeValue,
-    frame: Frame,
-    max_bytes: usize,
-) -> Result<Tileset, ApiError> {
-    let t = resolve_time(tree, "time", time)?;
-    Ok(time_slice(tree, t, &options(tree, t, max_bytes, frame))?.root)
+fn root_file(s: &LoadedScene, query: &TilesetQuery, max_bytes: usize) -> Result<Tileset, ApiError> {
+    let t = resolve_time(&s.tree, "time", &query.time)?;
+    Ok(time_slice(
+        &s.tree,
+        t,
+        &options(s, t, max_bytes, query.frame, query.kind),
+    )?
+    .root)
 }
 
-/// `?time=T[&frame=earth|local]`.
-fn tileset_query(pairs: &[(String, String)]) -> Result<(TimeValue, Frame), ApiError> {
+struct TilesetQuery {
+    time: TimeValue,
+    frame: Frame,
+    kind: Kind,
+}
+
+/// `?time=T[&frame=earth|local][&status=true|false]`.
+fn tileset_query(pairs: &[(String, String)]) -> Result<TilesetQuery, ApiError> {
     let mut frame = Frame::Earth;
+    let mut kind = Kind::Static;
     let mut rest = Vec::new();
     for (key, value) in pairs {
-        if key == "frame" {
-            frame = match value.as_str() {
-                "earth" => Frame::Earth,
-                "local" => Frame::Local,
-                other => {
-                    return Err(ApiError::bad(
-                        "frame",
-                        format!("{other:?} is not a frame: use earth or local"),
-                    ));
-                }
-            };
-        } else {
-            rest.push((key.clone(), value.clone()));
+        match key.as_str() {
+            "frame" => {
+                frame = match value.as_str() {
+                    "earth" => Frame::Earth,
+                    "local" => Frame::Local,
+                    other => {
+                        return Err(ApiError::bad(
+                            "frame",
+                            format!("{other:?} is not a frame: use earth or local"),
+                        ));
+                    }
+                };
+            }
+            "status" => {
+                kind = match value.as_str() {
+                    "true" => Kind::Status,
+                    "false" => Kind::Static,
+                    other => {
+                        return Err(ApiError::bad(
+                            "status",
+                            format!("{other:?} is not true or false"),
+                        ));
+                    }
+                };
+            }
+            _ => rest.push((key.clone(), value.clone())),
         }
     }
-    Ok((parse_time_query(&rest)?, frame))
+    Ok(TilesetQuery {
+        time: parse_time_query(&rest)?,
+        frame,
+        kind,
+    })
 }
 
-/// The external file `{time}/{file}` that a root file names.
+/// The external file `{dir}/{file}` that a root file names.
 fn external_file(
-    tree: &Tree,
-    time: &str,
+    s: &LoadedScene,
+    dir: &str,
     file: &str,
     max_bytes: usize,
 ) -> Result<Tileset, ApiError> {
+    let (kind, time) = match dir.strip_prefix(STATUS) {
+        Some(time) => (Kind::Status, time),
+        None => (Kind::Static, dir),
+    };
     let t = seconds(time)?;
     let id: u32 = file
         .strip_suffix(".json")
         .and_then(|id| id.parse().ok())
         .ok_or_else(|| ApiError::not_found("subtree", format!("{file:?} is not ID.json")))?;
-    let mut slice = time_slice(tree, t, &options(tree, t, max_bytes, Frame::Earth))?;
+    let mut slice = time_slice(&s.tree, t, &options(s, t, max_bytes, Frame::Earth, kind))?;
     slice.external.remove(&id).ok_or_else(|| {
         ApiError::not_found(
             "subtree",
@@ -116,13 +167,9 @@ fn seconds(time: &str) -> Result<f64, ApiError> {
     Ok(within_period("time", t)?)
 }
 
-/// `{seconds}/content/{cluster}.glb`.
-pub async fn content(
-    State(state): State<Arc<AppState>>,
-    Path((name, time, file)): Path<(String, String, String)>,
-) -> Result<Response, ApiError> {
-    let s = find(&state, &name)?;
-    let t = seconds(&time)?;
+/// The GLB of cluster `file` (`{cluster}.glb`), with the elements' state at
+/// `t` when given.
+async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<Vec<u8>, ApiError> {
     let tree = &s.tree;
     let id: u32 = file
         .strip_suffix(".glb")
@@ -133,28 +180,69 @@ pub async fn content(
         .get(id as usize)
         .and_then(|c| c.geometry.clone())
         .ok_or_else(|| ApiError::not_found("cluster", format!("no cluster {id} with geometry")))?;
+    if tree.objects.is_none() {
+        return Err(ApiError::not_found(
+            "scene",
+            "the tree has no object tables: its tiles point at geometry/",
+        ));
+    }
     let path = s.dir.join("geometry").join(format!("{hash}.glb"));
-    let scene = s.clone();
     // Reading and writing a GLB is blocking work.
-    let glb = tokio::task::spawn_blocking(move || -> Result<Vec<u8>, ApiError> {
+    tokio::task::spawn_blocking(move || -> Result<Vec<u8>, ApiError> {
         let mesh = hdlod::io::read_mesh(&path)?;
-        let tree = &scene.tree;
-        let Some(tables) = &tree.objects else {
-            return Err(ApiError::not_found(
-                "scene",
-                "the tree has no object tables: its tiles point at geometry/",
-            ));
-        };
+        let tree = &s.tree;
+        let tables = tree.objects.as_ref().expect("checked above");
         let default = Profile::default();
         let profile = tables.appearance().unwrap_or(&default);
-        let object = tree.dynamic_object(id);
-        Ok(content::content(&mesh, object, tables, profile, t))
+        let state = t.map(|t| content::State { profile, t });
+        Ok(content::content(
+            &mesh,
+            tree.dynamic_object(id),
+            tables,
+            state,
+        ))
     })
     .await
-    .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, None, e.to_string()))??;
+    .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, None, e.to_string()))?
+}
+
+/// `content/{version}/{cluster}.glb`: the same at every date.
+pub async fn content(
+    State(state): State<Arc<AppState>>,
+    Path((name, version, file)): Path<(String, String, String)>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let s = find(&state, &name)?;
+    if version != s.version {
+        return Err(ApiError::not_found(
+            "version",
+            format!(
+                "the tree is at version {}, not {version:?}: it was rebuilt, ask for the tileset again",
+                s.version
+            ),
+        ));
+    }
+    let etag = HeaderValue::from_str(&format!("\"{version}-{file}\""))
+        .map_err(|_| ApiError::not_found("cluster", format!("{file:?} is not CLUSTER.glb")))?;
+    if let Some(answer) = not_modified(&headers, &etag) {
+        return Ok(answer);
+    }
+    let glb = cluster_glb(s, &file, None).await?;
+    Ok(immutable_glb(etag, glb))
+}
+
+/// `{seconds}/content/{cluster}.glb`: with the elements' state then. Not
+/// cached as immutable: the tree's version is not in the URL.
+pub async fn content_at(
+    State(state): State<Arc<AppState>>,
+    Path((name, time, file)): Path<(String, String, String)>,
+) -> Result<Response, ApiError> {
+    let s = find(&state, &name)?;
+    let t = seconds(&time)?;
+    let glb = cluster_glb(s, &file, Some(t)).await?;
     Ok((
         [(
-            header::CONTENT_TYPE,
+            axum::http::header::CONTENT_TYPE,
             HeaderValue::from_static("model/gltf-binary"),
         )],
         glb,
@@ -170,18 +258,17 @@ pub async fn tileset(
 ) -> Result<Response, ApiError> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let s = find(&state, &name)?;
-    let (time, frame) = tileset_query(&pairs)?;
-    let root = root_file(&s.tree, &time, frame, DEFAULT_MAX_BYTES)?;
+    let root = root_file(&s, &tileset_query(&pairs)?, DEFAULT_MAX_BYTES)?;
     Ok(Cached::of(&root).answer(&headers))
 }
 
 pub async fn external(
     State(state): State<Arc<AppState>>,
-    Path((name, time, file)): Path<(String, String, String)>,
+    Path((name, dir, file)): Path<(String, String, String)>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;
-    let tileset = external_file(&s.tree, &time, &file, DEFAULT_MAX_BYTES)?;
+    let tileset = external_file(&s, &dir, &file, DEFAULT_MAX_BYTES)?;
     Ok(Cached::of(&tileset).answer(&headers))
 }
 
@@ -189,18 +276,29 @@ pub async fn external(
 mod tests {
     use super::*;
 
-    /// Every stub URI of a split slice, resolved as a client does from the
-    /// file that holds it, names an external file the server answers.
+    /// Every stub URI of a split slice, with or without state, resolved as
+    /// a client does from the file that holds it, names an external file
+    /// the server answers.
     #[test]
     fn stub_uris_name_served_files() {
         let dir = tempfile::tempdir().unwrap();
-        let tree = hdlod_fixtures::sample::write_sample_tree(&dir.path().join("t"), 2, 6).unwrap();
+        let path = dir.path().join("t");
+        let tree = hdlod_fixtures::sample::write_sample_tree(&path, 2, 6).unwrap();
+        let s = super::super::load_one(&path).unwrap();
+        for kind in [Kind::Static, Kind::Status] {
+            stubs_are_served(&s, tree.time.seconds / 2.0, kind);
+        }
+    }
+
+    fn stubs_are_served(s: &LoadedScene, t: f64, kind: Kind) {
         let small = 8 * 1024;
-        let t = tree.time.seconds / 2.0;
-        let mut pending: Vec<(Option<String>, Tileset)> = vec![(
-            None,
-            root_file(&tree, &TimeValue::Seconds(t), Frame::Earth, small).unwrap(),
-        )];
+        let query = TilesetQuery {
+            time: TimeValue::Seconds(t),
+            frame: Frame::Earth,
+            kind,
+        };
+        let mut pending: Vec<(Option<String>, Tileset)> =
+            vec![(None, root_file(s, &query, small).unwrap())];
         let mut served = 0;
         while let Some((dir, tileset)) = pending.pop() {
             let mut stack = vec![&tileset.root];
@@ -215,7 +313,8 @@ mod tests {
                         Some(d) => format!("{d}/{file}"),
                     };
                     let (time, id) = path.split_once('/').expect("tiles/{time}/{id}.json");
-                    let next = external_file(&tree, time, &format!("{id}.json"), small).unwrap();
+                    assert_eq!(time.starts_with(STATUS), kind == Kind::Status, "{time}");
+                    let next = external_file(s, time, &format!("{id}.json"), small).unwrap();
                     assert_eq!(next.root.extras.unwrap().cluster.to_string(), id);
                     pending.push((Some(time.to_owned()), next));
                     served += 1;

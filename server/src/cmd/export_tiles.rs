@@ -1,9 +1,10 @@
-//! `hdlod export-tiles TREE --time T --out DIR [--max-bytes N]`: the time
-//! slice that `GET .../tiles/tileset.json?time=T` serves, on disk:
+//! `hdlod export-tiles TREE --time T --out DIR [--max-bytes N] [--status]`:
+//! the time slice that `GET .../tiles/tileset.json?time=T` serves, on disk:
 //! `DIR/tileset.json`, `DIR/tilesets/{id}.json` (external tilesets) and
-//! the content: `DIR/content/{cluster}.glb` with each element's task
-//! status and look at T as per-feature properties when the tree has object
-//! tables, else `DIR/geometry/{hash}.glb` copied from the tree. Written
+//! the content: `DIR/content/{cluster}.glb` with each element's id, name,
+//! class, storey and task (and with `--status` its task status and look at
+//! T) as per-feature properties when the tree has object tables, else
+//! `DIR/geometry/{hash}.glb` copied from the tree. Written
 //! into a temporary sibling directory first and renamed into place, so DIR
 //! is either the old export or the whole new one.
 
@@ -43,6 +44,10 @@ pub struct Args {
     /// `local`: its own frame, for engines in local coordinates.
     #[arg(long, value_enum, default_value_t = FrameArg::Earth)]
     frame: FrameArg,
+    /// Each element's task status, deviation and look at T in the content
+    /// too (content then made for this one date).
+    #[arg(long)]
+    status: bool,
 }
 
 #[derive(Clone, Copy, clap::ValueEnum)]
@@ -74,6 +79,7 @@ fn write(
     tree_dir: &Path,
     tree: &Tree,
     slice: &hdlod::tiles::TimeSlice,
+    status: bool,
 ) -> anyhow::Result<()> {
     let sub = tmp.join(SUBTILESETS);
     let own = tree.objects.is_some();
@@ -104,9 +110,11 @@ fn write(
                     .context("a tile with content has geometry")?;
                 let mesh =
                     hdlod::io::read_mesh(&tree_dir.join(GEOMETRY_DIR).join(format!("{hash}.glb")))?;
-                let profile = tables.appearance().unwrap_or(&default);
-                let glb =
-                    content::content(&mesh, tree.dynamic_object(id), tables, profile, slice.time);
+                let state = status.then(|| content::State {
+                    profile: tables.appearance().unwrap_or(&default),
+                    t: slice.time,
+                });
+                let glb = content::content(&mesh, tree.dynamic_object(id), tables, state);
                 fs::write(&to, glb).with_context(|| to.display().to_string())?;
             }
             None => {
@@ -154,7 +162,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let pid = std::process::id();
     let tmp = out.with_file_name(format!(".{name}.tmp-{pid}"));
     let old = out.with_file_name(format!(".{name}.old-{pid}"));
-    if let Err(e) = write(&tmp, &args.tree, &tree, &slice) {
+    if let Err(e) = write(&tmp, &args.tree, &tree, &slice, args.status) {
         let _ = fs::remove_dir_all(&tmp);
         return Err(e);
     }
