@@ -174,6 +174,62 @@ fn bad_input_is_a_clear_error() {
 }
 
 #[test]
+fn failed_geometry_is_named_and_a_file_without_any_element_is_an_error() {
+    let tmp = tempfile::tempdir().unwrap();
+    let model = std::fs::read_to_string(fixture("tiny.ifc")).unwrap();
+    // The wall's placement is relative to itself.
+    let looping = model.replace(
+        "#41=IFCLOCALPLACEMENT(#35,#42);",
+        "#41=IFCLOCALPLACEMENT(#41,#42);",
+    );
+    let path = tmp.path().join("looping.ifc");
+    std::fs::write(&path, &looping).unwrap();
+    let scene = tmp.path().join("scene");
+    let out = hdlod(&[
+        "import".as_ref(),
+        "ifc".as_ref(),
+        path.as_os_str(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+    ]);
+    assert!(out.status.success(), "{}", text(&out.stderr));
+    let (stdout, stderr) = (text(&out.stdout), text(&out.stderr));
+    assert!(
+        stdout.contains("1 elements whose geometry failed"),
+        "{stdout}"
+    );
+    let warning = stderr
+        .lines()
+        .find(|l| l.starts_with("warning: looping.ifc: #40 "))
+        .unwrap_or_else(|| panic!("{stderr}"));
+    assert!(
+        warning.contains("IfcWall 2WallTinyHdlod00000001") && warning.contains("cyclic"),
+        "{warning}"
+    );
+
+    // The slab's brep names a record the file does not hold: nothing is
+    // left to import.
+    let hopeless = looping.replace("#121=IFCFACETEDBREP(#120);", "#121=IFCFACETEDBREP(#999);");
+    let path = tmp.path().join("hopeless.ifc");
+    std::fs::write(&path, hopeless).unwrap();
+    let scene = tmp.path().join("nothing");
+    let out = hdlod(&[
+        "import".as_ref(),
+        "ifc".as_ref(),
+        path.as_os_str(),
+        "--out".as_ref(),
+        scene.as_os_str(),
+    ]);
+    assert!(!out.status.success());
+    let err = text(&out.stderr);
+    assert!(
+        err.contains("hopeless.ifc") && err.contains("none of its 2 elements"),
+        "{err}"
+    );
+    assert!(!scene.exists());
+}
+
+#[test]
 fn imports_an_as_built_log_beside_the_plan() {
     let tmp = tempfile::tempdir().unwrap();
     let scene = tmp.path().join("tiny");

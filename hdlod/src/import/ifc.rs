@@ -1,25 +1,29 @@
-//! IFC geometry: each building element of an IFC 2x3 or IFC4 file becomes
-//! one object, meshed in-process by the `ifc-lite-geometry` crate
+//! IFC geometry: each building element of an IFC 2x3, IFC4 or IFC4X3 file
+//! becomes one object, meshed in-process by the `ifc-lite-geometry` crate
 //! (<https://github.com/LTplus-AG/ifc-lite>, extrusions, breps, mapped items,
 //! booleans, openings subtracted from their hosts) over the STEP decoder of
 //! `ifc-lite-core`. This file adds what a 4D scene needs around the meshes:
-//! GlobalIds, storeys, colours (item style, then material style, then a
-//! default per class), the property-set values the linking rules name
-//! (`psets.rs`) and the count of what was left out and why.
+//! GlobalIds, storeys (`ifc_spatial.rs`), colours (`ifc_styles.rs`), the
+//! property-set values the linking rules name (`psets.rs`), the count of
+//! what was left out and why, and a warning for each element whose
+//! geometry failed (`ifc_checks.rs` finds what the mesher passes over).
 //!
-//! References: ISO 10303-21 (STEP physical files), IFC 2x3 TC1 and IFC 4.0
-//! ADD2 TC1 (buildingSMART): `IfcRelContainedInSpatialStructure`,
-//! `IfcRelAggregates`, `IfcStyledItem`, `IfcMaterialDefinitionRepresentation`.
+//! References: ISO 10303-21 (STEP physical files), IFC 2x3 TC1, IFC 4.0
+//! ADD2 TC1 and IFC 4.3 ADD2 (buildingSMART).
 
 use std::collections::{BTreeMap, HashMap, HashSet};
 use std::io::Read;
 use std::path::Path;
 
 use glam::{DVec3, Vec3};
-use ifc_lite_core::{DecodedEntity, EntityDecoder, EntityScanner, IfcType};
+use ifc_lite_core::{EntityDecoder, EntityScanner, IfcType};
 use ifc_lite_geometry::SubMeshCollection;
 
 use super::ScheduleTask;
+use super::ifc_checks::Checks;
+use super::ifc_spatial::storeys;
+use super::ifc_styles::Styles;
+pub use super::ifc_styles::{MIN_ALPHA, default_color};
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
 use crate::scene::Georeference;
@@ -44,6 +48,9 @@ pub struct Element {
     /// The element's colour (linear RGBA); white when the mesh has vertex
     /// colours.
     pub color: [f32; 4],
+    /// Whether the file styles it (an item, its material or its type's),
+    /// rather than the class's default colour.
+    pub styled: bool,
 }
 
 /// What one IFC file gave.
@@ -54,6 +61,9 @@ pub struct Model {
     pub elements: Vec<Element>,
     /// Entities left out: IFC class -> reason -> count.
     pub skipped: BTreeMap<String, BTreeMap<String, usize>>,
+    /// Elements with a body that gave no mesh (geometry that failed or came
+    /// out empty), one line each: the file, the entity and why.
+    pub warnings: Vec<String>,
     /// The tasks of the file's work schedules.
     pub tasks: Vec<ScheduleTask>,
     /// Where the IFC origin is on Earth or on a map, if the file says
@@ -156,8 +166,15 @@ pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
             .collect::<Vec<_>>(),
         psets,
     )?;
+    let checks = Checks::scan(&index, &mut decoder);
     let voids = ifc_lite_geometry::void_index_from_content(&step, &mut decoder);
     let router = super::placement::router(&mut decoder);
+    let file = path.file_name().map_or_else(
+        || path.display().to_string(),
+        |f| f.to_string_lossy().into_owned(),
+    );
+    // Elements with a body the mesher was given.
+    let mut tried = 0;
 
     for (id, ty) in index.products.iter().cloned() {
         let class = ty.name().to_string();
@@ -189,6 +206,21 @@ pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
         let Some(guid) = entity.get_string(0).filter(|g| !g.is_empty()) else {
             return Err(Error::invalid(path, format!("#{id}"), "no GlobalId"));
         };
+        tried += 1;
+        // An element whose body gives nothing is named: the model the user
+        // sees lacks it.
+        let lost = |model: &mut Model, reason: &str, why: String| {
+            model.skip(&class, reason);
+            model
+                .warnings
+                .push(format!("{file}: #{id} ({class} {guid}): {reason}: {why}"));
+        };
+        if checks.any()
+            && let Some(why) = checks.fault(&index, &mut decoder, &entity)
+        {
+            lost(&mut model, "geometry failed", why);
+            continue;
+        }
         // The mesher runs on arbitrary user geometry: should it panic on an
         // element, that element is skipped like one it cannot mesh.
         let parts = std::panic::catch_unwind(std::panic::AssertUnwindSafe(|| {
@@ -197,11 +229,9 @@ pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
             } else {
                 router.process_element_with_submeshes(&entity, &mut decoder)
             }
-        }));
-        let Ok(parts) = parts else {
-            model.skip(&class, "geometry failed (mesher panicked)");
-            continue;
-        };
+        }))
+        .map_err(|_| "the mesher panicked".to_string())
+        .and_then(|r| r.map_err(|e| e.to_string()));
         let parts = match parts {
             Ok(p) if !p.is_empty() => p,
             Ok(_) if voids.contains_key(&id) => {
@@ -209,32 +239,64 @@ pub fn read_with(path: &Path, psets: &HashSet<String>) -> Result<Model> {
                 continue;
             }
             Ok(_) => {
-                model.skip(&class, "empty geometry");
+                match checks.fault(&index, &mut decoder, &entity) {
+                    Some(why) => lost(&mut model, "geometry failed", why),
+                    None => lost(
+                        &mut model,
+                        "empty geometry",
+                        "its body gave no triangles".into(),
+                    ),
+                }
                 continue;
             }
-            Err(e) => {
-                tracing::debug!("{}: #{id}: {e}", path.display());
-                model.skip(&class, "geometry failed");
+            Err(why) => {
+                lost(&mut model, "geometry failed", why);
                 continue;
             }
         };
-        let fallback = colors
-            .of_element(id)
-            .unwrap_or_else(|| default_color(&class));
+        let material = colors.of_element(id);
+        let styled = material.is_some()
+            || parts.iter().any(|p| {
+                colors
+                    .of_part(p.geometry_id, parts.ids_are_materials)
+                    .is_some()
+            });
+        let fallback = material.unwrap_or_else(|| default_color(&class));
         let Some((mesh, origin, color)) = to_mesh(&parts, &colors, fallback) else {
-            model.skip(&class, "empty geometry");
+            lost(
+                &mut model,
+                "empty geometry",
+                "its body gave no triangles".into(),
+            );
             continue;
         };
         model.elements.push(Element {
             id: guid.to_string(),
             class,
             name: entity.get_string(2).unwrap_or_default().to_string(),
-            storey: storeys.get(&id).cloned(),
+            storey: storeys.of(id).map(str::to_string),
             properties: values.remove(&id).unwrap_or_default(),
             mesh,
             origin,
             color,
+            styled,
         });
+    }
+    if model.elements.is_empty() && tried > 0 {
+        let first = model.warnings.first().map_or_else(
+            || "nothing is left of them once their openings are cut".to_string(),
+            |w| {
+                format!(
+                    "the first: {}",
+                    w.strip_prefix(&format!("{file}: ")).unwrap_or(w)
+                )
+            },
+        );
+        return Err(Error::invalid(
+            path,
+            "DATA",
+            format!("none of its {tried} elements with a body could be imported; {first}"),
+        ));
     }
     model.tasks = super::ifc_tasks::read(path, &model.schema, &step)?;
     Ok(model)
@@ -252,9 +314,9 @@ pub(crate) fn header_schema(step: &[u8]) -> Option<String> {
 }
 
 /// The records of a file by id and the products among them.
-struct Index {
+pub(super) struct Index {
     /// Every record: id -> type.
-    types: HashMap<u32, IfcType>,
+    pub(super) types: HashMap<u32, IfcType>,
     /// Products (anything with a placement and a representation slot), in
     /// file order.
     products: Vec<(u32, IfcType)>,
@@ -295,246 +357,11 @@ impl Index {
         Ok(Index { types, products })
     }
 
-    fn of_type(&self, ty: IfcType) -> impl Iterator<Item = u32> + '_ {
+    pub(super) fn of_type(&self, ty: IfcType) -> impl Iterator<Item = u32> + '_ {
         self.types
             .iter()
             .filter(move |(_, t)| **t == ty)
             .map(|(&id, _)| id)
-    }
-}
-
-/// Element id -> storey name, through `IfcRelContainedInSpatialStructure`
-/// and, for parts, the `IfcRelAggregates` of their whole.
-fn storeys(index: &Index, d: &mut EntityDecoder, path: &Path) -> Result<HashMap<u32, String>> {
-    let mut decode = |id: u32| {
-        d.decode_by_id(id)
-            .map_err(|e| Error::invalid(path, format!("#{id}"), e.to_string()))
-    };
-    let mut names = HashMap::new();
-    for id in index.of_type(IfcType::IfcBuildingStorey) {
-        let e = decode(id)?;
-        let name = e
-            .get_string(2)
-            .or_else(|| e.get_string(7))
-            .unwrap_or("unnamed storey");
-        names.insert(id, name.to_string());
-    }
-    let mut of = HashMap::new();
-    for id in index.of_type(IfcType::IfcRelContainedInSpatialStructure) {
-        let e = decode(id)?;
-        if let Some(name) = e.get_ref(5).and_then(|s| names.get(&s)) {
-            for el in e.get_refs(4).unwrap_or_default() {
-                of.insert(el, name.clone());
-            }
-        }
-    }
-    // Parts take their whole's storey; wholes may nest, so repeat until
-    // nothing changes (bounded by the nesting depth).
-    let mut parts = Vec::new();
-    for id in index.of_type(IfcType::IfcRelAggregates) {
-        let e = decode(id)?;
-        if let Some(whole) = e.get_ref(4) {
-            for part in e.get_refs(5).unwrap_or_default() {
-                parts.push((whole, part));
-            }
-        }
-    }
-    loop {
-        let mut changed = false;
-        for &(whole, part) in &parts {
-            if !of.contains_key(&part)
-                && let Some(name) = of.get(&whole).cloned()
-            {
-                of.insert(part, name);
-                changed = true;
-            }
-        }
-        if !changed {
-            break;
-        }
-    }
-    Ok(of)
-}
-
-/// Surface colours: representation item -> colour, material -> colour, and
-/// element -> colour of its material.
-#[derive(Default)]
-struct Styles {
-    items: HashMap<u32, [f32; 4]>,
-    materials: HashMap<u32, [f32; 4]>,
-    elements: HashMap<u32, [f32; 4]>,
-}
-
-impl Styles {
-    fn read(index: &Index, d: &mut EntityDecoder, path: &Path) -> Result<Styles> {
-        let mut styles = Styles::default();
-        let mut styled = Vec::new();
-        for id in index.of_type(IfcType::IfcStyledItem) {
-            let e = d
-                .decode_by_id(id)
-                .map_err(|e| Error::invalid(path, format!("#{id}"), e.to_string()))?;
-            if let Some(color) = style_color(d, e.get(1)) {
-                match e.get_ref(0) {
-                    Some(item) => {
-                        styles.items.insert(item, color);
-                    }
-                    None => styled.push((id, color)),
-                }
-            }
-        }
-        // Material colours: IfcMaterialDefinitionRepresentation ->
-        // IfcStyledRepresentation -> IfcStyledItem (without an item).
-        let styled: HashMap<u32, [f32; 4]> = styled.into_iter().collect();
-        for id in index.of_type(IfcType::IfcMaterialDefinitionRepresentation) {
-            let Ok(e) = d.decode_by_id(id) else { continue };
-            let Some(material) = e.get_ref(3) else {
-                continue;
-            };
-            let color = e.get_refs(2).unwrap_or_default().into_iter().find_map(|r| {
-                let rep = d.decode_by_id(r).ok()?;
-                rep.get_refs(3)?
-                    .into_iter()
-                    .find_map(|i| styled.get(&i).copied())
-            });
-            if let Some(c) = color {
-                styles.materials.insert(material, c);
-            }
-        }
-        for id in index.of_type(IfcType::IfcRelAssociatesMaterial) {
-            let Ok(e) = d.decode_by_id(id) else { continue };
-            let Some(color) = e
-                .get_ref(5)
-                .and_then(|m| material_color(d, &styles.materials, m, 0))
-            else {
-                continue;
-            };
-            for el in e.get_refs(4).unwrap_or_default() {
-                styles.elements.insert(el, color);
-            }
-        }
-        Ok(styles)
-    }
-
-    fn of_element(&self, id: u32) -> Option<[f32; 4]> {
-        self.elements.get(&id).copied()
-    }
-}
-
-/// The colour of a material select: an `IfcMaterial`, or the first layer or
-/// constituent with one (layer sets, usages, lists).
-fn material_color(
-    d: &mut EntityDecoder,
-    colors: &HashMap<u32, [f32; 4]>,
-    id: u32,
-    depth: u32,
-) -> Option<[f32; 4]> {
-    if let Some(&c) = colors.get(&id) {
-        return Some(c);
-    }
-    if depth > 4 {
-        return None;
-    }
-    let e = d.decode_by_id(id).ok()?;
-    let refs: Vec<u32> = e
-        .attributes
-        .iter()
-        .flat_map(|a| match a.as_list() {
-            Some(list) => list.iter().filter_map(|v| v.as_entity_ref()).collect(),
-            None => a.as_entity_ref().into_iter().collect::<Vec<_>>(),
-        })
-        .collect();
-    refs.into_iter()
-        .find_map(|r| material_color(d, colors, r, depth + 1))
-}
-
-/// The surface colour of an `IfcStyledItem.Styles` value: IFC2x3 goes
-/// through `IfcPresentationStyleAssignment`, IFC4 may list the
-/// `IfcSurfaceStyle` directly.
-fn style_color(
-    d: &mut EntityDecoder,
-    styles: Option<&ifc_lite_core::AttributeValue>,
-) -> Option<[f32; 4]> {
-    let refs: Vec<u32> = styles?
-        .as_list()?
-        .iter()
-        .filter_map(|v| v.as_entity_ref())
-        .collect();
-    for r in refs {
-        let e = d.decode_by_id(r).ok()?;
-        let found = match e.ifc_type {
-            IfcType::IfcPresentationStyleAssignment => {
-                let inner = e.get(0).cloned();
-                style_color(d, inner.as_ref())
-            }
-            IfcType::IfcSurfaceStyle => surface_color(d, &e),
-            _ => None,
-        };
-        if found.is_some() {
-            return found;
-        }
-    }
-    None
-}
-
-fn surface_color(d: &mut EntityDecoder, style: &DecodedEntity) -> Option<[f32; 4]> {
-    for r in style.get_refs(2)? {
-        let e = d.decode_by_id(r).ok()?;
-        if !matches!(
-            e.ifc_type,
-            IfcType::IfcSurfaceStyleRendering | IfcType::IfcSurfaceStyleShading
-        ) {
-            continue;
-        }
-        let rgb = d.decode_by_id(e.get_ref(0)?).ok()?;
-        let channel = |i| {
-            rgb.get_float(i)
-                .map(|v| srgb_to_linear(v.clamp(0.0, 1.0) as f32))
-        };
-        // Some exporters write Transparency 1 for surfaces meant to be seen
-        // (ArchiCAD roofs here); a floor keeps such elements visible.
-        let transparency = e.get_float(1).unwrap_or(0.0).clamp(0.0, 1.0) as f32;
-        return Some([
-            channel(1)?,
-            channel(2)?,
-            channel(3)?,
-            (1.0 - transparency).max(MIN_ALPHA),
-        ]);
-    }
-    None
-}
-
-/// The least opacity an imported surface keeps.
-pub const MIN_ALPHA: f32 = 0.25;
-
-/// IFC colours are display colours (sRGB); the scene holds linear ones.
-fn srgb_to_linear(c: f32) -> f32 {
-    if c <= 0.04045 {
-        c / 12.92
-    } else {
-        ((c + 0.055) / 1.055).powf(2.4)
-    }
-}
-
-/// A default colour per class, when the file styles nothing (linear RGBA).
-pub fn default_color(class: &str) -> [f32; 4] {
-    let srgb = |r: f32, g: f32, b: f32, a: f32| {
-        [srgb_to_linear(r), srgb_to_linear(g), srgb_to_linear(b), a]
-    };
-    let c = class.to_ascii_lowercase();
-    if c.starts_with("ifcwindow") {
-        srgb(0.55, 0.75, 0.9, 0.5)
-    } else if c.starts_with("ifcdoor") {
-        srgb(0.6, 0.45, 0.3, 1.0)
-    } else if c.starts_with("ifcslab") || c.starts_with("ifcroof") {
-        srgb(0.7, 0.7, 0.68, 1.0)
-    } else if c.starts_with("ifcbeam") || c.starts_with("ifccolumn") || c.starts_with("ifcmember") {
-        srgb(0.55, 0.57, 0.6, 1.0)
-    } else if c.starts_with("ifcrailing") || c.starts_with("ifcstair") {
-        srgb(0.45, 0.45, 0.5, 1.0)
-    } else if c.starts_with("ifcwall") {
-        srgb(0.85, 0.83, 0.78, 1.0)
-    } else {
-        srgb(0.75, 0.75, 0.75, 1.0)
     }
 }
 
@@ -556,13 +383,9 @@ fn to_mesh(
         if m.indices.is_empty() {
             continue;
         }
-        let color = if parts.ids_are_materials {
-            styles.materials.get(&part.geometry_id)
-        } else {
-            styles.items.get(&part.geometry_id)
-        }
-        .copied()
-        .unwrap_or(fallback);
+        let color = styles
+            .of_part(part.geometry_id, parts.ids_are_materials)
+            .unwrap_or(fallback);
         let shift = (DVec3::from(m.origin) - origin).as_vec3();
         let base = mesh.positions.len() as u32;
         mesh.positions.extend(

@@ -13,6 +13,9 @@
 
 pub mod actual;
 pub mod ifc;
+mod ifc_checks;
+mod ifc_spatial;
+mod ifc_styles;
 pub mod ifc_tasks;
 pub mod links_csv;
 pub mod msproject;
@@ -242,6 +245,13 @@ pub struct FileReport {
     pub triangles: usize,
     /// Entities left out of this file.
     pub skipped: usize,
+    /// Of those, elements with a body that gave no mesh (each named in the
+    /// warnings).
+    pub failed: usize,
+    /// Of the elements, those the file styles (not a default colour) and
+    /// those on a storey.
+    pub styled: usize,
+    pub in_storey: usize,
     /// Tasks found in the file (IFC4 and IFC2x3 work schedules).
     pub tasks: usize,
     pub seconds: f64,
@@ -318,9 +328,13 @@ pub fn import(
             elements: 0,
             triangles: 0,
             skipped: 0,
+            failed: model.warnings.len(),
+            styled: 0,
+            in_storey: 0,
             tasks: model.tasks.len(),
             seconds,
         };
+        report.warnings.extend(model.warnings);
         if let Some(w) = model.georeference_warning {
             report.warnings.push(format!("{file}: {w}"));
         }
@@ -344,6 +358,8 @@ pub fn import(
             }
             file_report.elements += 1;
             file_report.triangles += e.mesh.triangle_count();
+            file_report.styled += usize::from(e.styled);
+            file_report.in_storey += usize::from(e.storey.is_some());
             let mut properties = BTreeMap::new();
             properties.insert(rules::FILE.to_string(), file.clone());
             properties.insert(rules::CLASS.to_string(), e.class);

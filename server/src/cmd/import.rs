@@ -14,7 +14,8 @@ use super::progress::Report as Bars;
 
 #[derive(clap::Subcommand)]
 pub enum Import {
-    /// IFC 2x3 / IFC4 models (.ifc, .ifczip) with an optional schedule.
+    /// IFC 2x3 / IFC4 / IFC4X3 models (.ifc, .ifczip) with an optional
+    /// schedule.
     Ifc(Args),
 }
 
@@ -120,6 +121,12 @@ fn print_report(r: &Report, out: &str) {
         r.elements,
         r.triangles
     );
+    let failed: usize = r.files.iter().map(|f| f.failed).sum();
+    if failed > 0 {
+        println!(
+            "{failed} elements whose geometry failed or came out empty (named in the warnings)"
+        );
+    }
     if !r.skipped.is_empty() {
         println!("\nskipped entities:");
         for (class, reasons) in &r.skipped {
