@@ -80,7 +80,7 @@ try {
       body: JSON.stringify(body),
     });
     return (await r.json()).clusters.map((c) => c.id).sort((a, b) => a - b);
-  }, [scene, fine.lastRequest || (await page.evaluate(() => window.hdlodViewer.lastRequest()))]);
+  }, [scene, await page.evaluate(() => window.hdlodViewer.lastRequest())]);
 } catch (e) {
   out.errors.push(`driver: ${e.stack || e}`);
 } finally {
