@@ -15,6 +15,31 @@ fn scene_json() -> Value {
     serde_json::from_str(&text).unwrap()
 }
 
+/// The tiny fixture's model with `scene` as its scene.json, built into
+/// `dir/tree`.
+fn build_scene(dir: &std::path::Path, scene: &Value) -> std::path::PathBuf {
+    let scene_dir = dir.join("scene");
+    std::fs::create_dir(&scene_dir).unwrap();
+    std::fs::copy(
+        repo().join("fixtures/skyscraper-tiny/skyscraper-tiny.glb"),
+        scene_dir.join("skyscraper-tiny.glb"),
+    )
+    .unwrap();
+    std::fs::write(
+        scene_dir.join("scene.json"),
+        serde_json::to_vec_pretty(scene).unwrap(),
+    )
+    .unwrap();
+    let tree = dir.join("tree");
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        scene_dir.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+    ]));
+    tree
+}
+
 #[test]
 fn the_schedule_answer_gives_every_task_with_its_dates_and_features() {
     let dir = tempfile::tempdir().unwrap();
@@ -101,15 +126,6 @@ fn the_schedule_answer_gives_every_task_with_its_dates_and_features() {
 /// both, and objects of tasks the record has not started are absent.
 #[test]
 fn a_scene_profile_and_actual_dates_reach_the_answers() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene_dir = dir.path().join("scene");
-    std::fs::create_dir(&scene_dir).unwrap();
-    let fixture = repo().join("fixtures/skyscraper-tiny");
-    std::fs::copy(
-        fixture.join("skyscraper-tiny.glb"),
-        scene_dir.join("skyscraper-tiny.glb"),
-    )
-    .unwrap();
     let mut scene = scene_json();
     scene["schedule_options"] = json!("actual");
     scene["appearance"] = json!({
@@ -117,19 +133,8 @@ fn a_scene_profile_and_actual_dates_reach_the_answers() {
         "name": "site review",
         "types": {"construct": {"active": {"color": "#0000ff"}, "late": {"color": "#ff0000"}}}
     });
-    std::fs::write(
-        scene_dir.join("scene.json"),
-        serde_json::to_vec_pretty(&scene).unwrap(),
-    )
-    .unwrap();
-    let tree = dir.path().join("tree");
-    assert_success(&hdlod(&[
-        "build".as_ref(),
-        scene_dir.as_os_str(),
-        "--out".as_ref(),
-        tree.as_os_str(),
-    ]));
-    let server = Server::start(&tree);
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(&build_scene(dir.path(), &scene));
     let doc = server.get_json("/api/v1/openapi.json");
     let profile = server.get_json(&format!("/api/v1/scenes/{SCENE}/appearance"));
     assert_component(&doc, "Appearance", &profile);
@@ -185,15 +190,6 @@ fn a_scene_profile_and_actual_dates_reach_the_answers() {
 /// profile answer apart from construct's.
 #[test]
 fn ifc_task_types_keep_their_names_through_the_tree() {
-    let dir = tempfile::tempdir().unwrap();
-    let scene_dir = dir.path().join("scene");
-    std::fs::create_dir(&scene_dir).unwrap();
-    let fixture = repo().join("fixtures/skyscraper-tiny");
-    std::fs::copy(
-        fixture.join("skyscraper-tiny.glb"),
-        scene_dir.join("skyscraper-tiny.glb"),
-    )
-    .unwrap();
     let mut scene = scene_json();
     let tasks = scene["tasks"].as_array_mut().unwrap();
     let mut construct = tasks
@@ -209,19 +205,8 @@ fn ifc_task_types_keep_their_names_through_the_tree() {
         "format": "hdlod-appearance/1",
         "types": {"INSTALLATION": {"active": {"color": "#0000ff"}}}
     });
-    std::fs::write(
-        scene_dir.join("scene.json"),
-        serde_json::to_vec_pretty(&scene).unwrap(),
-    )
-    .unwrap();
-    let tree = dir.path().join("tree");
-    assert_success(&hdlod(&[
-        "build".as_ref(),
-        scene_dir.as_os_str(),
-        "--out".as_ref(),
-        tree.as_os_str(),
-    ]));
-    let server = Server::start(&tree);
+    let dir = tempfile::tempdir().unwrap();
+    let server = Server::start(&build_scene(dir.path(), &scene));
     let doc = server.get_json("/api/v1/openapi.json");
 
     let schedule = server.get_json(&format!("/api/v1/scenes/{SCENE}/schedule"));

@@ -69,6 +69,53 @@ struct Times {
     late: Option<(DateTime<Utc>, DateTime<Utc>)>,
 }
 
+/// A start and a finish, each given or not.
+type Pair = [Option<DateTime<Utc>>; 2];
+
+impl Times {
+    /// The dates an IFC2x3 `IfcScheduleTimeControl` or an IFC4
+    /// `IfcTaskTime` gives: planned from the schedule dates, else the early,
+    /// else the actual ones. `entity` (`#12 (IfcTaskTime)`) names the record
+    /// in errors.
+    fn given(
+        path: &Path,
+        entity: &str,
+        schedule: Pair,
+        early: Pair,
+        late: Pair,
+        actual: Pair,
+    ) -> Result<Times> {
+        let at = |field: &str| format!("{entity} {field}");
+        let (Some(start), Some(finish)) = (
+            schedule[0].or(early[0]).or(actual[0]),
+            schedule[1].or(early[1]).or(actual[1]),
+        ) else {
+            return Err(Error::invalid(
+                path,
+                entity.to_string(),
+                "no ScheduleStart/ScheduleFinish (nor early or actual dates)",
+            ));
+        };
+        if finish < start {
+            return Err(Error::invalid(
+                path,
+                at("ScheduleFinish"),
+                "the task finishes before it starts",
+            ));
+        }
+        let actual = Recorded::new(actual[0], actual[1])
+            .map_err(|m| Error::invalid(path, at("ActualFinish"), m))?;
+        let both = |[a, b]: Pair| a.zip(b);
+        Ok(Times {
+            start,
+            finish,
+            actual,
+            early: both(early),
+            late: both(late),
+        })
+    }
+}
+
 /// An ISO 8601 duration, compiled once.
 static DURATION: std::sync::LazyLock<regex::Regex> = std::sync::LazyLock::new(|| {
     regex::Regex::new(r"^(-)?P(?:([\d.]+)Y)?(?:([\d.]+)M)?(?:([\d.]+)W)?(?:([\d.]+)D)?(?:T(?:([\d.]+)H)?(?:([\d.]+)M)?(?:([\d.]+)S)?)?$").expect("a valid pattern")
@@ -123,32 +170,14 @@ fn schedule_time_control(path: &Path, d: &mut EntityDecoder, id: u32) -> Result<
     let early_finish = date(10, "EarlyFinish")?;
     let late_finish = date(11, "LateFinish")?;
     let schedule_finish = date(12, "ScheduleFinish")?;
-    let (Some(start), Some(finish)) = (
-        schedule_start.or(early_start).or(actual_start),
-        schedule_finish.or(early_finish).or(actual_finish),
-    ) else {
-        return Err(Error::invalid(
-            path,
-            format!("#{id} (IfcScheduleTimeControl)"),
-            "no ScheduleStart/ScheduleFinish (nor early or actual dates)",
-        ));
-    };
-    if finish < start {
-        return Err(Error::invalid(
-            path,
-            at("ScheduleFinish"),
-            "the task finishes before it starts",
-        ));
-    }
-    let actual = Recorded::new(actual_start, actual_finish)
-        .map_err(|m| Error::invalid(path, at("ActualFinish"), m))?;
-    Ok(Times {
-        start,
-        finish,
-        actual,
-        early: early_start.zip(early_finish),
-        late: late_start.zip(late_finish),
-    })
+    Times::given(
+        path,
+        &format!("#{id} (IfcScheduleTimeControl)"),
+        [schedule_start, schedule_finish],
+        [early_start, early_finish],
+        [late_start, late_finish],
+        [actual_start, actual_finish],
+    )
 }
 
 /// An IFC2x3 `IfcDateAndTime`, or an `IfcCalendarDate` (its midnight).
@@ -452,54 +481,23 @@ pub fn read(path: &Path, schema: &str, step: &[u8]) -> Result<Vec<ScheduleTask>>
 
 /// The planned and actual dates of an `IfcTaskTime`.
 fn task_time(path: &Path, time: &DecodedEntity, time_id: u32) -> Result<Times> {
-    let at = |field: &str| format!("#{time_id} (IfcTaskTime) {field}");
+    let entity = format!("#{time_id} (IfcTaskTime)");
     let parse = |i: usize, field: &str| {
         time.get_string(i)
             .map(|text| {
-                parse_date(text).map_err(|m| Error::invalid(path, at(field), m.to_string()))
+                parse_date(text)
+                    .map_err(|m| Error::invalid(path, format!("{entity} {field}"), m.to_string()))
             })
             .transpose()
     };
-    let first = |fields: &[(usize, &str)]| -> Result<Option<DateTime<Utc>>> {
-        for &(i, field) in fields {
-            if let Some(d) = parse(i, field)? {
-                return Ok(Some(d));
-            }
-        }
-        Ok(None)
-    };
-    let actual_start = parse(16, "ActualStart")?;
-    let actual_finish = parse(17, "ActualFinish")?;
-    let (Some(start), Some(finish)) = (
-        first(&[(5, "ScheduleStart"), (7, "EarlyStart"), (16, "ActualStart")])?,
-        first(&[
-            (6, "ScheduleFinish"),
-            (8, "EarlyFinish"),
-            (17, "ActualFinish"),
-        ])?,
-    ) else {
-        return Err(Error::invalid(
-            path,
-            format!("#{time_id} (IfcTaskTime)"),
-            "no ScheduleStart/ScheduleFinish (nor early or actual dates)",
-        ));
-    };
-    if finish < start {
-        return Err(Error::invalid(
-            path,
-            at("ScheduleFinish"),
-            "the task finishes before it starts",
-        ));
-    }
-    let actual = Recorded::new(actual_start, actual_finish)
-        .map_err(|m| Error::invalid(path, at("ActualFinish"), m))?;
-    Ok(Times {
-        start,
-        finish,
-        actual,
-        early: parse(7, "EarlyStart")?.zip(parse(8, "EarlyFinish")?),
-        late: parse(9, "LateStart")?.zip(parse(10, "LateFinish")?),
-    })
+    Times::given(
+        path,
+        &entity,
+        [parse(5, "ScheduleStart")?, parse(6, "ScheduleFinish")?],
+        [parse(7, "EarlyStart")?, parse(8, "EarlyFinish")?],
+        [parse(9, "LateStart")?, parse(10, "LateFinish")?],
+        [parse(16, "ActualStart")?, parse(17, "ActualFinish")?],
+    )
 }
 
 /// The dates of each task without times of its own that has tasks with
