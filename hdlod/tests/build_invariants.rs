@@ -8,7 +8,7 @@ use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
 use hdlod::build::{BuildConfig, Silent, StepFunction, build_to};
-use hdlod::geometry::{HausdorffOptions, Part, hausdorff, merge};
+use hdlod::geometry::{ErrorMetric, HausdorffOptions, Part, hausdorff, merge};
 use hdlod::io::gltf::read_mesh;
 use hdlod::scene::{Class, Scene, format};
 use hdlod::tree::{ClusterClass, Tree, load};
@@ -22,20 +22,22 @@ struct Built {
 
 fn built() -> &'static Built {
     static BUILT: OnceLock<Built> = OnceLock::new();
-    BUILT.get_or_init(|| {
-        let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
-        let scene = format::load(&fixture).expect("the tiny fixture loads");
-        let tmp = tempfile::tempdir().unwrap();
-        let dir = tmp.path().join("tree");
-        build_to(&scene, &BuildConfig::default(), &dir, &Silent).expect("the build succeeds");
-        let tree = load(&dir).expect("the written tree loads");
-        Built {
-            scene,
-            tree,
-            dir,
-            _tmp: tmp,
-        }
-    })
+    BUILT.get_or_init(|| build(&BuildConfig::default()))
+}
+
+fn build(config: &BuildConfig) -> Built {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
+    let scene = format::load(&fixture).expect("the tiny fixture loads");
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, config, &dir, &Silent).expect("the build succeeds");
+    let tree = load(&dir).expect("the written tree loads");
+    Built {
+        scene,
+        tree,
+        dir,
+        _tmp: tmp,
+    }
 }
 
 /// Every visible object is in the leaves, and the leaves naming it share
@@ -218,7 +220,58 @@ fn leaves_below(t: &Tree, id: u32) -> Vec<u32> {
 /// must not exceed any valid upper bound.
 #[test]
 fn stored_eps_bounds_the_distance_to_the_original_objects() {
-    let b = built();
+    eps_bounds_the_distance(built());
+}
+
+/// Held to colour, the errors are still geometric bounds, and colour
+/// patterns the geometric bound lets go stay: the parents keep more of the
+/// originals' colours, at more triangles.
+#[test]
+fn an_appearance_bound_is_a_geometric_bound_that_keeps_colours() {
+    let config = BuildConfig {
+        error_metric: ErrorMetric::Appearance,
+        ..BuildConfig::default()
+    };
+    let appearance = build(&config);
+    eps_bounds_the_distance(&appearance);
+    let manifest: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(appearance.dir.join("manifest.json")).unwrap(),
+    )
+    .unwrap();
+    assert_eq!(manifest["config"]["error_metric"], "appearance");
+    let parents = |b: &Built| {
+        let (mut colours, mut triangles) = (0usize, 0usize);
+        for c in b
+            .tree
+            .clusters
+            .iter()
+            .filter(|c| !c.is_leaf() && c.geometry.is_some())
+        {
+            let m = read_mesh(
+                &b.dir
+                    .join("geometry")
+                    .join(format!("{}.glb", c.geometry.as_ref().unwrap())),
+            )
+            .unwrap();
+            let distinct: std::collections::HashSet<[u8; 4]> = m
+                .colors
+                .iter()
+                .map(|c| c.map(|v| (v * 255.0).round() as u8))
+                .collect();
+            colours += distinct.len();
+            triangles += m.triangle_count();
+        }
+        (colours, triangles)
+    };
+    let (geometric_colours, geometric_triangles) = parents(built());
+    let (held_colours, held_triangles) = parents(&appearance);
+    assert!(
+        held_colours > geometric_colours && held_triangles > geometric_triangles,
+        "colours {held_colours} against {geometric_colours}, triangles {held_triangles} against {geometric_triangles}"
+    );
+}
+
+fn eps_bounds_the_distance(b: &Built) {
     let objects: HashMap<&str, &hdlod::scene::Object> =
         b.scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
     let mut checked = 0;

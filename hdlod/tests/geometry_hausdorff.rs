@@ -3,7 +3,9 @@
 //! the budgeted bound alone (`bound_within`).
 
 use glam::{Vec3, Vec3A};
-use hdlod::geometry::{HausdorffOptions, Mesh, bound_within, closest_point_on_triangle, hausdorff};
+use hdlod::geometry::{
+    ErrorMetric, HausdorffOptions, Mesh, bound_within, closest_point_on_triangle, hausdorff,
+};
 use proptest::prelude::*;
 
 fn quad(z: f32, size: f32) -> Mesh {
@@ -45,18 +47,31 @@ fn parallel_planes_are_their_offset_apart() {
 #[test]
 fn a_budget_keeps_the_bound_or_refuses_it() {
     let (a, b) = (quad(0.0, 1.0), quad(0.25, 1.0));
-    let within = bound_within(&a, &b, 1e-4, 0.3).expect("0.25 apart fits 0.3");
+    let within =
+        bound_within(&a, &b, 1e-4, 0.3, ErrorMetric::Geometry).expect("0.25 apart fits 0.3");
     assert!((0.25..0.25 + 1e-3).contains(&within), "{within}");
-    assert_eq!(bound_within(&a, &b, 1e-4, 0.2), None);
+    assert_eq!(bound_within(&a, &b, 1e-4, 0.2, ErrorMetric::Geometry), None);
     // Far in one direction only: the small square is near the big one,
     // not the other way round.
     assert_eq!(
-        bound_within(&quad(0.0, 1.0), &quad(0.0, 0.1), 1e-3, 1.0),
+        bound_within(
+            &quad(0.0, 1.0),
+            &quad(0.0, 0.1),
+            1e-3,
+            1.0,
+            ErrorMetric::Geometry
+        ),
         None
     );
     let empty = Mesh::default();
-    assert_eq!(bound_within(&empty, &empty, 1e-3, 0.0), Some(0.0));
-    assert_eq!(bound_within(&a, &empty, 1e-3, 1e9), None);
+    assert_eq!(
+        bound_within(&empty, &empty, 1e-3, 0.0, ErrorMetric::Geometry),
+        Some(0.0)
+    );
+    assert_eq!(
+        bound_within(&a, &empty, 1e-3, 1e9, ErrorMetric::Geometry),
+        None
+    );
 }
 
 #[test]
@@ -196,7 +211,7 @@ fn results_are_deterministic() {
         let coarse = height_field(7, &heights[5..], &flips[2..]);
         (
             hausdorff(&fine, &coarse, &opts(1e-5)),
-            bound_within(&fine, &coarse, 1e-5, 1.0),
+            bound_within(&fine, &coarse, 1e-5, 1.0, ErrorMetric::Geometry),
         )
     };
     let pool = |threads| {
@@ -357,7 +372,7 @@ proptest! {
     ) {
         let full = hausdorff(&a, &b, &opts(tolerance)).bound;
         let gap = tolerance.max(1e-4) + 1e-3;
-        match bound_within(&a, &b, tolerance, budget) {
+        match bound_within(&a, &b, tolerance, budget, ErrorMetric::Geometry) {
             Some(bound) => {
                 prop_assert!(bound <= budget && (bound - full).abs() <= gap, "{bound} against {full}");
                 points_within(&a, &b, &picks, bound, bound)?;

@@ -126,10 +126,11 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
     assert_eq!(out["hasStats"], true);
 
-    // The site pad, 5 cm over the ground, keeps its pixels at twice the
-    // framing distance, at full detail (its leaf) and at 1 px (its parent):
-    // no z-fighting with the ground (docs/viewer.md, the near plane).
-    for pe in ["0.02", "1"] {
+    // The site pad, 25 cm over the ground, keeps its pixels at two and four
+    // times the framing distance, at full detail (its leaf) and at 1 px
+    // (its parent): no z-fighting with the ground (docs/viewer.md, the near
+    // plane; the generator's pad).
+    for pe in ["2x 0.02", "2x 1", "4x 0.02", "4x 1"] {
         let pad = &out["pad"][pe];
         assert!(f(&pad["alone"]) > 100.0, "{pe}: {pad}");
         assert!(f(&pad["shown"]) >= 0.95 * f(&pad["alone"]), "{pe}: {pad}");

@@ -30,18 +30,18 @@ async function padCoverage() {
     if (found.length === 0) return null;
     const pad = found[0].index;
     const res = {};
-    for (const pe of [0.02, 1]) {
-      await pageHook(p, (v, pe) => {
-        v.setDistanceFactor(2);
+    for (const [factor, pe] of [[2, 0.02], [2, 1], [4, 0.02], [4, 1]]) {
+      await pageHook(p, (v, [factor, pe]) => {
+        v.setDistanceFactor(factor);
         v.setPixelError(pe);
-      }, pe);
+      }, [factor, pe]);
       await settlePage(p);
       const shown = await pageHook(p, (v) => v.featureCoverage());
       await pageHook(p, (v) => v.search("GROUND-", "hide"));
       await settlePage(p);
       const alone = await pageHook(p, (v) => v.featureCoverage());
       await pageHook(p, (v) => v.search("", "highlight"));
-      res[String(pe)] = { shown: shown[pad] || 0, alone: alone[pad] || 0 };
+      res[`${factor}x ${pe}`] = { shown: shown[pad] || 0, alone: alone[pad] || 0 };
     }
     return res;
   } finally {
@@ -363,8 +363,8 @@ try {
   out.metrics = await page.evaluate(async () => (await fetch("/metrics")).text());
   await roundTrip();
 
-  // Thin surfaces on the ground at a distance: the site pad (5 cm thick)
-  // over the ground tiles, twice as far as the framing view, at full detail
+  // Thin surfaces on the ground at a distance: the site pad (25 cm thick)
+  // over the ground tiles, two and four times as far as the framing view, at full detail
   // (its leaf) and at 1 px (its parent, a quad), with and without the
   // ground: the pad must not lose pixels to the ground behind it.
   out.pad = await padCoverage();

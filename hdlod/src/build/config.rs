@@ -4,6 +4,7 @@
 use serde::{Deserialize, Serialize};
 
 use crate::error::{Error, Result};
+use crate::geometry::ErrorMetric;
 use crate::scene::ScheduleOptions;
 
 /// Every knob of the build, with documented defaults. Stored in the tree's
@@ -35,6 +36,12 @@ pub struct BuildConfig {
     /// of a cluster with no neighbours) is kept only when it has at most
     /// this share of the triangles below it.
     pub min_reduction: f64,
+    /// What `eps_c` bounds: `geometry` (the Hausdorff distance, as the
+    /// paper) or `appearance` (each point also held to its own colour, so
+    /// colour patterns stay until they are under the budget, at about 2.5
+    /// times the triangles per cut; docs/benchmarks.md). Either is a bound
+    /// of the geometric distance (docs/method.md section 2).
+    pub error_metric: ErrorMetric,
     /// When constructed and demolished objects count as present; `None`
     /// keeps the scene file's own `schedule_options`.
     pub schedule: Option<ScheduleOptions>,
@@ -51,6 +58,7 @@ impl Default for BuildConfig {
             hausdorff_fraction: 0.1,
             dynamic_budgets: vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
             min_reduction: 0.8,
+            error_metric: ErrorMetric::Geometry,
             schedule: None,
         }
     }

@@ -55,7 +55,9 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
         let tolerance = (budget * ctx.config.hausdorff_fraction) as f32;
         // Measured against the original model directly: a tighter bound
         // than a recursive sum, and still a bound. Kept monotone.
-        let Some((reduced, h)) = reduce_within(mesh, budget as f32, tolerance) else {
+        let Some((reduced, h)) =
+            reduce_within(mesh, budget as f32, tolerance, ctx.config.error_metric)
+        else {
             continue;
         };
         if reduced.triangle_count() as f64 > previous.triangles as f64 * ctx.config.min_reduction {

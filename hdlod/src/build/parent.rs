@@ -10,7 +10,7 @@ use glam::Mat4;
 use super::config::Thresholds;
 use super::context::{Active, Context};
 use crate::Result;
-use crate::geometry::{self, Mesh, Part, SimplifyOptions, Strategy};
+use crate::geometry::{self, ErrorMetric, Mesh, Part, SimplifyOptions, Strategy};
 
 /// A parent made by `make_parent`: its geometry, `eps_c`, geometry hash and
 /// the originals below it (if kept).
@@ -45,9 +45,10 @@ pub(super) fn make_parent(
     let union = geometry::merge(&parts, 0.0);
     let budget = (th.eps - child_eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
-    let (mesh, h) = reduce_within(&union, budget, tolerance).unwrap_or((union, 0.0));
+    let metric = ctx.config.error_metric;
+    let (mesh, h) = reduce_within(&union, budget, tolerance, metric).unwrap_or((union, 0.0));
     let originals = originals_of(&children);
-    let eps = stored_eps(&mesh, h, child_eps, originals.as_deref(), tolerance);
+    let eps = stored_eps(&mesh, h, child_eps, originals.as_deref(), tolerance, metric);
     let hash = ctx.sink.put(&mesh)?;
     Ok(Parent {
         mesh,
@@ -91,10 +92,11 @@ fn stored_eps(
     child_eps: f64,
     originals: Option<&[Arc<Mesh>]>,
     tolerance: f32,
+    metric: ErrorMetric,
 ) -> f64 {
     let recursive = f64::from(h) + child_eps;
     originals.map_or(recursive, |o| {
-        direct_eps(mesh, o, tolerance, recursive)
+        direct_eps(mesh, o, tolerance, recursive, metric)
             .map_or(recursive, |direct| direct.min(recursive))
             .max(child_eps)
     })
@@ -102,7 +104,13 @@ fn stored_eps(
 
 /// A bound of `D_H(mesh, union of originals)`, measured, if it is at most
 /// `budget`.
-fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32, budget: f64) -> Option<f64> {
+fn direct_eps(
+    mesh: &Mesh,
+    originals: &[Arc<Mesh>],
+    tolerance: f32,
+    budget: f64,
+    metric: ErrorMetric,
+) -> Option<f64> {
     let parts: Vec<Part> = originals
         .iter()
         .map(|m| Part {
@@ -113,7 +121,7 @@ fn direct_eps(mesh: &Mesh, originals: &[Arc<Mesh>], tolerance: f32, budget: f64)
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);
-    geometry::bound_within(mesh, &union, tolerance, budget as f32).map(f64::from)
+    geometry::bound_within(mesh, &union, tolerance, budget as f32, metric).map(f64::from)
 }
 
 /// The paper's loop moves a cluster with no neighbours up unchanged; an
@@ -129,11 +137,19 @@ pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> O
     }
     let budget = (th.eps - child.eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
-    let (mesh, h) = reduce_within(&child.mesh, budget, tolerance)?;
+    let metric = ctx.config.error_metric;
+    let (mesh, h) = reduce_within(&child.mesh, budget, tolerance, metric)?;
     if mesh.triangle_count() as f64 > triangles as f64 * ctx.config.min_reduction {
         return None;
     }
-    let eps = stored_eps(&mesh, h, child.eps, child.originals.as_deref(), tolerance);
+    let eps = stored_eps(
+        &mesh,
+        h,
+        child.eps,
+        child.originals.as_deref(),
+        tolerance,
+        metric,
+    );
     Some((mesh, eps))
 }
 
@@ -151,15 +167,20 @@ pub(super) const QUAD_TRIANGLES: f64 = 2.0;
 /// screen, so a smaller error is worth some triangles: of the candidates
 /// within `EPS_PREFERENCE` times the fewest triangles, the one with the
 /// least error wins.
-pub(super) fn reduce_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+pub(super) fn reduce_within(
+    mesh: &Mesh,
+    budget: f32,
+    tolerance: f32,
+    metric: ErrorMetric,
+) -> Option<(Mesh, f32)> {
     if budget <= 0.0 {
         return None;
     }
     let mut candidates: Vec<(Mesh, f32)> = Vec::new();
     for share in [0.5, 1.0] {
-        let r = geometry::reduce_parts(mesh, budget * share, tolerance * share);
+        let r = geometry::reduce_parts(mesh, budget * share, tolerance * share, metric);
         if share == 1.0
-            && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance)
+            && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance, metric)
         {
             candidates.push((m, h + r.bound));
         }
@@ -170,7 +191,7 @@ pub(super) fn reduce_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<
         .iter()
         .all(|(m, _)| m.triangle_count() * 2 > mesh.triangle_count())
     {
-        candidates.extend(simplified_within(mesh, budget, tolerance));
+        candidates.extend(simplified_within(mesh, budget, tolerance, metric));
     }
     let fewest = candidates
         .iter()
@@ -196,7 +217,12 @@ const EPS_PREFERENCE: f64 = 1.5;
 
 /// meshoptimizer's simplification of `mesh` within `budget` and its
 /// measured Hausdorff bound, if it removed triangles and the bound fits.
-fn simplified_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+fn simplified_within(
+    mesh: &Mesh,
+    budget: f32,
+    tolerance: f32,
+    metric: ErrorMetric,
+) -> Option<(Mesh, f32)> {
     if budget <= 0.0 {
         return None;
     }
@@ -211,5 +237,5 @@ fn simplified_within(mesh: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, 
     if s.strategy == Strategy::Unchanged || s.triangles >= mesh.triangle_count() {
         return None;
     }
-    geometry::bound_within(&s.mesh, mesh, tolerance, budget).map(|h| (s.mesh, h))
+    geometry::bound_within(&s.mesh, mesh, tolerance, budget, metric).map(|h| (s.mesh, h))
 }

@@ -192,7 +192,7 @@ pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f
 /// The tolerance the search works to (the one asked for, raised to what
 /// float precision can resolve at the meshes' size) and the rounding
 /// slack added to its bound.
-fn search_scale(a: &[[Vec3; 3]], b: &[[Vec3; 3]], tolerance: f32) -> (f32, f32) {
+pub(super) fn search_scale(a: &[[Vec3; 3]], b: &[[Vec3; 3]], tolerance: f32) -> (f32, f32) {
     let (lo, hi) = a
         .iter()
         .chain(b)
@@ -386,6 +386,25 @@ fn union_bound(
         }
     }
     worst
+}
+
+/// A bound of `sup_{a in A} d(a, B)` for the triangles `a` of A against
+/// `b`, if at most `within` (no slack added); 0 for no triangles.
+pub(super) fn one_way_within(
+    a: &[[Vec3; 3]],
+    b: &TriangleSet,
+    tolerance: f32,
+    within: f32,
+) -> Option<f32> {
+    if a.is_empty() {
+        return Some(0.0);
+    }
+    if b.is_empty() {
+        return None;
+    }
+    one_way(a, b, tolerance, None, within)
+        .map(|w| w.upper)
+        .filter(|&d| d <= within)
 }
 
 /// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the

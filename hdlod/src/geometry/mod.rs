@@ -2,6 +2,7 @@
 //! simplification to an error budget, the Hausdorff bound and measures.
 
 mod closest;
+mod color_bound;
 mod distance;
 mod features;
 mod hausdorff;
@@ -15,8 +16,9 @@ mod simplify;
 mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
+pub use color_bound::{ErrorMetric, bound_within};
 pub use distance::distance;
-pub use hausdorff::{Hausdorff, HausdorffOptions, bound_within, hausdorff, one_sided_bound};
+pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff, one_sided_bound};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;
 pub use reduce::{Reduced, reduce_parts};

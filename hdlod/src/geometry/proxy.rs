@@ -74,14 +74,31 @@ pub(super) fn part_bounds(mesh: &Mesh, triangles: &[usize]) -> (Vec3, Vec3) {
 /// The colour and feature a proxy gives its vertices.
 pub(super) type Look = ([f32; 4], Option<u32>);
 
-/// The colour and feature of a part's first vertex: a proxy stands in for
-/// the part in both.
+/// The colour that covers most of a part's area and the part's feature
+/// (that of its first vertex; a part is one object): a proxy stands in
+/// for the part in both, and the colour bound holds the rest of the
+/// part's colours to it.
 pub(super) fn part_look(mesh: &Mesh, triangles: &[usize]) -> Look {
     let first = mesh.indices[triangles[0] * 3] as usize;
-    (
-        mesh.colors.get(first).copied().unwrap_or([1.0; 4]),
-        mesh.features.get(first).copied(),
-    )
+    let mut areas: Vec<([f32; 4], f32)> = Vec::new();
+    for &k in triangles {
+        let t = &mesh.indices[k * 3..k * 3 + 3];
+        let color = mesh.colors.get(t[0] as usize).copied().unwrap_or([1.0; 4]);
+        let [a, b, c] = [0, 1, 2].map(|i| mesh.positions[t[i] as usize]);
+        let area = (b - a).cross(c - a).length();
+        match areas.iter_mut().find(|(c, _)| *c == color) {
+            Some((_, sum)) => *sum += area,
+            None => areas.push((color, area)),
+        }
+    }
+    let color = areas
+        .iter()
+        .fold(None::<&([f32; 4], f32)>, |best, x| match best {
+            Some(b) if b.1 >= x.1 => Some(b),
+            _ => Some(x),
+        })
+        .map_or([1.0; 4], |x| x.0);
+    (color, mesh.features.get(first).copied())
 }
 
 /// Copies some triangles of `mesh` to `out` (unshared vertices).

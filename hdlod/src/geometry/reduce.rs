@@ -26,8 +26,7 @@
 use glam::Vec3;
 
 use super::Mesh;
-use super::closest::TriangleSet;
-use super::hausdorff::{bound_within, one_sided_bound};
+use super::color_bound::{ColoredSet, ErrorMetric, bound_within};
 use super::proxy::{Look, part_bounds, part_look, parts, push_box, push_quad, push_triangles};
 use super::simplify::{SimplifyOptions, Strategy, edge_collapse_placed, simplify};
 
@@ -54,10 +53,10 @@ struct Piece {
     size: f32,
 }
 
-/// Reduces `mesh` part by part within `budget` (scene units); `tolerance`
-/// is the gap allowed between the measured bounds and the true distances.
-/// Never returns more triangles than it was given.
-pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
+/// Reduces `mesh` part by part within `budget` (scene units) of `metric`;
+/// `tolerance` is the gap allowed between the measured bounds and the
+/// true distances. Never returns more triangles than it was given.
+pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
     let mut pieces: Vec<Piece> = parts(mesh)
         .into_iter()
         .map(|triangles| {
@@ -69,7 +68,7 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
             let proxy = |push: fn(&mut Mesh, Vec3, Vec3, Look)| {
                 let mut proxy = Mesh::default();
                 push(&mut proxy, lo, hi, look);
-                bound_within(&proxy, &input, tolerance, budget).map(|error| (proxy, error))
+                bound_within(&proxy, &input, tolerance, budget, metric).map(|error| (proxy, error))
             };
             // Half the thickness is how far the quad's plane is from the
             // part's outer faces: no quad fits a budget below it.
@@ -79,7 +78,8 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
             let reduced = quad.then(|| proxy(push_quad)).flatten().or_else(|| {
                 (budget > 0.0 && triangles.len() > BOX_TRIANGLES)
                     .then(|| {
-                        proxy(push_box).or_else(|| simplified_within(&input, budget, tolerance))
+                        proxy(push_box)
+                            .or_else(|| simplified_within(&input, budget, tolerance, metric))
                     })
                     .flatten()
             });
@@ -99,35 +99,31 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32) -> Reduced {
     // a part tested against the older set alone is only kept more often.
     let mut kept: Vec<usize> = Vec::new();
     let mut indexed = 0usize;
-    let mut set = TriangleSet::new(std::iter::empty());
+    let mut set = ColoredSet::new([], metric);
     let mut set_triangles = 0usize;
     let mut pending_triangles = 0usize;
     let mut bound = 0.0f32;
     for (i, piece) in pieces.iter().enumerate() {
         if pending_triangles > 0 && pending_triangles >= set_triangles {
-            set = TriangleSet::new(
-                kept.iter()
-                    .flat_map(|&k| pieces[k].output.triangles())
-                    .collect::<Vec<[Vec3; 3]>>()
-                    .into_iter(),
-            );
+            set = ColoredSet::new(kept.iter().map(|&k| &pieces[k].output), metric);
             indexed = kept.len();
             set_triangles += pending_triangles;
             pending_triangles = 0;
         }
+        // Any surface near every vertex first: a cheap test that most
+        // parts which are not covered fail.
         let covered = indexed > 0
+            && !set.is_empty()
             && piece.input.positions.iter().all(|p| {
-                set.nearest(*p, None)
-                    .is_some_and(|n| n.distance_squared <= budget * budget)
+                set.nearest_squared(*p)
+                    .is_some_and(|d| d <= budget * budget)
             })
-            && {
-                let d = one_sided_bound(&piece.input, &set, tolerance);
-                if d <= budget {
+            && match set.one_sided_within(&piece.input, tolerance, budget) {
+                Some(d) => {
                     bound = bound.max(d);
                     true
-                } else {
-                    false
                 }
+                None => false,
             };
         if !covered {
             bound = bound.max(piece.error);
@@ -168,7 +164,12 @@ const PLACED_STEPS: usize = 4;
 /// bound: the fewer triangles of vertex selection at the first request
 /// within `budget` and of vertex placement at the fewest triangles within
 /// it.
-fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh, f32)> {
+fn simplified_within(
+    input: &Mesh,
+    budget: f32,
+    tolerance: f32,
+    metric: ErrorMetric,
+) -> Option<(Mesh, f32)> {
     let welded = input.welded();
     let n = input.triangle_count();
     let mut best: Option<(Mesh, f32)> = None;
@@ -184,7 +185,7 @@ fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh,
         if s.strategy == Strategy::Unchanged || s.triangles >= n {
             break;
         }
-        if let Some(error) = bound_within(&s.mesh, input, tolerance, budget) {
+        if let Some(error) = bound_within(&s.mesh, input, tolerance, budget, metric) {
             best = Some((s.mesh, error));
             break;
         }
@@ -196,8 +197,9 @@ fn simplified_within(input: &Mesh, budget: f32, tolerance: f32) -> Option<(Mesh,
         let placed = (target > 0 && fewer)
             .then(|| edge_collapse_placed(&welded, target))
             .filter(|m| !m.is_empty() && m.triangle_count() < n);
-        let fits =
-            placed.and_then(|m| bound_within(&m, input, tolerance, budget).map(|error| (m, error)));
+        let fits = placed.and_then(|m| {
+            bound_within(&m, input, tolerance, budget, metric).map(|error| (m, error))
+        });
         // Fewer triangles when this fits (or was not worth trying, being
         // no fewer than the best), more when it does not.
         match fits {
@@ -258,6 +260,7 @@ mod tests {
         for m in meshes {
             let offset = out.positions.len() as u32;
             out.positions.extend(&m.positions);
+            out.colors.extend(&m.colors);
             out.indices.extend(m.indices.iter().map(|i| i + offset));
         }
         out
@@ -281,7 +284,7 @@ mod tests {
         // thick one becomes its quad (0.3 from its axis) and the thin one
         // is covered by it.
         let m = joined(&[tube(16, 0.3, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 0.4, 0.0)]);
-        let r = reduce_parts(&m, 0.5, 1e-3);
+        let r = reduce_parts(&m, 0.5, 1e-3, ErrorMetric::Geometry);
         assert_eq!(r.mesh.triangle_count(), 2, "{r:?}");
         let truth = measured(&r.mesh, &m);
         assert!(truth <= r.bound + 1e-3, "{truth} > {}", r.bound);
@@ -293,17 +296,53 @@ mod tests {
         // Two thin tubes 3 apart, budget 0.05: each becomes its quad
         // (within its radius), neither covers the other.
         let m = joined(&[tube(16, 0.02, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 3.0, 0.0)]);
-        let r = reduce_parts(&m, 0.05, 1e-3);
+        let r = reduce_parts(&m, 0.05, 1e-3, ErrorMetric::Geometry);
         assert_eq!(r.mesh.triangle_count(), 4);
         // Below half their thickness no quad fits (nor a box: its caps'
         // centres are 0.02 from the open tube): each keeps a coarser tube.
-        let r = reduce_parts(&m, 0.019, 1e-4);
+        let r = reduce_parts(&m, 0.019, 1e-4, ErrorMetric::Geometry);
         assert!(r.mesh.triangle_count() > 4, "{r:?}");
         assert!(r.bound <= 0.019 && measured(&r.mesh, &m) <= r.bound + 1e-4);
         assert!(measured(&r.mesh, &m) <= r.bound + 1e-3);
         // With no budget at all nothing changes.
-        let r = reduce_parts(&m, 0.0, 1e-3);
+        let r = reduce_parts(&m, 0.0, 1e-3, ErrorMetric::Geometry);
         assert_eq!(r.mesh.triangle_count(), m.triangle_count());
         assert_eq!(r.bound, 0.0);
+    }
+
+    #[test]
+    fn keeps_a_band_of_its_own_colour_where_the_geometry_would_drop_it() {
+        // A 10 x 10 wall, 0.2 thick, and a band 1.4 wide 0.05 in front:
+        // within 0.3 the wall becomes its quad and covers the band, unless
+        // the band's colour is held to its own.
+        let paint = |mut m: Mesh, c: [f32; 4]| {
+            m.colors = vec![c; m.positions.len()];
+            m
+        };
+        let grey = [0.5, 0.5, 0.5, 1.0];
+        let blue = [0.2, 0.4, 0.8, 1.0];
+        let wall = paint(
+            Mesh::cuboid(Vec3::new(0.0, 0.0, -0.2), Vec3::new(10.0, 10.0, 0.0), 2),
+            grey,
+        );
+        let band = paint(
+            Mesh::cuboid(Vec3::new(0.5, 4.0, 0.0), Vec3::new(9.5, 5.4, 0.05), 2),
+            blue,
+        );
+        let m = joined(&[wall, band]);
+        let blues = |r: &Reduced| {
+            let m = &r.mesh;
+            m.indices
+                .chunks_exact(3)
+                .filter(|t| m.colors[t[0] as usize] == blue)
+                .count()
+        };
+        let geometry = reduce_parts(&m, 0.3, 1e-3, ErrorMetric::Geometry);
+        assert_eq!(geometry.mesh.triangle_count(), 2, "{geometry:?}");
+        assert_eq!(blues(&geometry), 0);
+        let appearance = reduce_parts(&m, 0.3, 1e-3, ErrorMetric::Appearance);
+        assert_eq!(appearance.mesh.triangle_count(), 4, "{appearance:?}");
+        assert_eq!(blues(&appearance), 2);
+        assert!(appearance.bound <= 0.3);
     }
 }
