@@ -22,6 +22,7 @@ export async function followClock(viewer, api, scene, { step = 86400, tileset = 
     const seconds = Math.min(step * Math.floor(elapsed / step), about.time.seconds);
     if (seconds === wanted) return;
     wanted = seconds;
+    if (seconds === slices.seconds) return; // back to the slice shown
     // The time in the path, not the query: CesiumJS carries a tileset
     // URL's query to every URL it names, which would make each date's
     // content URLs new ones.

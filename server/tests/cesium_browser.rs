@@ -160,6 +160,7 @@ fn cesium_follows_the_clock_and_draws_the_cut() {
     // The clock spans the scene's period.
     assert_eq!(init["clock"]["start"], scene["time"]["start"]);
     assert_eq!(init["clock"]["stop"], scene["time"]["end"]);
+    assert_eq!(init["clock"]["clamped"], true);
 
     let states = report["states"].as_array().unwrap();
     assert_eq!(states.len(), times.len());

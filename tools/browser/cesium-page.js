@@ -60,7 +60,7 @@ async function init(cfg) {
     clock: {
       start: Cesium.JulianDate.toIso8601(viewer.clock.startTime),
       stop: Cesium.JulianDate.toIso8601(viewer.clock.stopTime),
-      range: viewer.clock.clockRange,
+      clamped: viewer.clock.clockRange === Cesium.ClockRange.CLAMPED,
     },
   };
 }
@@ -103,9 +103,6 @@ async function showTime(seconds, timeoutMs) {
     viewProjection: Cesium.Matrix4.toArray(m),
     drawingBuffer: { width: ctx.drawingBufferWidth, height: ctx.drawingBufferHeight },
     pixelRatio: viewer.scene.pixelRatio,
-    near: camera.frustum.near,
-    far: camera.frustum.far,
-    fovy: camera.frustum.fovy,
     maximumScreenSpaceError: tileset.maximumScreenSpaceError,
     modelMatrix: Cesium.Matrix4.toArray(tileset.modelMatrix),
     rootTransform: Cesium.Matrix4.toArray(tileset.root.computedTransform),
@@ -136,7 +133,7 @@ function pick() {
       if (picked instanceof Cesium.Cesium3DTileFeature) {
         const properties = {};
         for (const name of picked.getPropertyIds()) properties[name] = picked.getProperty(name);
-        const found = { x, y, cluster: picked.content.tile.extras.cluster, featureId: picked.featureId, properties };
+        const found = { x, y, cluster: picked.content.tile.extras.cluster, properties };
         if (properties.task) return found;
         first ??= found;
       }

@@ -109,12 +109,13 @@ async function main() {
     const consoleErrors = [];
     page.on("pageerror", (e) => pageErrors.push(String(e)));
     page.on("console", (m) => m.type() === "error" && consoleErrors.push(m.text()));
-    // Every request with the phase it was made in; whether the browser's
-    // cache answered it, from the DevTools protocol.
+    // Every request the page made, to find any that leaves the two
+    // origins; from the DevTools protocol, each with the phase it was made
+    // in and whether the browser's cache answered it.
     let phase = "load";
     const requests = [];
     const byId = new Map();
-    page.on("request", (r) => requests.push({ url: r.url(), method: r.method(), phase }));
+    page.on("request", (r) => requests.push(r.url()));
     const cdp = await context.newCDPSession(page);
     await cdp.send("Network.enable");
     cdp.on("Network.requestWillBeSent", (e) => byId.set(e.requestId, { url: e.request.url, phase, cached: false }));
@@ -144,15 +145,13 @@ async function main() {
       states.push(state);
       if (i === cfg.pickAt) pick = await page.evaluate(() => window.cesiumTest.pick());
     }
-    const network = [...byId.values()];
     const result = {
       origin,
       init,
       states,
       pick,
-      requests: network,
-      playwrightRequests: requests.length,
-      foreign: requests.filter((r) => !r.url.startsWith(origin) && !r.url.startsWith(cfg.server) && !/^(data|blob):/.test(r.url)),
+      requests: [...byId.values()],
+      foreign: requests.filter((url) => !url.startsWith(origin) && !url.startsWith(cfg.server) && !/^(data|blob):/.test(url)),
       pageErrors,
       consoleErrors,
       ms: Date.now() - began,
