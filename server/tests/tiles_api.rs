@@ -40,6 +40,7 @@ fn served_slices_follow_the_schemas() {
     let doc = server.get_json("/api/v1/openapi.json");
     for path in [
         "/api/v1/scenes/{scene}/tiles/tileset.json",
+        "/api/v1/scenes/{scene}/tiles/{time}.json",
         "/api/v1/scenes/{scene}/tiles/{time}/{id}.json",
         "/api/v1/scenes/{scene}/tiles/content/{version}/{id}.glb",
         "/api/v1/scenes/{scene}/tiles/{time}/content/{id}.glb",
@@ -64,6 +65,14 @@ fn served_slices_follow_the_schemas() {
         assert_eq!(again.status(), StatusCode::NOT_MODIFIED, "time {time}");
         let tileset: Value = answer.json().unwrap();
         assert_valid(&validator, &tileset, time);
+        // The same file with the time in its path, beside it.
+        let at: Value = http
+            .get(server.url(&format!("/api/v1/scenes/{SCENE}/tiles/{time}.json")))
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        assert_eq!(at, tileset, "tiles/{time}.json");
         assert_eq!(tileset["root"]["refine"], "REPLACE");
         assert!(
             tileset["asset"].get("tilesetVersion").is_none(),
@@ -129,6 +138,10 @@ fn bad_tile_requests_name_the_field() {
         "scene",
     );
     let sub = |rest: &str| format!("/api/v1/scenes/{SCENE}/tiles/{rest}");
+    error(&sub("yesterday.json"), StatusCode::BAD_REQUEST, "time");
+    error(&sub("0.json?time=0"), StatusCode::BAD_REQUEST, "time");
+    error(&sub("0.json?camera=1"), StatusCode::BAD_REQUEST, "camera");
+    error(&sub("0.glb"), StatusCode::NOT_FOUND, "time");
     error(&sub("5204400/0.json"), StatusCode::NOT_FOUND, "subtree");
     error(&sub("5204400/x.json"), StatusCode::NOT_FOUND, "subtree");
     error(&sub("soon/1.json"), StatusCode::NOT_FOUND, "time");

@@ -184,6 +184,12 @@ pub fn router(state: Arc<AppState>, cors: &Cors) -> Router {
             get(tiles::tileset),
         )
         .route(
+            // `{time}.json`, the segment named as in the external tilesets' route
+            // (the router takes one name per segment).
+            "/api/v1/scenes/{scene}/tiles/{time}",
+            get(tiles::tileset_at),
+        )
+        .route(
             "/api/v1/scenes/{scene}/tiles/content/{version}/{file}",
             get(tiles::content),
         )

@@ -3,6 +3,9 @@
 //! - `GET /api/v1/scenes/{scene}/tiles/tileset.json?time=T`: the root
 //!   tileset at `T` (ISO 8601 or seconds); `&status=true` for content with
 //!   each element's state at `T`, `&frame=local` for the local frame;
+//! - `GET /api/v1/scenes/{scene}/tiles/{time}.json`: the same file with
+//!   the time in its path, for clients that carry the tileset URL's query
+//!   to every URL it names (CesiumJS);
 //! - `GET /api/v1/scenes/{scene}/tiles/{dir}/{id}.json`: its external
 //!   tilesets, which the root file names relatively (`{dir}` is the slice's
 //!   seconds, `status-{seconds}` for a slice with state), so a client
@@ -250,6 +253,18 @@ pub async fn content_at(
         .into_response())
 }
 
+/// The root file for the query's pairs, with its ETag.
+fn root_answer(
+    state: &AppState,
+    name: &str,
+    pairs: &[(String, String)],
+    headers: &HeaderMap,
+) -> Result<Response, ApiError> {
+    let s = find(state, name)?;
+    let root = root_file(&s, &tileset_query(pairs)?, DEFAULT_MAX_BYTES)?;
+    Ok(Cached::of(&root).answer(headers))
+}
+
 pub async fn tileset(
     State(state): State<Arc<AppState>>,
     Path(name): Path<String>,
@@ -257,9 +272,32 @@ pub async fn tileset(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
-    let s = find(&state, &name)?;
-    let root = root_file(&s, &tileset_query(&pairs)?, DEFAULT_MAX_BYTES)?;
-    Ok(Cached::of(&root).answer(&headers))
+    root_answer(&state, &name, &pairs, &headers)
+}
+
+/// `{time}.json`: the root file of `tileset.json?time=` with the time in its
+/// path, beside it, so that it names the same files by the same relative
+/// URIs. For clients that carry a tileset URL's query to every URL the
+/// tileset names (CesiumJS does): there `?time=` would give each date's
+/// content URLs of their own, which no cache of an earlier date answers.
+pub async fn tileset_at(
+    State(state): State<Arc<AppState>>,
+    Path((name, file)): Path<(String, String)>,
+    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let Query(mut pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
+    let time = file
+        .strip_suffix(".json")
+        .ok_or_else(|| ApiError::not_found("time", format!("{file:?} is not TIME.json")))?;
+    if pairs.iter().any(|(key, _)| key == "time") {
+        return Err(ApiError::bad(
+            "time",
+            "is given by the path (tiles/TIME.json), not the query",
+        ));
+    }
+    pairs.push(("time".to_owned(), time.to_owned()));
+    root_answer(&state, &name, &pairs, &headers)
 }
 
 pub async fn external(
