@@ -32,6 +32,7 @@ use serde::{Deserialize, Serialize};
 use super::Mesh;
 use super::closest::TriangleSet;
 use super::hausdorff::{self, one_way_within, search_scale};
+use super::union_find::UnionFind;
 
 /// What the builder's error bounds measure.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq, Serialize, Deserialize)]
@@ -92,27 +93,17 @@ impl Colored {
     /// the triangles of its class connected to it through shared corners.
     fn region_sizes(&self) -> Vec<f32> {
         let n = self.triangles.len();
-        let mut parent: Vec<u32> = (0..n as u32).collect();
-        fn find(parent: &mut [u32], mut i: u32) -> u32 {
-            while parent[i as usize] != i {
-                parent[i as usize] = parent[parent[i as usize] as usize];
-                i = parent[i as usize];
-            }
-            i
-        }
+        let mut sets = UnionFind::new(n);
         let mut first: HashMap<([u32; 3], Class), u32> = HashMap::with_capacity(3 * n);
         for (k, (t, class)) in self.triangles.iter().zip(&self.classes).enumerate() {
             for p in t {
                 let at = *first
                     .entry((p.to_array().map(f32::to_bits), *class))
                     .or_insert(k as u32);
-                let (ra, rb) = (find(&mut parent, at), find(&mut parent, k as u32));
-                if ra != rb {
-                    parent[ra.max(rb) as usize] = ra.min(rb);
-                }
+                sets.union(at, k as u32);
             }
         }
-        let roots: Vec<u32> = (0..n as u32).map(|k| find(&mut parent, k)).collect();
+        let roots: Vec<u32> = (0..n as u32).map(|k| sets.find(k)).collect();
         let mut areas: HashMap<u32, f32> = HashMap::new();
         for (t, root) in self.triangles.iter().zip(&roots) {
             *areas.entry(*root).or_default() += (t[1] - t[0]).cross(t[2] - t[0]).length() / 2.0;
@@ -168,10 +159,6 @@ impl ColoredSet {
     /// The nearest triangle of any colour.
     pub(crate) fn nearest_squared(&self, p: Vec3) -> Option<f32> {
         self.all.nearest(p, None).map(|n| n.distance_squared)
-    }
-
-    pub(crate) fn is_empty(&self) -> bool {
-        self.all.is_empty()
     }
 
     /// A bound of `sup_{p in A} e(p)` for the triangles of `a` against this

@@ -13,6 +13,7 @@ mod parallel;
 mod proxy;
 mod reduce;
 mod simplify;
+mod union_find;
 mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};

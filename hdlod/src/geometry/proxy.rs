@@ -13,6 +13,7 @@ use std::collections::HashMap;
 use glam::Vec3;
 
 use super::Mesh;
+use super::union_find::UnionFind;
 
 /// The connected parts of `mesh` as lists of triangle indices, in order of
 /// first appearance. Parts are connected through shared vertices or
@@ -20,35 +21,22 @@ use super::Mesh;
 /// one feature: two objects are never one part.
 pub(super) fn parts(mesh: &Mesh) -> Vec<Vec<usize>> {
     let n = mesh.positions.len();
-    let mut parent: Vec<u32> = (0..n as u32).collect();
-    fn find(parent: &mut [u32], mut i: u32) -> u32 {
-        while parent[i as usize] != i {
-            parent[i as usize] = parent[parent[i as usize] as usize];
-            i = parent[i as usize];
-        }
-        i
-    }
-    let union = |parent: &mut Vec<u32>, a: u32, b: u32| {
-        let (ra, rb) = (find(parent, a), find(parent, b));
-        if ra != rb {
-            parent[ra.max(rb) as usize] = ra.min(rb);
-        }
-    };
+    let mut sets = UnionFind::new(n);
     let mut same_place: HashMap<([u32; 3], u32), u32> = HashMap::with_capacity(n);
     for (i, p) in mesh.positions.iter().enumerate() {
         let feature = mesh.features.get(i).copied().unwrap_or(0);
         let key = (p.to_array().map(f32::to_bits), feature);
         let first = *same_place.entry(key).or_insert(i as u32);
-        union(&mut parent, first, i as u32);
+        sets.union(first, i as u32);
     }
     for t in mesh.indices.chunks_exact(3) {
-        union(&mut parent, t[0], t[1]);
-        union(&mut parent, t[0], t[2]);
+        sets.union(t[0], t[1]);
+        sets.union(t[0], t[2]);
     }
     let mut index: HashMap<u32, usize> = HashMap::new();
     let mut out: Vec<Vec<usize>> = Vec::new();
     for (k, t) in mesh.indices.chunks_exact(3).enumerate() {
-        let root = find(&mut parent, t[0]);
+        let root = sets.find(t[0]);
         let at = *index.entry(root).or_insert_with(|| {
             out.push(Vec::new());
             out.len() - 1

@@ -113,7 +113,6 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32, metric: ErrorMetri
         // Any surface near every vertex first: a cheap test that most
         // parts which are not covered fail.
         let covered = indexed > 0
-            && !set.is_empty()
             && piece.input.positions.iter().all(|p| {
                 set.nearest_squared(*p)
                     .is_some_and(|d| d <= budget * budget)
