@@ -505,3 +505,22 @@ fn a_bad_georeference_is_named() {
     let e = Site::new().error_after(|j| j["georeference"]["datum"] = json!("RD"));
     assert_names(&e, &["georeference", "datum"]);
 }
+
+#[test]
+fn a_gltf_buffer_stays_inside_and_is_a_regular_file() {
+    let site = Site::new();
+    write_gltf(&site.dir, 4, json!([{"name": "tri", "mesh": 0}]));
+    let gltf = site.dir.join("extra.gltf");
+    let text = std::fs::read_to_string(&gltf).unwrap();
+    std::fs::write(site.dir.join("../outside.bin"), [0u8; 36]).unwrap();
+    for (uri, why) in [
+        ("/dev/zero", "leads outside"),
+        ("../outside.bin", "leads outside"),
+        ("%2e%2e/outside.bin", "leads outside"),
+        ("file:///dev/zero", "only relative paths and data URIs"),
+    ] {
+        std::fs::write(&gltf, text.replace("\"tri.bin\"", &format!("{uri:?}"))).unwrap();
+        let e = site.error_after(|j| j["models"] = json!(["sample.glb", "extra.gltf"]));
+        assert_names(&e, &["extra.gltf", "buffers[0]", why]);
+    }
+}

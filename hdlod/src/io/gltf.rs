@@ -102,10 +102,11 @@ struct MeshKey {
 }
 
 pub(crate) fn read_model(path: &Path) -> Result<Model> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(&bytes)
         .map_err(|e| Error::invalid(path, "glTF", format!("not a valid glTF/GLB file: {e}")))?;
     drop(bytes);
+    check_buffer_uris(path, &document)?;
     let buffers = gltf::import_buffers(&document, path.parent(), blob)
         .map_err(|e| Error::invalid(path, "buffers", e.to_string()))?;
     let worlds = world_transforms(&document).map_err(|(at, m)| Error::invalid(path, at, m))?;
@@ -148,6 +149,61 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
         model.nodes.push(placed);
     }
     Ok(model)
+}
+
+/// A `.gltf` file's external buffers obey the rules of every input
+/// (`crate::input`): inside the file's directory, regular files within the
+/// cap. `gltf::import_buffers` would read any path or `file:` URI whole.
+fn check_buffer_uris(path: &Path, document: &gltf::Document) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for buffer in document.buffers() {
+        let gltf::buffer::Source::Uri(uri) = buffer.source() else {
+            continue;
+        };
+        if uri.starts_with("data:") {
+            continue;
+        }
+        let at = format!("buffers[{}]", buffer.index());
+        if uri.contains(':') {
+            return Err(Error::invalid(
+                path,
+                at,
+                format!(
+                    "{}: only relative paths and data URIs are read",
+                    crate::input::quote(uri)
+                ),
+            ));
+        }
+        // The path as `gltf::import_buffers` will read it: percent-decoded.
+        let file = crate::input::inside(dir, &percent_decoded(uri))
+            .map_err(|m| Error::invalid(path, &at, m))?;
+        crate::input::open(&file)?;
+    }
+    Ok(())
+}
+
+/// `%XX` escapes decoded (an invalid one kept as it is).
+fn percent_decoded(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = bytes
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok())
+            .and_then(|h| u8::from_str_radix(h, 16).ok());
+        match (bytes[i], hex) {
+            (b'%', Some(b)) => {
+                out.push(b);
+                i += 3;
+            }
+            (b, _) => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// The node's id: `extras.id` (a string) if present, else its name.

@@ -149,7 +149,7 @@ pub fn load(path: &Path) -> Result<Scene> {
     } else {
         path.to_path_buf()
     };
-    let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+    let text = crate::input::read_to_string(&file)?;
     let de = &mut serde_json::Deserializer::from_str(&text);
     let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
         let at = e.path().to_string();
@@ -416,7 +416,8 @@ impl Loader<'_> {
         let mut objects: Vec<Object> = Vec::new();
         let mut seen: HashMap<String, String> = HashMap::new();
         for (m, name) in f.models.iter().enumerate() {
-            let path = self.base.join(name);
+            let path = crate::input::inside(self.base, name)
+                .map_err(|why| self.err(format!("models[{m}]"), why))?;
             let model = read_model(&path).map_err(|e| match e {
                 Error::Io { source, .. } => self.err(
                     format!("models[{m}]"),
