@@ -5,14 +5,15 @@ use std::sync::{Arc, OnceLock};
 
 use axum::Json;
 use axum::body::{Body, Bytes};
-use axum::extract::rejection::{BytesRejection, QueryRejection};
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
+use axum::extract::rejection::BytesRejection;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::time::format_date;
 use serde_json::{Value, json};
 
-use super::error::ApiError;
+use super::error::{ApiError, quote};
+use super::extract::{Pairs, Segments};
 use super::{AppState, LoadedScene};
 use crate::protocol::{self, CutRequest, scene_path};
 
@@ -23,7 +24,7 @@ pub fn find(state: &AppState, name: &str) -> Answer<Arc<LoadedScene>> {
         .scenes()
         .get(name)
         .cloned()
-        .ok_or_else(|| ApiError::not_found("scene", format!("no scene named {name:?}")))
+        .ok_or_else(|| ApiError::not_found("scene", format!("no scene named {}", quote(name))))
 }
 
 fn time_json(scene: &LoadedScene) -> Value {
@@ -149,7 +150,7 @@ pub async fn scenes(State(state): State<Arc<AppState>>) -> Json<Value> {
 
 pub async fn scene(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
+    Segments(name): Segments<String>,
 ) -> Answer<Json<Value>> {
     let s = find(&state, &name)?;
     let tree = &s.tree;
@@ -187,7 +188,7 @@ fn cut_answer(state: &AppState, s: &LoadedScene, request: &CutRequest) -> Answer
 
 pub async fn cut_post(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
+    Segments(name): Segments<String>,
     body: Result<Bytes, BytesRejection>,
 ) -> Answer<Response> {
     let body = body.map_err(|r| ApiError::new(r.status(), Some("body".into()), r.body_text()))?;
@@ -198,31 +199,33 @@ pub async fn cut_post(
 
 pub async fn cut_get(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments(name): Segments<String>,
+    Pairs(pairs): Pairs,
 ) -> Answer<Response> {
-    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let s = find(&state, &name)?;
     cut_answer(&state, &s, &protocol::parse_query(&pairs)?)
 }
 
 pub async fn geometry(
     State(state): State<Arc<AppState>>,
-    Path((name, file)): Path<(String, String)>,
+    Segments((name, file)): Segments<(String, String)>,
     headers: HeaderMap,
 ) -> Answer<Response> {
     let s = find(&state, &name)?;
     let hash = file
         .strip_suffix(".glb")
         .filter(|h| hdlod::tree::is_hash(h))
-        .ok_or_else(|| ApiError::not_found("hash", format!("{file:?} is not HASH.glb")))?;
+        .ok_or_else(|| ApiError::not_found("hash", format!("{} is not HASH.glb", quote(&file))))?;
     let etag = HeaderValue::from_str(&format!("\"{hash}\"")).expect("hex in quotes");
     if let Some(answer) = not_modified(&headers, &etag) {
         return Ok(answer);
     }
     let path = s.dir.join("geometry").join(format!("{hash}.glb"));
     let bytes = tokio::fs::read(&path).await.map_err(|_| {
-        ApiError::not_found("hash", format!("no geometry {hash} in scene {name:?}"))
+        ApiError::not_found(
+            "hash",
+            format!("no geometry {hash} in scene {}", quote(&name)),
+        )
     })?;
     Ok(immutable_glb(etag, bytes))
 }

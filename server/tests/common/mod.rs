@@ -193,6 +193,19 @@ impl Drop for Server {
     }
 }
 
+    }
+
+    /// Whether the server ended successfully within `limit` (`None`: it
+    /// still runs).
+    pub fn wait_for_exit(&mut self, limit: Duration) -> Option<bool> {
+        let start = std::time::Instant::now();
+        while start.elapsed() < limit {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return Some(status.success());
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        None
 /// Whether the browser tests can run: chromium (`HDLOD_CHROMIUM`, else
 /// `/usr/bin/chromium`), node and `tools/node_modules/playwright-core`. When
 /// one is missing the test says so loudly and passes, unless
