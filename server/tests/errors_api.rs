@@ -216,3 +216,26 @@ fn a_query_parameter_given_twice_is_a_400_naming_it() {
     );
     assert_eq!(status, StatusCode::OK.as_u16());
 }
+
+#[test]
+fn a_tree_whose_scene_name_is_no_url_segment_is_not_served() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = common::sample_tree(tmp.path(), 1);
+    let manifest = tree.join(hdlod::tree::format::MANIFEST_FILE);
+    let mut json: Value =
+        serde_json::from_str(&std::fs::read_to_string(&manifest).unwrap()).unwrap();
+    json["scene"] = json!("");
+    std::fs::write(&manifest, json.to_string()).unwrap();
+    let out = common::hdlod(&[
+        "serve".as_ref(),
+        "--addr".as_ref(),
+        "127.0.0.1:0".as_ref(),
+        tree.as_os_str(),
+    ]);
+    assert!(!out.status.success());
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.contains("cannot be served") && stderr.contains("empty"),
+        "{stderr}"
+    );
+}

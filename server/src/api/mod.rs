@@ -73,7 +73,10 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     // The name is the scene's URL: one that is no path segment would be
     // served where no request reaches it.
     if let Some(why) = hdlod::scene::format::name_problem(&tree.scene) {
-        anyhow::bail!("{}: the scene's name cannot be served: {why}", dir.display());
+        anyhow::bail!(
+            "{}: the scene's name cannot be served: {why}",
+            dir.display()
+        );
     }
     let summary = tree.summary();
     let baseline = Baseline::of(&tree);
