@@ -10,6 +10,7 @@ pub mod error;
 mod extract;
 mod handlers;
 pub mod listener;
+pub mod memory;
 pub mod metrics;
 mod objects;
 mod presence;

@@ -259,8 +259,15 @@ async fn serve(
             break;
         }
     }
-    state
+    let before = state
         .metrics
         .ws_connections
         .fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+    // Dropped now rather than at the end of the scope: the trim below
+    // should find the session's buffers already freed.
+    drop(session);
+    drop(socket);
+    if before == 1 {
+        super::memory::streams_idle();
+    }
 }
