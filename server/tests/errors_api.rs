@@ -183,6 +183,25 @@ fn errors_quote_at_most_about_100_characters() {
         let body: Value = serde_json::from_str(&text).unwrap();
         assert!(body["error"]["message"].is_string());
     }
+    // serde's own messages quote an unknown field or a bad string whole.
+    let long = "p".repeat(50_000);
+    for body in [
+        format!(r#"{{"time": 1000, "{long}": 1}}"#),
+        format!(
+            r#"{{"time": "{long}", "camera": {{"position": [1, 2, 3], "target": [0, 0, 0]}}}}"#
+        ),
+        format!(r#"{{"time": 1000, "presence": "{long}"}}"#),
+    ] {
+        let response = client()
+            .post(server.url("/api/v1/scenes/sample-1/cut"))
+            .header("content-type", "application/json")
+            .body(body)
+            .send()
+            .unwrap();
+        assert_eq!(response.status(), StatusCode::BAD_REQUEST);
+        let text = response.text().unwrap();
+        assert!(text.len() < 600, "{} bytes: {}", text.len(), &text[..300]);
+    }
 }
 
 #[test]

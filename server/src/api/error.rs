@@ -31,12 +31,20 @@ pub struct ApiError {
 
 impl ApiError {
     /// `field` may be the client's text (an unknown parameter's name): it
-    /// is cut to about 100 characters like every quote of the request.
+    /// is cut to about 100 characters like every quote of the request. So
+    /// is each long word of the message: messages made elsewhere (serde's
+    /// "unknown field `...`") quote the request whole.
     pub fn new(status: StatusCode, field: Option<String>, message: impl Into<String>) -> Self {
+        let message = message.into();
+        let message = if message.split_whitespace().any(|w| w.len() > 100) {
+            message.split(' ').map(clip).collect::<Vec<_>>().join(" ")
+        } else {
+            message
+        };
         ApiError {
             status,
             field: field.map(|f| clip(&f)),
-            message: message.into(),
+            message,
         }
     }
 
