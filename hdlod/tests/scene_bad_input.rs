@@ -634,3 +634,41 @@ fn a_task_names_each_object_once_and_some_unless_a_summary() {
     site.write_json(&j);
     load(&site.dir).unwrap();
 }
+
+#[test]
+fn a_primitive_naming_a_missing_position_accessor_is_an_error() {
+    // gltf-json's validation used to panic on it (a fuzzing finding).
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("bad.gltf");
+    let gltf = json!({
+        "asset": {"version": "2.0"},
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 3}}]}],
+        "nodes": [{"name": "n", "mesh": 0}],
+        "scenes": [{"nodes": [0]}]
+    });
+    std::fs::write(&path, gltf.to_string()).unwrap();
+    let e = hdlod::io::read_mesh(&path).unwrap_err().to_string();
+    assert_names(
+        &e,
+        &[
+            "bad.gltf",
+            "meshes[0].primitives[0].attributes.POSITION",
+            "accessor 3 does not exist",
+        ],
+    );
+}
+
+#[test]
+fn a_glb_shorter_than_its_header_is_an_error() {
+    // gltf's GLB parser subtracted the header from it unchecked (a fuzzing
+    // finding).
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("short.glb");
+    let mut bytes = b"glTF".to_vec();
+    bytes.extend(2u32.to_le_bytes());
+    bytes.extend(0u32.to_le_bytes());
+    bytes.extend(b"JSON{}  ");
+    std::fs::write(&path, bytes).unwrap();
+    let e = hdlod::io::read_mesh(&path).unwrap_err().to_string();
+    assert_names(&e, &["short.glb", "GLB header", "length 0"]);
+}
