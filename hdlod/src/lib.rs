@@ -15,6 +15,7 @@ pub mod error;
 pub mod geometry;
 #[cfg(feature = "ifc")]
 pub mod import;
+pub mod input;
 pub mod io;
 pub mod scene;
 pub mod tiles;

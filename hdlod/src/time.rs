@@ -60,7 +60,8 @@ pub fn parse_date(text: &str) -> Result<DateTime<Utc>> {
         return Ok(d.and_hms_opt(0, 0, 0).expect("midnight exists").and_utc());
     }
     Err(Error::value(format!(
-        "{text:?} is not an ISO 8601 date (e.g. 2015-02-18 or 2015-02-18T08:00:00Z)"
+        "{} is not an ISO 8601 date (e.g. 2015-02-18 or 2015-02-18T08:00:00Z)",
+        crate::input::quote(text)
     )))
 }
 

@@ -155,7 +155,14 @@ fn huge_or_invalid_times() {
 fn bad_motion() {
     let site = Site::new();
     let e = site.error_after(|j| j["motion"]["truck-1"][1]["t"] = 0.into());
-    assert_names(&e, &["scene.json", "object \"truck-1\"", "two keyframes"]);
+    assert_names(
+        &e,
+        &[
+            "scene.json",
+            "motion.\"truck-1\"[1].t",
+            "not after keyframe 0",
+        ],
+    );
     let e = site.error_after(|j| j["motion"]["truck-1"][1]["translation"][0] = 1e300.into());
     assert_names(
         &e,
@@ -504,4 +511,164 @@ fn a_bad_georeference_is_named() {
     assert_names(&e, &["scene.json", "georeference.latitude", "95"]);
     let e = Site::new().error_after(|j| j["georeference"]["datum"] = json!("RD"));
     assert_names(&e, &["georeference", "datum"]);
+}
+
+#[test]
+fn a_gltf_buffer_stays_inside_and_is_a_regular_file() {
+    let site = Site::new();
+    write_gltf(&site.dir, 4, json!([{"name": "tri", "mesh": 0}]));
+    let gltf = site.dir.join("extra.gltf");
+    let text = std::fs::read_to_string(&gltf).unwrap();
+    std::fs::write(site.dir.join("../outside.bin"), [0u8; 36]).unwrap();
+    for (uri, why) in [
+        ("/dev/zero", "leads outside"),
+        ("../outside.bin", "leads outside"),
+        ("%2e%2e/outside.bin", "leads outside"),
+        ("file:///dev/zero", "only relative paths and data URIs"),
+    ] {
+        std::fs::write(&gltf, text.replace("\"tri.bin\"", &format!("{uri:?}"))).unwrap();
+        let e = site.error_after(|j| j["models"] = json!(["sample.glb", "extra.gltf"]));
+        assert_names(&e, &["extra.gltf", "buffers[0]", why]);
+    }
+}
+
+#[test]
+fn a_scene_name_is_a_url_path_segment() {
+    let site = Site::new();
+    for (name, why) in [
+        ("", "empty"),
+        ("../../evil", "starts with a dot"),
+        ("a/b\0c", "holds '/'"),
+        ("two words", "holds ' '"),
+    ] {
+        let e = site.error_after(|j| j["name"] = json!(name));
+        assert_names(&e, &["scene.json", "name", why]);
+    }
+    let mut scene = sample_scene();
+    scene.name = String::new();
+    let tmp = tempfile::tempdir().unwrap();
+    let e = save(&scene, &tmp.path().join("out"))
+        .unwrap_err()
+        .to_string();
+    assert_names(&e, &["scene name", "empty"]);
+}
+
+#[test]
+fn a_skipped_object_must_name_a_mesh_node() {
+    let site = Site::new();
+    let e = site.error_after(|j| j["objects"]["nobody"] = json!({"skip": true}));
+    assert_names(
+        &e,
+        &["scene.json", "objects.\"nobody\"", "names no mesh node"],
+    );
+}
+
+/// The first moving object's id in the sample's scene.json.
+fn mover(j: &Value) -> String {
+    j["motion"]
+        .as_object()
+        .unwrap()
+        .keys()
+        .next()
+        .unwrap()
+        .clone()
+}
+
+#[test]
+fn keyframes_go_forward_with_positive_scales() {
+    let site = Site::new();
+    let id = mover(&site.json());
+    let e = site.error_after(|j| {
+        let keys = j["motion"][&id].as_array_mut().unwrap();
+        assert!(keys.len() >= 2);
+        keys.reverse();
+    });
+    assert_names(
+        &e,
+        &[
+            "scene.json",
+            &format!("motion.{id:?}[1].t"),
+            "not after keyframe 0",
+        ],
+    );
+    for scale in [json!([1, 0, 1]), json!([1, -1, 1])] {
+        let site = Site::new();
+        let e = site.error_after(|j| j["motion"][&id][0]["scale"] = scale.clone());
+        assert_names(
+            &e,
+            &["scene.json", &format!("motion.{id:?}[0]"), "scale", "<= 0"],
+        );
+    }
+    let site = Site::new();
+    let e = site.error_after(|j| j["motion"][&id][0]["translation"] = json!([1e300, 0, 0]));
+    assert_names(
+        &e,
+        &["scene.json", "translation[0]", "1e300", "32-bit float"],
+    );
+    assert!(!e.contains("non-finite"), "{e}");
+}
+
+#[test]
+fn a_task_names_each_object_once_and_some_unless_a_summary() {
+    let site = Site::new();
+    let e = site.error_after(|j| {
+        let first = j["tasks"][0]["objects"][0].clone();
+        j["tasks"][0]["objects"].as_array_mut().unwrap().push(first);
+    });
+    assert_names(
+        &e,
+        &["scene.json", "tasks[0]", "objects[", "is also objects[0]"],
+    );
+    // T3 is nobody's parent.
+    let site = Site::new();
+    let e = site.error_after(|j| j["tasks"][2]["objects"] = json!([]));
+    assert_names(&e, &["scene.json", "tasks[2]", "objects", "summary task"]);
+    // A summary task (some task's parent) has none.
+    let site = Site::new();
+    let mut j = site.json();
+    j["tasks"]
+        .as_array_mut()
+        .unwrap()
+        .push(json!({"id": "S", "type": "construct", "start": 0, "finish": 10, "objects": []}));
+    j["tasks"][2]["parent"] = json!("S");
+    site.write_json(&j);
+    load(&site.dir).unwrap();
+}
+
+#[test]
+fn a_primitive_naming_a_missing_position_accessor_is_an_error() {
+    // gltf-json's validation used to panic on it (a fuzzing finding).
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("bad.gltf");
+    let gltf = json!({
+        "asset": {"version": "2.0"},
+        "meshes": [{"primitives": [{"attributes": {"POSITION": 3}}]}],
+        "nodes": [{"name": "n", "mesh": 0}],
+        "scenes": [{"nodes": [0]}]
+    });
+    std::fs::write(&path, gltf.to_string()).unwrap();
+    let e = hdlod::io::read_mesh(&path).unwrap_err().to_string();
+    assert_names(
+        &e,
+        &[
+            "bad.gltf",
+            "meshes[0].primitives[0].attributes.POSITION",
+            "accessor 3 does not exist",
+        ],
+    );
+}
+
+#[test]
+fn a_glb_shorter_than_its_header_is_an_error() {
+    // gltf's GLB parser subtracted the header from it unchecked (a fuzzing
+    // finding).
+    let tmp = tempfile::tempdir().unwrap();
+    let path = tmp.path().join("short.glb");
+    let mut bytes = b"glTF".to_vec();
+    bytes.extend(2u32.to_le_bytes());
+    bytes.extend(0u32.to_le_bytes());
+    bytes.extend(b"JSON{}  ");
+    std::fs::write(&path, bytes).unwrap();
+    let e = hdlod::io::read_mesh(&path).unwrap_err().to_string();
+    assert_names(&e, &["short.glb", "GLB header", "length 0"]);
 }

@@ -20,6 +20,15 @@ use clap::{Parser, Subcommand};
 struct Cli {
     #[command(subcommand)]
     command: Command,
+    /// The largest input file (model, scene, schedule, rules) in bytes; a
+    /// larger one is an error naming it and the cap.
+    #[arg(long, global = true, value_name = "BYTES", default_value_t = hdlod::input::DEFAULT_MAX_BYTES)]
+    max_input_bytes: u64,
+    /// Let paths named inside input files (a scene's models, a glTF's
+    /// buffers) lead outside that file's directory: absolute, through
+    /// `..` or a symbolic link.
+    #[arg(long, global = true)]
+    allow_outside_paths: bool,
 }
 
 #[derive(Subcommand)]
@@ -68,6 +77,10 @@ fn main() -> ExitCode {
         .with_writer(std::io::stderr)
         .init();
     let cli = Cli::parse();
+    hdlod::input::set_limits(hdlod::input::Limits {
+        max_bytes: cli.max_input_bytes,
+        outside: cli.allow_outside_paths,
+    });
     let result = match cli.command {
         Command::Fixture(c) => cmd::fixture::run(c),
         Command::Inspect(a) => cmd::inspect::run(a),

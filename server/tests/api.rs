@@ -23,17 +23,12 @@ fn responses_match_the_openapi_document() {
     let doc = server.get_json("/api/v1/openapi.json");
     assert_eq!(doc["openapi"], "3.1.0");
     // The served components are the files in schemas/api/.
-    let dir = common::repo().join("schemas/api");
     for (name, file) in [
         ("CutRequest", "cut-request"),
         ("CutResponse", "cut-response"),
         ("StreamMessage", "stream-message"),
     ] {
-        let text = std::fs::read_to_string(dir.join(format!("{file}.schema.json"))).unwrap();
-        assert_eq!(
-            doc["components"]["schemas"][name],
-            serde_json::from_str::<Value>(&text).unwrap()
-        );
+        common::assert_served_file(&doc, name, file);
     }
     for path in [
         "/healthz",
@@ -463,4 +458,40 @@ fn reloads_without_dropping_requests(hangup: bool) {
         statuses.iter().all(|s| matches!(s, Ok(StatusCode::OK))),
         "{statuses:?}"
     );
+}
+
+#[test]
+fn every_reference_of_the_openapi_document_resolves_within_it() {
+    fn walk(doc: &Value, at: &Value, path: &str, refs: &mut usize) {
+        match at {
+            Value::Object(o) => {
+                if let Some(r) = o.get("$ref").and_then(Value::as_str) {
+                    let pointer = r
+                        .strip_prefix('#')
+                        .unwrap_or_else(|| panic!("{path}: {r} points outside the document"));
+                    assert!(
+                        doc.pointer(pointer).is_some(),
+                        "{path}: {r} does not resolve"
+                    );
+                    *refs += 1;
+                }
+                for (k, v) in o {
+                    walk(doc, v, &format!("{path}/{k}"), refs);
+                }
+            }
+            Value::Array(a) => {
+                for (i, v) in a.iter().enumerate() {
+                    walk(doc, v, &format!("{path}/{i}"), refs);
+                }
+            }
+            _ => {}
+        }
+    }
+    let server = Server::sample(2);
+    let doc = server.get_json("/api/v1/openapi.json");
+    let mut refs = 0;
+    walk(&doc, &doc, "", &mut refs);
+    assert!(refs > 40, "{refs} references");
+    // No schema resource of its own inside: one base for every reference.
+    assert!(!doc.to_string().contains("\"$id\""));
 }

@@ -86,7 +86,7 @@ impl Model {
 /// Reads the STEP text of an `.ifc` file, or of the first `.ifc` inside an
 /// `.ifczip`.
 pub fn read_step(path: &Path) -> Result<Vec<u8>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     if !bytes.starts_with(b"PK") {
         return Ok(bytes);
     }
@@ -99,10 +99,20 @@ pub fn read_step(path: &Path) -> Result<Vec<u8>> {
         if !name.to_ascii_lowercase().ends_with(".ifc") {
             continue;
         }
-        let mut out = Vec::with_capacity(entry.size() as usize);
-        entry
+        // The archive's own word for the size is not trusted: inflated, an
+        // entry obeys the same cap as a file.
+        let cap = crate::input::limits().max_bytes;
+        let mut out = Vec::with_capacity(entry.size().min(cap).min(1 << 30) as usize);
+        (&mut entry)
+            .take(cap.saturating_add(1))
             .read_to_end(&mut out)
             .map_err(|e| bad(format!("{name}: {e}")))?;
+        if out.len() as u64 > cap {
+            return Err(bad(format!(
+                "{name} inflates to over {cap} bytes, the cap on an input file \
+                 (--max-input-bytes)"
+            )));
+        }
         return Ok(out);
     }
     Err(bad("holds no .ifc file".into()))

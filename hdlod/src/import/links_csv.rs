@@ -36,8 +36,7 @@ impl<'a> Table<'a> {
     pub fn open(path: &'a Path) -> Result<Table<'a>> {
         let mut reader = csv::ReaderBuilder::new()
             .flexible(false)
-            .from_path(path)
-            .map_err(|e| Error::invalid(path, "CSV", e.to_string()))?;
+            .from_reader(crate::input::open(path)?);
         let headers = reader
             .headers()
             .map_err(|e| Error::invalid(path, "header", e.to_string()))?

@@ -759,8 +759,9 @@ fn extension(path: &Path) -> String {
 fn is_p6_xml(path: &Path) -> Result<bool> {
     use std::io::Read;
     let mut head = Vec::with_capacity(4096);
-    std::fs::File::open(path)
-        .and_then(|f| f.take(4096).read_to_end(&mut head))
+    crate::input::open(path)?
+        .take(4096)
+        .read_to_end(&mut head)
         .map_err(|e| Error::io(path, e))?;
     Ok(String::from_utf8_lossy(&head).contains("<APIBusinessObjects"))
 }

@@ -50,7 +50,7 @@ fn child<'a>(n: Node<'a, '_>, name: &str) -> Option<&'a str> {
 
 /// Reads the tasks of a Project XML file, summary tasks included.
 pub fn read(path: &Path) -> Result<Vec<ScheduleTask>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::read_to_string(path)?;
     let doc = roxmltree::Document::parse(&text)
         .map_err(|e| Error::invalid(path, "XML", e.to_string()))?;
     let root = doc.root_element();

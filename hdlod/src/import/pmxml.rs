@@ -104,7 +104,7 @@ impl Object<'_, '_> {
 /// Reads the activities of one project of a P6 XML file, with its WBS
 /// nodes as summary tasks.
 pub fn read(path: &Path, project: Option<&str>) -> Result<Vec<ScheduleTask>> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::read_to_string(path)?;
     let doc = roxmltree::Document::parse(&text)
         .map_err(|e| Error::invalid(path, "XML", e.to_string()))?;
     let root = doc.root_element();

@@ -208,7 +208,7 @@ pub use crate::scene::property::{CLASS, FILE, NAME, STOREY};
 
 /// The rules file, parsed and its format checked.
 fn parse(path: &Path) -> Result<RulesFile> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::read_to_string(path)?;
     let de = &mut serde_json::Deserializer::from_str(&text);
     let file: RulesFile = serde_path_to_error::deserialize(de)
         .map_err(|e| Error::invalid(path, e.path().to_string(), e.inner().to_string()))?;

@@ -357,7 +357,7 @@ fn rows<'t, 'a>(t: &'t Table<'a>) -> impl Iterator<Item = Row<'t, 'a>> {
 /// as summary tasks. `project` chooses by short name or `proj_id`; without
 /// it, a file of several projects is an error listing them.
 pub fn read(path: &Path, project: Option<&str>) -> Result<Vec<ScheduleTask>> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     let (text, cp1252) = decode(path, &bytes)?;
     let tables = tables(path, &text, cp1252)?;
     let table = |name: &str| {

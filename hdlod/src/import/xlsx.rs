@@ -21,7 +21,7 @@
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
-use calamine::{Data, Reader, Xlsx, open_workbook};
+use calamine::{Data, Reader, Xlsx};
 use chrono::{DateTime, Utc};
 use serde::Deserialize;
 
@@ -107,7 +107,8 @@ fn text(cell: &Data) -> String {
 
 /// Reads the tasks of a spreadsheet.
 pub fn read(path: &Path, mapping: &Mapping) -> Result<Vec<ScheduleTask>> {
-    let mut book: Xlsx<_> = open_workbook(path)
+    let file = std::io::BufReader::new(crate::input::open(path)?);
+    let mut book = Xlsx::new(file)
         .map_err(|e| Error::file(path, format!("not a readable .xlsx workbook: {e}")))?;
     let names = book.sheet_names();
     let sheet = match &mapping.sheet {

@@ -102,10 +102,16 @@ struct MeshKey {
 }
 
 pub(crate) fn read_model(path: &Path) -> Result<Model> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
-    let gltf::Gltf { document, blob } = gltf::Gltf::from_slice(&bytes)
-        .map_err(|e| Error::invalid(path, "glTF", format!("not a valid glTF/GLB file: {e}")))?;
+    let bytes = crate::input::read(path)?;
+    let invalid =
+        |e: gltf::Error| Error::invalid(path, "glTF", format!("not a valid glTF/GLB file: {e}"));
+    glb_length_fits(&bytes).map_err(|m| Error::invalid(path, "GLB header", m))?;
+    let gltf::Gltf { document, blob } =
+        gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
     drop(bytes);
+    positions_exist(document.as_json()).map_err(|(at, m)| Error::invalid(path, at, m))?;
+    let document = gltf::Document::from_json(document.into_json()).map_err(invalid)?;
+    check_buffer_uris(path, &document)?;
     let buffers = gltf::import_buffers(&document, path.parent(), blob)
         .map_err(|e| Error::invalid(path, "buffers", e.to_string()))?;
     let worlds = world_transforms(&document).map_err(|(at, m)| Error::invalid(path, at, m))?;
@@ -148,6 +154,102 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
         model.nodes.push(placed);
     }
     Ok(model)
+}
+
+/// A GLB's declared length covers at least its 12-byte header: gltf 1.4
+/// subtracts the header from it unchecked (an overflow the `mesh` fuzz
+/// target found).
+fn glb_length_fits(bytes: &[u8]) -> std::result::Result<(), String> {
+    if let Some(length) = bytes
+        .strip_prefix(b"glTF")
+        .and_then(|rest| rest.get(4..8))
+        .map(|l| u32::from_le_bytes(l.try_into().expect("4 bytes")))
+        && length < 12
+    {
+        return Err(format!("length {length} is shorter than the header"));
+    }
+    Ok(())
+}
+
+/// Every primitive's `POSITION` names an existing accessor. gltf-json 1.4
+/// validates a primitive by indexing its position accessor before it
+/// checks the index, so a file naming a missing one would panic there
+/// (found by the `mesh` fuzz target, docs/fuzzing.md).
+fn positions_exist(json: &gltf::json::Root) -> std::result::Result<(), (String, String)> {
+    use gltf::json::validation::Checked;
+    let position = Checked::Valid(gltf::json::mesh::Semantic::Positions);
+    for (m, mesh) in json.meshes.iter().enumerate() {
+        for (p, primitive) in mesh.primitives.iter().enumerate() {
+            if let Some(index) = primitive.attributes.get(&position)
+                && index.value() >= json.accessors.len()
+            {
+                return Err((
+                    format!("meshes[{m}].primitives[{p}].attributes.POSITION"),
+                    format!(
+                        "accessor {} does not exist ({} accessors)",
+                        index.value(),
+                        json.accessors.len()
+                    ),
+                ));
+            }
+        }
+    }
+    Ok(())
+}
+
+/// A `.gltf` file's external buffers obey the rules of every input
+/// (`crate::input`): inside the file's directory, regular files within the
+/// cap. `gltf::import_buffers` would read any path or `file:` URI whole.
+fn check_buffer_uris(path: &Path, document: &gltf::Document) -> Result<()> {
+    let dir = path.parent().unwrap_or(Path::new("."));
+    for buffer in document.buffers() {
+        let gltf::buffer::Source::Uri(uri) = buffer.source() else {
+            continue;
+        };
+        if uri.starts_with("data:") {
+            continue;
+        }
+        let at = format!("buffers[{}]", buffer.index());
+        if uri.contains(':') {
+            return Err(Error::invalid(
+                path,
+                at,
+                format!(
+                    "{}: only relative paths and data URIs are read",
+                    crate::input::quote(uri)
+                ),
+            ));
+        }
+        // The path as `gltf::import_buffers` will read it: percent-decoded.
+        let file = crate::input::inside(dir, &percent_decoded(uri))
+            .map_err(|m| Error::invalid(path, &at, m))?;
+        crate::input::open(&file)?;
+    }
+    Ok(())
+}
+
+/// `%XX` escapes decoded (an invalid one kept as it is).
+fn percent_decoded(uri: &str) -> String {
+    let bytes = uri.as_bytes();
+    let mut out = Vec::with_capacity(bytes.len());
+    let mut i = 0;
+    while i < bytes.len() {
+        let hex = bytes
+            .get(i + 1..i + 3)
+            .and_then(|h| std::str::from_utf8(h).ok())
+            .and_then(|h| u8::from_str_radix(h, 16).ok());
+        match (bytes[i], hex) {
+            (b'%', Some(b)) => {
+                out.push(b);
+                i += 3;
+            }
+            (b, _) => {
+                out.push(b);
+                i += 1;
+            }
+        }
+    }
+    String::from_utf8_lossy(&out).into_owned()
 }
 
 /// The node's id: `extras.id` (a string) if present, else its name.

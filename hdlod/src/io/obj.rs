@@ -16,7 +16,7 @@ use crate::geometry::Mesh;
 use crate::{Error, Result};
 
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
-    let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+    let text = crate::input::read_to_string(path)?;
     parse(&text, path)
 }
 

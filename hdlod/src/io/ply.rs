@@ -15,7 +15,7 @@ use crate::geometry::Mesh;
 use crate::{Error, Result};
 
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
-    let bytes = std::fs::read(path).map_err(|e| Error::io(path, e))?;
+    let bytes = crate::input::read(path)?;
     parse(&bytes, path)
 }
 

@@ -115,7 +115,7 @@ impl Profile {
 
     /// Reads a profile file; errors name the file and the field.
     pub fn load(path: &Path) -> Result<Profile> {
-        let text = std::fs::read_to_string(path).map_err(|e| Error::io(path, e))?;
+        let text = crate::input::read_to_string(path)?;
         let de = &mut serde_json::Deserializer::from_str(&text);
         let file: ProfileFile = serde_path_to_error::deserialize(de)
             .map_err(|e| Error::invalid(path, e.path().to_string(), e.into_inner().to_string()))?;

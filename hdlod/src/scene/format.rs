@@ -123,12 +123,39 @@ fn is_zero(x: &f64) -> bool {
 #[serde(deny_unknown_fields)]
 struct KeyframeFile {
     t: TimeValue,
-    #[serde(default = "zero3")]
+    #[serde(default = "zero3", deserialize_with = "f32s")]
     translation: [f32; 3],
-    #[serde(default = "identity_rotation")]
+    #[serde(default = "identity_rotation", deserialize_with = "f32s")]
     rotation: [f32; 4],
-    #[serde(default = "one3")]
+    #[serde(default = "one3", deserialize_with = "f32s")]
     scale: [f32; 3],
+}
+
+/// `N` numbers kept as `f32`, each read by [`F32`].
+fn f32s<'de, D: serde::Deserializer<'de>, const N: usize>(d: D) -> Result<[f32; N], D::Error>
+where
+    [F32; N]: Deserialize<'de>,
+{
+    Ok(<[F32; N]>::deserialize(d)?.map(|F32(x)| x))
+}
+
+/// A number kept as `f32`, read as `f64` first: serde would turn one
+/// beyond the `f32` range into an infinity, which a later check would call
+/// non-finite although the file holds a finite number. The error comes
+/// from the element itself, so that its path names the index.
+struct F32(f32);
+
+impl<'de> Deserialize<'de> for F32 {
+    fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
+        let wide = f64::deserialize(d)?;
+        if wide.abs() > f64::from(f32::MAX) {
+            return Err(serde::de::Error::custom(format!(
+                "{wide:e} is out of range: a 32-bit float is at most {:e} in magnitude",
+                f32::MAX
+            )));
+        }
+        Ok(F32(wide as f32))
+    }
 }
 
 fn zero3() -> [f32; 3] {
@@ -141,6 +168,36 @@ fn identity_rotation() -> [f32; 4] {
     [0.0, 0.0, 0.0, 1.0]
 }
 
+/// The longest scene name.
+pub const MAX_NAME: usize = 128;
+
+/// Why `name` cannot name a scene, if it cannot: a scene's name is its
+/// URL (`/api/v1/scenes/NAME`) and its GLB's file name, so it is 1 to
+/// [`MAX_NAME`] characters a URL path segment and a file name take as they
+/// are (letters, digits, `-`, `_`, `.`, `~`: RFC 3986's unreserved), not
+/// starting with a dot.
+pub fn name_problem(name: &str) -> Option<String> {
+    let quoted = crate::input::quote(name);
+    if name.is_empty() {
+        return Some("the name is empty".into());
+    }
+    if name.len() > MAX_NAME {
+        return Some(format!("{quoted} is longer than {MAX_NAME} characters"));
+    }
+    if name.starts_with('.') {
+        return Some(format!("{quoted} starts with a dot"));
+    }
+    if let Some(c) = name
+        .chars()
+        .find(|c| !(c.is_ascii_alphanumeric() || matches!(c, '-' | '_' | '.' | '~')))
+    {
+        return Some(format!(
+            "{quoted} holds {c:?}: a scene name is letters, digits, '-', '_', '.' and '~'"
+        ));
+    }
+    None
+}
+
 /// Loads a scene from its directory or its `scene.json`, reads the models,
 /// checks the schedule and motion, and applies the schedule.
 pub fn load(path: &Path) -> Result<Scene> {
@@ -149,7 +206,7 @@ pub fn load(path: &Path) -> Result<Scene> {
     } else {
         path.to_path_buf()
     };
-    let text = std::fs::read_to_string(&file).map_err(|e| Error::io(&file, e))?;
+    let text = crate::input::read_to_string(&file)?;
     let de = &mut serde_json::Deserializer::from_str(&text);
     let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
         let at = e.path().to_string();
@@ -193,8 +250,14 @@ impl Loader<'_> {
         if f.format != FORMAT {
             return Err(self.err(
                 "format",
-                format!("{:?} is not supported (expected {FORMAT:?})", f.format),
+                format!(
+                    "{} is not supported (expected {FORMAT:?})",
+                    crate::input::quote(&f.format)
+                ),
             ));
+        }
+        if let Some(why) = name_problem(&f.name) {
+            return Err(self.err("name", why));
         }
         let start = parse_date(&f.time.start).map_err(|m| self.err("time.start", m.to_string()))?;
         let mut time = TimeSpan {
@@ -255,8 +318,21 @@ impl Loader<'_> {
                     ),
                 ));
             }
-            for id in &t.objects {
+            for (k, id) in t.objects.iter().enumerate() {
                 lookup(id, &format!("{at}.objects"))?;
+                if let Some(first) = t.objects[..k].iter().position(|o| o == id) {
+                    return Err(self.err(
+                        format!("{at}.objects[{k}]"),
+                        format!("object {id:?} is also objects[{first}]"),
+                    ));
+                }
+            }
+            if t.objects.is_empty() && !f.tasks.iter().any(|c| c.parent.as_ref() == Some(&t.id)) {
+                return Err(self.err(
+                    format!("{at}.objects"),
+                    "is empty, and no task names this one its parent: only a summary task \
+                     has no objects",
+                ));
             }
             let opt = |v: &Option<TimeValue>, field: &str| {
                 v.as_ref()
@@ -379,10 +455,36 @@ impl Loader<'_> {
         for (id, keys) in &f.motion {
             let at = format!("motion.{id:?}");
             let i = lookup(id, &at)?;
-            let mut frames = Vec::with_capacity(keys.len());
+            let mut frames: Vec<Keyframe> = Vec::with_capacity(keys.len());
             for (k, key) in keys.iter().enumerate() {
+                let t = self.time(&time, &key.t, &format!("{at}[{k}].t"))?;
+                // Keyframes in file order: a list out of order is more
+                // likely a mistake than a wish to have it sorted.
+                if let Some(before) = frames.last()
+                    && t <= before.t
+                {
+                    return Err(self.err(
+                        format!("{at}[{k}].t"),
+                        format!(
+                            "{} is not after keyframe {} ({} s): keyframes go forward in time",
+                            show(&key.t),
+                            k - 1,
+                            before.t
+                        ),
+                    ));
+                }
+                if key.scale.iter().any(|s| *s <= 0.0) {
+                    return Err(self.err(
+                        format!("{at}[{k}].scale"),
+                        format!(
+                            "{:?} has a component <= 0: an object cannot shrink to nothing or \
+                             turn inside out",
+                            key.scale
+                        ),
+                    ));
+                }
                 frames.push(Keyframe {
-                    t: self.time(&time, &key.t, &format!("{at}[{k}].t"))?,
+                    t,
                     translation: Vec3::from(key.translation),
                     rotation: Quat::from_array(key.rotation),
                     scale: Vec3::from(key.scale),
@@ -415,8 +517,12 @@ impl Loader<'_> {
         let mut meshes = Vec::new();
         let mut objects: Vec<Object> = Vec::new();
         let mut seen: HashMap<String, String> = HashMap::new();
+        // Skipped ids seen in the models: an `objects` key must name a
+        // mesh node, skipped or not.
+        let mut skipped: std::collections::HashSet<String> = Default::default();
         for (m, name) in f.models.iter().enumerate() {
-            let path = self.base.join(name);
+            let path = crate::input::inside(self.base, name)
+                .map_err(|why| self.err(format!("models[{m}]"), why))?;
             let model = read_model(&path).map_err(|e| match e {
                 Error::Io { source, .. } => self.err(
                     format!("models[{m}]"),
@@ -438,6 +544,7 @@ impl Loader<'_> {
                 })?;
                 let entry = f.objects.get(&id);
                 if entry.is_some_and(|e| e.skip) {
+                    skipped.insert(id);
                     continue;
                 }
                 let here = format!("{} {}", path.display(), node.describe());
@@ -463,11 +570,8 @@ impl Loader<'_> {
                 });
             }
         }
-        if let Some(id) = f
-            .objects
-            .keys()
-            .find(|id| !seen.contains_key(id.as_str()) && !f.objects[id.as_str()].skip)
-        {
+        let named = |id: &str| seen.contains_key(id) || skipped.contains(id);
+        if let Some(id) = f.objects.keys().find(|id| !named(id)) {
             return Err(self.err(
                 format!("objects.{id:?}"),
                 "names no mesh node in the models",
@@ -550,12 +654,8 @@ fn replace_dir(tmp: &Path, dir: &Path) -> Result<()> {
 /// Rejects what `load` would reject, before anything is written.
 fn check(scene: &Scene) -> Result<()> {
     let bad = |at: String, m: String| Err(Error::argument(at, m));
-    let name = &scene.name;
-    if name.is_empty() || name.starts_with('.') || name.contains(['/', '\\', ':', '\0']) {
-        return bad(
-            "scene name".into(),
-            format!("{name:?} cannot be a file name"),
-        );
+    if let Some(why) = name_problem(&scene.name) {
+        return bad("scene name".into(), why);
     }
     let in_range = |t: f64| t.abs() <= MAX_SECONDS;
     let task_ids: Vec<&str> = scene.tasks.iter().map(|t| t.id.as_str()).collect();
@@ -598,6 +698,17 @@ fn check(scene: &Scene) -> Result<()> {
         {
             return bad(at, format!("keyframe time {} is out of range", k.t));
         }
+        if let Some(k) = o
+            .motion
+            .iter()
+            .flat_map(|m| m.keyframes())
+            .find(|k| k.scale.cmple(glam::Vec3::ZERO).any())
+        {
+            return bad(
+                at,
+                format!("keyframe scale {} has a component <= 0", k.scale),
+            );
+        }
     }
     for (m, mesh) in scene.meshes.iter().enumerate() {
         mesh.validate()
@@ -636,6 +747,15 @@ fn check(scene: &Scene) -> Result<()> {
         }
         if let Some(id) = t.objects.iter().find(|id| !ids.contains_key(id.as_str())) {
             return bad(at, format!("object {id:?} does not exist"));
+        }
+        if let Some(k) = (1..t.objects.len()).find(|&k| t.objects[..k].contains(&t.objects[k])) {
+            return bad(at, format!("object {:?} is named twice", t.objects[k]));
+        }
+        if t.objects.is_empty() && !scene.tasks.iter().any(|c| c.parent.as_ref() == Some(&t.id)) {
+            return bad(
+                at,
+                "has no objects and is no task's parent (only a summary task has none)".into(),
+            );
         }
         for p in &t.predecessors {
             if p.task == t.id || !is_task.contains(p.task.as_str()) {

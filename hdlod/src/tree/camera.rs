@@ -70,6 +70,17 @@ impl Default for Viewport {
 pub const DEFAULT_FOV_Y_DEG: f64 = 60.0;
 pub const DEFAULT_NEAR: f64 = 0.1;
 
+/// The bounds of a camera given by position and target. Past them the
+/// view-projection matrix loses its precision or overflows, and the
+/// failure would surface at the matrix, which the request did not send:
+/// each bound names the field that crossed it. A site is kilometres wide;
+/// these leave room for any georeferenced scene.
+pub const MAX_COORDINATE: f64 = 1e12;
+pub const MIN_FOV_Y_DEG: f64 = 1e-4;
+pub const MIN_NEAR: f64 = 1e-6;
+/// The far plane at most this many times the near one.
+pub const MAX_FAR_OVER_NEAR: f64 = 1e12;
+
 /// What the cut needs of a camera.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct View {
@@ -86,6 +97,18 @@ fn finite3(at: &str, v: [f64; 3]) -> Result<DVec3> {
     } else {
         Err(Error::argument(at, "must be three finite numbers"))
     }
+}
+
+/// A point of the camera: finite and within [`MAX_COORDINATE`].
+fn point(at: &str, v: [f64; 3]) -> Result<DVec3> {
+    let v = finite3(at, v)?;
+    if v.abs().max_element() > MAX_COORDINATE {
+        return Err(Error::argument(
+            at,
+            format!("must be within {MAX_COORDINATE:e} of the origin on each axis"),
+        ));
+    }
+    Ok(v)
 }
 
 impl View {
@@ -141,7 +164,7 @@ impl View {
                 (m, row3 / row1, true)
             }
             None => {
-                let position = finite3(
+                let position = point(
                     "camera.position",
                     camera.position.ok_or_else(|| {
                         Error::argument(
@@ -150,14 +173,20 @@ impl View {
                         )
                     })?,
                 )?;
-                let target = finite3(
+                let target = point(
                     "camera.target",
                     camera.target.ok_or_else(|| {
                         Error::argument("camera.target", "is required (or camera.view_projection)")
                     })?,
                 )?;
                 let up = match camera.up {
-                    Some(u) => finite3("camera.up", u)?,
+                    // Only its direction matters: scaled to its largest
+                    // component first, its length cannot overflow.
+                    Some(u) => {
+                        let u = finite3("camera.up", u)?;
+                        let largest = u.abs().max_element();
+                        if largest > 0.0 { u / largest } else { u }
+                    }
                     None => default_up,
                 };
                 let dir = target - position;
@@ -174,10 +203,10 @@ impl View {
                     ));
                 }
                 let fov = camera.fov_y_deg.unwrap_or(DEFAULT_FOV_Y_DEG);
-                if !(fov.is_finite() && fov > 0.0 && fov < 180.0) {
+                if !(fov.is_finite() && (MIN_FOV_Y_DEG..180.0).contains(&fov)) {
                     return Err(Error::argument(
                         "camera.fov_y_deg",
-                        "must be in (0, 180) degrees",
+                        format!("must be in (0, 180) degrees, at least {MIN_FOV_Y_DEG:e}"),
                     ));
                 }
                 let aspect = camera
@@ -190,19 +219,22 @@ impl View {
                     ));
                 }
                 let near = camera.near.unwrap_or(DEFAULT_NEAR);
-                if !(near.is_finite() && near > 0.0) {
+                if !(near.is_finite() && (MIN_NEAR..=MAX_COORDINATE).contains(&near)) {
                     return Err(Error::argument(
                         "camera.near",
-                        "must be a finite number > 0",
+                        format!("must be a number from {MIN_NEAR:e} to {MAX_COORDINATE:e}"),
                     ));
                 }
                 // Without a far plane the matrix still needs one; its plane is
                 // simply not tested.
                 let far = camera.far.unwrap_or(near * 2.0);
-                if !(far.is_finite() && far > near) {
+                if !(far.is_finite() && far > near && far <= near * MAX_FAR_OVER_NEAR) {
                     return Err(Error::argument(
                         "camera.far",
-                        "must be a finite number > camera.near",
+                        format!(
+                            "must be a finite number > camera.near and at most \
+                             {MAX_FAR_OVER_NEAR:e} times it"
+                        ),
                     ));
                 }
                 let fov = fov.to_radians();
@@ -213,8 +245,15 @@ impl View {
         };
         let eye = m.inverse() * DVec4::new(0.0, 0.0, 1.0, 0.0);
         if eye.w.abs() < 1e-300 || !eye.is_finite() {
+            // Within the bounds above a position camera always has an eye;
+            // should one not, the camera as a whole is at fault, not a
+            // matrix the request did not send.
+            let at = match camera.view_projection {
+                Some(_) => "camera.view_projection",
+                None => "camera",
+            };
             return Err(Error::argument(
-                "camera.view_projection",
+                at,
                 "not a perspective projection (no eye point)",
             ));
         }

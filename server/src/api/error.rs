@@ -9,6 +9,17 @@ use serde::Serialize;
 
 use crate::protocol::ProtocolError;
 
+/// What an error repeats of a request is quoted short (`hdlod::input::quote`).
+pub use hdlod::input::quote;
+
+/// `text` cut to about 100 characters, without quotes.
+fn clip(text: &str) -> String {
+    match text.char_indices().nth(100) {
+        None => text.to_owned(),
+        Some((cut, _)) => format!("{}...", &text[..cut]),
+    }
+}
+
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct ApiError {
     #[serde(skip)]
@@ -19,11 +30,21 @@ pub struct ApiError {
 }
 
 impl ApiError {
+    /// `field` may be the client's text (an unknown parameter's name): it
+    /// is cut to about 100 characters like every quote of the request. So
+    /// is each long word of the message: messages made elsewhere (serde's
+    /// "unknown field `...`") quote the request whole.
     pub fn new(status: StatusCode, field: Option<String>, message: impl Into<String>) -> Self {
+        let message = message.into();
+        let message = if message.split_whitespace().any(|w| w.len() > 100) {
+            message.split(' ').map(clip).collect::<Vec<_>>().join(" ")
+        } else {
+            message
+        };
         ApiError {
             status,
-            field,
-            message: message.into(),
+            field: field.map(|f| clip(&f)),
+            message,
         }
     }
 

@@ -5,14 +5,15 @@ use std::sync::{Arc, OnceLock};
 
 use axum::Json;
 use axum::body::{Body, Bytes};
-use axum::extract::rejection::{BytesRejection, QueryRejection};
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
+use axum::extract::rejection::BytesRejection;
 use axum::http::{HeaderMap, HeaderValue, StatusCode, header};
 use axum::response::{IntoResponse, Response};
 use hdlod::time::format_date;
 use serde_json::{Value, json};
 
-use super::error::ApiError;
+use super::error::{ApiError, quote};
+use super::extract::{Pairs, Segments};
 use super::{AppState, LoadedScene};
 use crate::protocol::{self, CutRequest, scene_path};
 
@@ -23,7 +24,7 @@ pub fn find(state: &AppState, name: &str) -> Answer<Arc<LoadedScene>> {
         .scenes()
         .get(name)
         .cloned()
-        .ok_or_else(|| ApiError::not_found("scene", format!("no scene named {name:?}")))
+        .ok_or_else(|| ApiError::not_found("scene", format!("no scene named {}", quote(name))))
 }
 
 fn time_json(scene: &LoadedScene) -> Value {
@@ -44,7 +45,11 @@ pub async fn metrics(State(state): State<Arc<AppState>>) -> impl IntoResponse {
 
 /// `schemas/api/openapi.json` with every `components.schemas` entry that
 /// refers to a schema file replaced by that file (the schemas live once,
-/// in `schemas/api/`).
+/// in `schemas/api/`). Each file's references (`#/$defs/vec3`,
+/// `task-list.schema.json#/$defs/task`, `error.schema.json`) are rewritten
+/// to point into the document (`#/components/schemas/TaskList/$defs/task`)
+/// and the files' `$id`s dropped: a client resolves every `$ref` of the
+/// served document within it, without knowing the files.
 pub fn openapi_document() -> &'static Value {
     static DOC: OnceLock<Value> = OnceLock::new();
     DOC.get_or_init(|| {
@@ -109,22 +114,67 @@ pub fn openapi_document() -> &'static Value {
         let mut doc: Value =
             serde_json::from_str(include_str!("../../../schemas/api/openapi.json"))
                 .expect("schemas/api/openapi.json is JSON (checked by the tests)");
-        if let Some(Value::Object(schemas)) = doc.pointer_mut("/components/schemas") {
-            for schema in schemas.values_mut() {
-                let file = schema
-                    .get("$ref")
-                    .and_then(Value::as_str)
-                    .map(|r| r.trim_start_matches("./").to_owned());
-                if let Some((_, text)) =
-                    file.and_then(|f| files.iter().find(|(name, _)| *name == f))
-                {
-                    *schema = serde_json::from_str(text)
-                        .expect("schema files are JSON (checked by the tests)");
+        let Some(Value::Object(schemas)) = doc.pointer_mut("/components/schemas") else {
+            return doc;
+        };
+        // Schema file -> its component's name.
+        let names: Vec<(String, String)> = schemas
+            .iter()
+            .filter_map(|(name, schema)| {
+                let file = schema.get("$ref")?.as_str()?.trim_start_matches("./");
+                Some((file.to_owned(), name.clone()))
+            })
+            .collect();
+        for (name, schema) in schemas.iter_mut() {
+            let file = schema
+                .get("$ref")
+                .and_then(Value::as_str)
+                .map(|r| r.trim_start_matches("./").to_owned());
+            if let Some((_, text)) = file.and_then(|f| files.iter().find(|(n, _)| *n == f)) {
+                let mut inlined: Value = serde_json::from_str(text)
+                    .expect("schema files are JSON (checked by the tests)");
+                if let Value::Object(o) = &mut inlined {
+                    o.remove("$id");
+                    o.remove("$schema");
                 }
+                rebase(&mut inlined, name, &names);
+                *schema = inlined;
             }
         }
         doc
     })
+}
+
+/// Points every `$ref` of the schema of component `own` into the
+/// document: `#/...` at its own component, `FILE#/...` at the file's.
+fn rebase(value: &mut Value, own: &str, names: &[(String, String)]) {
+    match value {
+        Value::Object(o) => {
+            if let Some(Value::String(r)) = o.get_mut("$ref") {
+                let (file, pointer) = r.split_once('#').unwrap_or((r.as_str(), ""));
+                let file = file.trim_start_matches("./");
+                let component = if file.is_empty() {
+                    Some(own)
+                } else {
+                    // `../appearance.schema.json` is listed under that name.
+                    names
+                        .iter()
+                        .find(|(f, _)| {
+                            f.trim_start_matches("../") == file.trim_start_matches("../")
+                        })
+                        .map(|(_, n)| n.as_str())
+                };
+                if let Some(component) = component {
+                    *r = format!("#/components/schemas/{component}{pointer}");
+                }
+            }
+            for v in o.values_mut() {
+                rebase(v, own, names);
+            }
+        }
+        Value::Array(a) => a.iter_mut().for_each(|v| rebase(v, own, names)),
+        _ => {}
+    }
 }
 
 pub async fn openapi() -> Json<Value> {
@@ -149,7 +199,7 @@ pub async fn scenes(State(state): State<Arc<AppState>>) -> Json<Value> {
 
 pub async fn scene(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
+    Segments(name): Segments<String>,
 ) -> Answer<Json<Value>> {
     let s = find(&state, &name)?;
     let tree = &s.tree;
@@ -187,7 +237,7 @@ fn cut_answer(state: &AppState, s: &LoadedScene, request: &CutRequest) -> Answer
 
 pub async fn cut_post(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
+    Segments(name): Segments<String>,
     body: Result<Bytes, BytesRejection>,
 ) -> Answer<Response> {
     let body = body.map_err(|r| ApiError::new(r.status(), Some("body".into()), r.body_text()))?;
@@ -198,31 +248,33 @@ pub async fn cut_post(
 
 pub async fn cut_get(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments(name): Segments<String>,
+    Pairs(pairs): Pairs,
 ) -> Answer<Response> {
-    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let s = find(&state, &name)?;
     cut_answer(&state, &s, &protocol::parse_query(&pairs)?)
 }
 
 pub async fn geometry(
     State(state): State<Arc<AppState>>,
-    Path((name, file)): Path<(String, String)>,
+    Segments((name, file)): Segments<(String, String)>,
     headers: HeaderMap,
 ) -> Answer<Response> {
     let s = find(&state, &name)?;
     let hash = file
         .strip_suffix(".glb")
         .filter(|h| hdlod::tree::is_hash(h))
-        .ok_or_else(|| ApiError::not_found("hash", format!("{file:?} is not HASH.glb")))?;
+        .ok_or_else(|| ApiError::not_found("hash", format!("{} is not HASH.glb", quote(&file))))?;
     let etag = HeaderValue::from_str(&format!("\"{hash}\"")).expect("hex in quotes");
     if let Some(answer) = not_modified(&headers, &etag) {
         return Ok(answer);
     }
     let path = s.dir.join("geometry").join(format!("{hash}.glb"));
     let bytes = tokio::fs::read(&path).await.map_err(|_| {
-        ApiError::not_found("hash", format!("no geometry {hash} in scene {name:?}"))
+        ApiError::not_found(
+            "hash",
+            format!("no geometry {hash} in scene {}", quote(&name)),
+        )
     })?;
     Ok(immutable_glb(etag, bytes))
 }

@@ -4,9 +4,13 @@
 //! without disturbing requests in flight.
 
 mod cached;
+mod connection;
 mod cors;
 pub mod error;
+mod extract;
 mod handlers;
+pub mod listener;
+pub mod memory;
 pub mod metrics;
 mod objects;
 mod presence;
@@ -27,6 +31,7 @@ use axum::response::Response;
 use axum::routing::get;
 use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE, OBJECTS_FILE};
 use hdlod::tree::{Baseline, Tree, TreeSummary};
+use tokio::sync::{OwnedSemaphorePermit, Semaphore, watch};
 use tower_http::compression::CompressionLayer;
 
 pub use self::cors::Cors;
@@ -57,10 +62,23 @@ pub struct AppState {
     scenes: RwLock<Arc<Scenes>>,
     sources: Vec<PathBuf>,
     pub metrics: Metrics,
+    /// A place per WebSocket stream that may be open at once.
+    streams: Arc<Semaphore>,
+    max_streams: usize,
+    /// Set once the server shuts down: every stream closes with 1001.
+    closing: watch::Sender<bool>,
 }
 
 fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let tree = hdlod::tree::load(dir)?;
+    // The name is the scene's URL: one that is no path segment would be
+    // served where no request reaches it.
+    if let Some(why) = hdlod::scene::format::name_problem(&tree.scene) {
+        anyhow::bail!(
+            "{}: the scene's name cannot be served: {why}",
+            dir.display()
+        );
+    }
     let summary = tree.summary();
     let baseline = Baseline::of(&tree);
     let fragments = Fragments::of(&tree);
@@ -86,7 +104,7 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
 
 impl AppState {
     /// Loads every tree; two trees of the same scene name are an error.
-    pub fn load(sources: Vec<PathBuf>) -> anyhow::Result<Arc<AppState>> {
+    pub fn load(sources: Vec<PathBuf>, limits: &listener::Limits) -> anyhow::Result<Arc<AppState>> {
         let mut scenes = Scenes::new();
         for dir in &sources {
             let scene = load_one(dir)?;
@@ -103,7 +121,28 @@ impl AppState {
             scenes: RwLock::new(Arc::new(scenes)),
             sources,
             metrics: Metrics::default(),
+            streams: Arc::new(Semaphore::new(limits.max_streams)),
+            max_streams: limits.max_streams,
+            closing: watch::channel(false).0,
         }))
+    }
+
+    /// A place for one more WebSocket stream, if the cap leaves one.
+    pub fn stream_place(&self) -> Option<OwnedSemaphorePermit> {
+        self.streams.clone().try_acquire_owned().ok()
+    }
+
+    pub fn max_streams(&self) -> usize {
+        self.max_streams
+    }
+
+    /// Resolves once the server shuts down.
+    pub fn closing(&self) -> impl Future<Output = ()> + Send + 'static {
+        raised(self.closing.subscribe())
+    }
+
+    fn close_streams(&self) {
+        self.closing.send_replace(true);
     }
 
     pub fn scenes(&self) -> Arc<Scenes> {
@@ -132,6 +171,15 @@ impl AppState {
         *self.scenes.write().expect("no panic while holding") = Arc::new(next);
         self.metrics.reloaded();
         errors
+    }
+}
+
+/// Resolves once `flag` is set (or its sender is gone).
+pub async fn raised(mut flag: watch::Receiver<bool>) {
+    while !*flag.borrow_and_update() {
+        if flag.changed().await.is_err() {
+            return;
+        }
     }
 }
 
@@ -203,6 +251,7 @@ pub fn router(state: Arc<AppState>, cors: &Cors) -> Router {
         )
         .fallback(handlers::not_found)
         .method_not_allowed_fallback(handlers::method_not_allowed)
+        .layer(axum::middleware::from_fn(extract::json_errors))
         .layer(axum::middleware::from_fn_with_state(state.clone(), record))
         .layer(DefaultBodyLimit::max(BODY_LIMIT))
         .layer(CompressionLayer::new())

@@ -14,8 +14,7 @@ use std::collections::BTreeMap;
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::rejection::PathRejection;
-use axum::extract::{FromRequestParts, Path, Query, State};
+use axum::extract::{FromRequestParts, State};
 use axum::http::request::Parts;
 use axum::response::{IntoResponse, Response};
 use hdlod::scene::status::{Deviation, Progress};
@@ -24,7 +23,8 @@ use hdlod::time::{TimeValue, format_date};
 use hdlod::tree::objects::{LinkEntry, ObjectEntry, ObjectTables, TaskEntry};
 use serde::Serialize;
 
-use super::error::ApiError;
+use super::error::{ApiError, quote};
+use super::extract::{Pairs, Segments};
 use super::handlers::find;
 use super::{AppState, LoadedScene};
 use crate::protocol::{parse_time, resolve_time, scene_path, segment};
@@ -42,9 +42,7 @@ const CURSOR_PREFIX: &str = "i";
 /// The query parameters, each parsed by its name; an unknown one is an
 /// error naming it.
 fn query_pairs(parts: &Parts) -> Result<Vec<(String, String)>, ApiError> {
-    Query::<Vec<(String, String)>>::try_from_uri(&parts.uri)
-        .map(|Query(pairs)| pairs)
-        .map_err(|r| ApiError::bad("query", r.body_text()))
+    Pairs::from_parts(parts).map(|Pairs(pairs)| pairs)
 }
 
 /// `?q=TEXT&limit=N&cursor=C` of a listing.
@@ -74,7 +72,10 @@ impl<S: Send + Sync> FromRequestParts<S> for Listing {
                         .ok_or_else(|| {
                             ApiError::bad(
                                 "limit",
-                                format!("{value:?} is not a whole number from 1 to {MAX_LIMIT}"),
+                                format!(
+                                    "{} is not a whole number from 1 to {MAX_LIMIT}",
+                                    quote(&value)
+                                ),
                             )
                         })?
                 }
@@ -85,7 +86,7 @@ impl<S: Send + Sync> FromRequestParts<S> for Listing {
                         .ok_or_else(|| {
                             ApiError::bad(
                                 "cursor",
-                                format!("{value:?} is not a cursor this API gave (`next`)"),
+                                format!("{} is not a cursor this API gave (`next`)", quote(&value)),
                             )
                         })?
                 }
@@ -120,7 +121,7 @@ impl<S: Send + Sync> FromRequestParts<S> for Lookup {
                         _ => {
                             return Err(ApiError::bad(
                                 "by",
-                                format!("{value:?} is neither \"id\" nor \"index\""),
+                                format!("{} is neither \"id\" nor \"index\"", quote(&value)),
                             ));
                         }
                     }
@@ -130,11 +131,6 @@ impl<S: Send + Sync> FromRequestParts<S> for Lookup {
         }
         Ok(lookup)
     }
-}
-
-fn path<T>(path: Result<Path<T>, PathRejection>) -> Result<T, ApiError> {
-    path.map(|Path(p)| p)
-        .map_err(|r| ApiError::bad("path", r.body_text()))
 }
 
 /// The scene's tables: a tree built without them is a 404 that says so.
@@ -162,12 +158,15 @@ fn row(
 ) -> Result<u32, ApiError> {
     if !by_index {
         return index_of(key)
-            .ok_or_else(|| ApiError::not_found("id", format!("no {what} with id {key:?}")));
+            .ok_or_else(|| ApiError::not_found("id", format!("no {what} with id {}", quote(key))));
     }
     let i: u32 = key.parse().map_err(|_| {
         ApiError::bad(
             "id",
-            format!("{key:?} is not an index (a whole number), as by=index asks"),
+            format!(
+                "{} is not an index (a whole number), as by=index asks",
+                quote(key)
+            ),
         )
     })?;
     if i as usize >= rows {
@@ -305,10 +304,9 @@ struct Listed<T> {
 
 pub async fn objects(
     State(state): State<Arc<AppState>>,
-    scene: Result<Path<String>, PathRejection>,
+    Segments(scene): Segments<String>,
     listing: Listing,
 ) -> Answer {
-    let scene = path(scene)?;
     let s = find(&state, &scene)?;
     let tables = tables(&s)?;
     let page = tables.search_objects(&listing.q, listing.from, listing.limit);
@@ -327,10 +325,9 @@ pub async fn objects(
 
 pub async fn tasks(
     State(state): State<Arc<AppState>>,
-    scene: Result<Path<String>, PathRejection>,
+    Segments(scene): Segments<String>,
     listing: Listing,
 ) -> Answer {
-    let scene = path(scene)?;
     let s = find(&state, &scene)?;
     let tables = tables(&s)?;
     let page = tables.search_tasks(&listing.q, listing.from, listing.limit);
@@ -386,10 +383,9 @@ struct ObjectAnswer<'a> {
 
 pub async fn object(
     State(state): State<Arc<AppState>>,
-    key: Result<Path<(String, String)>, PathRejection>,
+    Segments((scene, key)): Segments<(String, String)>,
     lookup: Lookup,
 ) -> Answer {
-    let (scene, key) = path(key)?;
     let s = find(&state, &scene)?;
     let tables = tables(&s)?;
     let i = row(
@@ -436,10 +432,9 @@ struct TaskAnswer<'a> {
 
 pub async fn task(
     State(state): State<Arc<AppState>>,
-    key: Result<Path<(String, String)>, PathRejection>,
+    Segments((scene, key)): Segments<(String, String)>,
     lookup: Lookup,
 ) -> Answer {
-    let (scene, key) = path(key)?;
     let s = find(&state, &scene)?;
     let tables = tables(&s)?;
     let k = row(

@@ -8,13 +8,13 @@
 use std::sync::Arc;
 
 use axum::Json;
-use axum::extract::rejection::{PathRejection, QueryRejection};
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::response::{IntoResponse, Response};
 use serde::Serialize;
 
 use super::AppState;
 use super::error::ApiError;
+use super::extract::{Pairs, Segments};
 use super::handlers::find;
 use super::objects::tables;
 
@@ -29,11 +29,9 @@ struct PresenceAnswer<'a> {
 
 pub async fn presence(
     State(state): State<Arc<AppState>>,
-    scene: Result<Path<String>, PathRejection>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments(scene): Segments<String>,
+    Pairs(pairs): Pairs,
 ) -> Result<Response, ApiError> {
-    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
-    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     if let Some((key, _)) = pairs.first() {
         return Err(ApiError::bad(key, "unknown query parameter"));
     }

@@ -12,8 +12,7 @@
 
 use std::sync::Arc;
 
-use axum::extract::rejection::{PathRejection, QueryRejection};
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::http::HeaderMap;
 use axum::response::Response;
 use hdlod::scene::status::Dates;
@@ -24,6 +23,7 @@ use serde::Serialize;
 
 use super::cached::Cached;
 use super::error::ApiError;
+use super::extract::{Pairs, Segments};
 use super::handlers::find;
 use super::objects::tables;
 use super::{AppState, LoadedScene};
@@ -105,24 +105,22 @@ fn schedule_of(s: &LoadedScene, tables: &ObjectTables) -> Cached {
 /// The scene a route names, for a request that takes no query parameter.
 fn scene_of(
     state: &AppState,
-    scene: Result<Path<String>, PathRejection>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    scene: String,
+    pairs: Vec<(String, String)>,
 ) -> Result<Arc<LoadedScene>, ApiError> {
-    let Path(scene) = scene.map_err(|r| ApiError::bad("path", r.body_text()))?;
-    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     if let Some((key, _)) = pairs.first() {
-        return Err(ApiError::bad(key, "unknown query parameter"));
+        return Err(ApiError::bad(key.as_str(), "unknown query parameter"));
     }
     find(state, &scene)
 }
 
 pub async fn schedule(
     State(state): State<Arc<AppState>>,
-    scene: Result<Path<String>, PathRejection>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments(scene): Segments<String>,
+    Pairs(pairs): Pairs,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let s = scene_of(&state, scene, query)?;
+    let s = scene_of(&state, scene, pairs)?;
     let tables = tables(&s)?;
     Ok(s.schedule
         .get_or_init(|| schedule_of(&s, tables))
@@ -131,11 +129,11 @@ pub async fn schedule(
 
 pub async fn appearance(
     State(state): State<Arc<AppState>>,
-    scene: Result<Path<String>, PathRejection>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments(scene): Segments<String>,
+    Pairs(pairs): Pairs,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let s = scene_of(&state, scene, query)?;
+    let s = scene_of(&state, scene, pairs)?;
     let own = s.tree.objects.as_ref().and_then(ObjectTables::appearance);
     Ok(s.appearance
         .get_or_init(|| Cached::of(&own.cloned().unwrap_or_default().to_file()))

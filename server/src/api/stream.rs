@@ -5,29 +5,70 @@
 //! remove, new transforms of kept clusters. When the tree was reloaded in
 //! between, ids may mean other clusters, so the answer has `reset: true`
 //! and removes everything the client held.
+//!
+//! Limits (docs/api.md): a message is at most [`super::BODY_LIMIT`] bytes,
+//! like a `POST .../cut` body; a longer one closes the stream with 1009
+//! (message too big) and a reason. At most `--max-streams` streams are open
+//! at once (the next gets a 503 before the upgrade), and shutdown closes
+//! each with 1001 (going away).
 
 use std::sync::Arc;
 
-use axum::extract::ws::{Message, WebSocket, WebSocketUpgrade};
-use axum::extract::{Path, State};
+use axum::extract::State;
+use axum::extract::ws::{CloseFrame, Message, WebSocket, close_code};
+use axum::http::StatusCode;
 use axum::response::Response;
 use hdlod::tree::Cut;
 use rustc_hash::FxHashMap;
+use tokio::sync::OwnedSemaphorePermit;
 
 use super::error::ApiError;
+use super::extract::{Segments, Upgrade};
 use super::handlers::find;
 use super::{AppState, LoadedScene};
 use crate::protocol::{self, stats_out, write_number, write_transform};
 
 pub async fn stream(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
-    ws: WebSocketUpgrade,
+    Segments(name): Segments<String>,
+    Upgrade(ws): Upgrade,
 ) -> Result<Response, ApiError> {
     find(&state, &name)?;
+    let place = state.stream_place().ok_or_else(|| {
+        ApiError::new(
+            StatusCode::SERVICE_UNAVAILABLE,
+            Some("stream".into()),
+            format!(
+                "the server holds its maximum of {} streams; try again shortly",
+                state.max_streams()
+            ),
+        )
+    })?;
+    // The transport reads messages up to TRANSPORT_LIMIT, so that one over
+    // our limit is read whole and answered with a close frame; past the
+    // transport's limit the frame is not even read, and the close is sent
+    // as the connection breaks off.
     Ok(ws
-        .max_message_size(super::BODY_LIMIT)
-        .on_upgrade(move |socket| serve(state, name, socket)))
+        .max_message_size(TRANSPORT_LIMIT)
+        .max_frame_size(TRANSPORT_LIMIT)
+        .on_upgrade(move |socket| serve(state, name, socket, place)))
+}
+
+/// The largest message the WebSocket layer reads at all.
+const TRANSPORT_LIMIT: usize = 16 * super::BODY_LIMIT;
+
+/// Closes the stream with `code` and `reason` (at most 123 bytes, the
+/// room a close frame has).
+async fn close(socket: &mut WebSocket, code: u16, reason: &str) {
+    let frame = CloseFrame {
+        code,
+        reason: reason.into(),
+    };
+    let _ = socket.send(Message::Close(Some(frame))).await;
+}
+
+fn too_big() -> String {
+    format!("a message is at most {} bytes", super::BODY_LIMIT)
 }
 
 /// What the client holds after the last answer. `stamp[id]` is the answer
@@ -157,13 +198,49 @@ impl Session {
     }
 }
 
-async fn serve(state: Arc<AppState>, name: String, mut socket: WebSocket) {
+async fn serve(
+    state: Arc<AppState>,
+    name: String,
+    mut socket: WebSocket,
+    _place: OwnedSemaphorePermit,
+) {
     state
         .metrics
         .ws_connections
         .fetch_add(1, std::sync::atomic::Ordering::Relaxed);
     let mut session = Session::default();
-    while let Some(Ok(message)) = socket.recv().await {
+    let closing = state.closing();
+    tokio::pin!(closing);
+    loop {
+        let message = tokio::select! {
+            message = socket.recv() => message,
+            () = &mut closing => {
+                close(&mut socket, close_code::AWAY, "the server is shutting down").await;
+                break;
+            }
+        };
+        let message = match message {
+            None => break,
+            Some(Ok(m)) => m,
+            Some(Err(e)) => {
+                // tungstenite's word for a message past the transport's
+                // limit (its error type is not ours to match on: axum
+                // wraps its own version).
+                if e.to_string().contains("Space limit exceeded") {
+                    close(&mut socket, close_code::SIZE, &too_big()).await;
+                }
+                break;
+            }
+        };
+        let too_long = match &message {
+            Message::Text(text) => text.len() > super::BODY_LIMIT,
+            Message::Binary(bytes) => bytes.len() > super::BODY_LIMIT,
+            _ => false,
+        };
+        if too_long {
+            close(&mut socket, close_code::SIZE, &too_big()).await;
+            break;
+        }
         let reply = match message {
             Message::Text(text) => match session.update(&state, &name, text.as_str()) {
                 Ok(value) => {
@@ -182,8 +259,15 @@ async fn serve(state: Arc<AppState>, name: String, mut socket: WebSocket) {
             break;
         }
     }
-    state
+    let before = state
         .metrics
         .ws_connections
         .fetch_sub(1, std::sync::atomic::Ordering::Relaxed);
+    // Dropped now rather than at the end of the scope: the trim below
+    // should find the session's buffers already freed.
+    drop(session);
+    drop(socket);
+    if before == 1 {
+        super::memory::streams_idle();
+    }
 }

@@ -26,8 +26,7 @@
 
 use std::sync::Arc;
 
-use axum::extract::rejection::QueryRejection;
-use axum::extract::{Path, Query, State};
+use axum::extract::State;
 use axum::http::{HeaderMap, HeaderValue, StatusCode};
 use axum::response::{IntoResponse, Response};
 use hdlod::scene::Profile;
@@ -35,7 +34,8 @@ use hdlod::tiles::{ContentNames, DEFAULT_MAX_BYTES, Frame, Options, Tileset, con
 use hdlod::time::TimeValue;
 
 use super::cached::Cached;
-use super::error::ApiError;
+use super::error::{ApiError, quote};
+use super::extract::{Pairs, Segments};
 use super::handlers::{find, immutable_glb, not_modified};
 use super::{AppState, LoadedScene};
 use crate::protocol::{parse_time_query, resolve_time, within_period};
@@ -106,7 +106,7 @@ fn tileset_query(pairs: &[(String, String)]) -> Result<TilesetQuery, ApiError> {
                     other => {
                         return Err(ApiError::bad(
                             "frame",
-                            format!("{other:?} is not a frame: use earth or local"),
+                            format!("{} is not a frame: use earth or local", quote(other)),
                         ));
                     }
                 };
@@ -118,7 +118,7 @@ fn tileset_query(pairs: &[(String, String)]) -> Result<TilesetQuery, ApiError> {
                     other => {
                         return Err(ApiError::bad(
                             "status",
-                            format!("{other:?} is not true or false"),
+                            format!("{} is not true or false", quote(other)),
                         ));
                     }
                 };
@@ -148,7 +148,7 @@ fn external_file(
     let id: u32 = file
         .strip_suffix(".json")
         .and_then(|id| id.parse().ok())
-        .ok_or_else(|| ApiError::not_found("subtree", format!("{file:?} is not ID.json")))?;
+        .ok_or_else(|| ApiError::not_found("subtree", format!("{} is not ID.json", quote(file))))?;
     let mut slice = time_slice(&s.tree, t, &options(s, t, max_bytes, Frame::Earth, kind))?;
     slice.external.remove(&id).ok_or_else(|| {
         ApiError::not_found(
@@ -165,7 +165,10 @@ fn seconds(time: &str) -> Result<f64, ApiError> {
         .ok()
         .filter(|t| t.is_finite())
         .ok_or_else(|| {
-            ApiError::not_found("time", format!("{time:?} is not a number of seconds"))
+            ApiError::not_found(
+                "time",
+                format!("{} is not a number of seconds", quote(time)),
+            )
         })?;
     Ok(within_period("time", t)?)
 }
@@ -177,7 +180,9 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
     let id: u32 = file
         .strip_suffix(".glb")
         .and_then(|id| id.parse().ok())
-        .ok_or_else(|| ApiError::not_found("cluster", format!("{file:?} is not CLUSTER.glb")))?;
+        .ok_or_else(|| {
+            ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(file)))
+        })?;
     let hash = tree
         .clusters
         .get(id as usize)
@@ -212,7 +217,7 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
 /// `content/{version}/{cluster}.glb`: the same at every date.
 pub async fn content(
     State(state): State<Arc<AppState>>,
-    Path((name, version, file)): Path<(String, String, String)>,
+    Segments((name, version, file)): Segments<(String, String, String)>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;
@@ -220,13 +225,15 @@ pub async fn content(
         return Err(ApiError::not_found(
             "version",
             format!(
-                "the tree is at version {}, not {version:?}: it was rebuilt, ask for the tileset again",
-                s.version
+                "the tree is at version {}, not {}: it was rebuilt, ask for the tileset again",
+                s.version,
+                quote(&version)
             ),
         ));
     }
-    let etag = HeaderValue::from_str(&format!("\"{version}-{file}\""))
-        .map_err(|_| ApiError::not_found("cluster", format!("{file:?} is not CLUSTER.glb")))?;
+    let etag = HeaderValue::from_str(&format!("\"{version}-{file}\"")).map_err(|_| {
+        ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(&file)))
+    })?;
     if let Some(answer) = not_modified(&headers, &etag) {
         return Ok(answer);
     }
@@ -238,7 +245,7 @@ pub async fn content(
 /// cached as immutable: the tree's version is not in the URL.
 pub async fn content_at(
     State(state): State<Arc<AppState>>,
-    Path((name, time, file)): Path<(String, String, String)>,
+    Segments((name, time, file)): Segments<(String, String, String)>,
 ) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;
     let t = seconds(&time)?;
@@ -267,11 +274,10 @@ fn root_answer(
 
 pub async fn tileset(
     State(state): State<Arc<AppState>>,
-    Path(name): Path<String>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments(name): Segments<String>,
+    Pairs(pairs): Pairs,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let Query(pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     root_answer(&state, &name, &pairs, &headers)
 }
 
@@ -282,14 +288,13 @@ pub async fn tileset(
 /// content URLs of their own, which no cache of an earlier date answers.
 pub async fn tileset_at(
     State(state): State<Arc<AppState>>,
-    Path((name, file)): Path<(String, String)>,
-    query: Result<Query<Vec<(String, String)>>, QueryRejection>,
+    Segments((name, file)): Segments<(String, String)>,
+    Pairs(mut pairs): Pairs,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
-    let Query(mut pairs) = query.map_err(|r| ApiError::bad("query", r.body_text()))?;
     let time = file
         .strip_suffix(".json")
-        .ok_or_else(|| ApiError::not_found("time", format!("{file:?} is not TIME.json")))?;
+        .ok_or_else(|| ApiError::not_found("time", format!("{} is not TIME.json", quote(&file))))?;
     if pairs.iter().any(|(key, _)| key == "time") {
         return Err(ApiError::bad(
             "time",
@@ -302,7 +307,7 @@ pub async fn tileset_at(
 
 pub async fn external(
     State(state): State<Arc<AppState>>,
-    Path((name, dir, file)): Path<(String, String, String)>,
+    Segments((name, dir, file)): Segments<(String, String, String)>,
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;

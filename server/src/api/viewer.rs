@@ -2,11 +2,11 @@
 //! binary so that `hdlod serve` needs no files beside the trees: `/` is its
 //! page, `/viewer/FILE` its scripts and style. Plain files, no build step.
 
-use axum::extract::Path;
 use axum::http::{HeaderValue, header};
 use axum::response::{IntoResponse, Response};
 
-use super::error::ApiError;
+use super::error::{ApiError, quote};
+use super::extract::Segments;
 
 const HTML: &str = "text/html; charset=utf-8";
 const JS: &str = "text/javascript; charset=utf-8";
@@ -56,6 +56,7 @@ pub async fn index() -> Response {
     file("index.html").expect("index.html is embedded")
 }
 
-pub async fn asset(Path(name): Path<String>) -> Result<Response, ApiError> {
-    file(&name).ok_or_else(|| ApiError::not_found("file", format!("no viewer file {name:?}")))
+pub async fn asset(Segments(name): Segments<String>) -> Result<Response, ApiError> {
+    file(&name)
+        .ok_or_else(|| ApiError::not_found("file", format!("no viewer file {}", quote(&name))))
 }

@@ -80,7 +80,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             driver.display()
         );
     }
-    let state = AppState::load(vec![args.tree.clone()])?;
+    let state = AppState::load(vec![args.tree.clone()], &Default::default())?;
     let scene = state
         .scenes()
         .keys()

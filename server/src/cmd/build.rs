@@ -110,8 +110,7 @@ fn class_levels(stats: &BuildStats) -> Vec<ClassLevels<'_>> {
 }
 
 fn read_config(path: &Path) -> anyhow::Result<BuildConfig> {
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = hdlod::input::read_to_string(path)?;
     let config: BuildConfig =
         serde_json::from_str(&text).map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     config

@@ -2,6 +2,8 @@
 //! given trees. SIGHUP, or a change on disk (a tree replaced by a rename as
 //! `hdlod build` does, or its manifest or cluster table rewritten), re-reads
 //! every tree; requests in flight finish on the trees they started with.
+//! SIGTERM or Ctrl-C drain the server (`api::listener`): no new
+//! connection, requests in flight finish, streams close with 1001.
 
 use std::path::PathBuf;
 use std::sync::Arc;
@@ -12,6 +14,7 @@ use anyhow::Context;
 use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE};
 use notify::{Event, EventKind, RecommendedWatcher, RecursiveMode, Watcher};
 
+use crate::api::listener::{self, Limits};
 use crate::api::{self, AppState, Cors};
 use crate::protocol;
 
@@ -33,21 +36,82 @@ pub struct Args {
     /// any origin may use the read-only (GET) routes.
     #[arg(long = "cors-origin", value_name = "ORIGIN")]
     cors_origins: Vec<String>,
+    /// Seconds a client has to send a whole request head.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    header_timeout: f64,
+    /// Seconds a connection may wait on its client (between requests, in
+    /// a body) before it is closed.
+    #[arg(long, value_name = "SECONDS", default_value_t = 60.0)]
+    idle_timeout: f64,
+    /// Open connections at once, WebSocket streams included; the one over
+    /// gets a 503 and is closed.
+    #[arg(long, value_name = "N", default_value_t = 1024)]
+    max_connections: usize,
+    /// WebSocket streams open at once; the one over gets a 503.
+    #[arg(long, value_name = "N", default_value_t = 256)]
+    max_streams: usize,
+    /// Seconds shutdown waits for requests and streams in flight.
+    #[arg(long, value_name = "SECONDS", default_value_t = 10.0)]
+    shutdown_grace: f64,
+}
+
+fn seconds(flag: &str, value: f64) -> anyhow::Result<Duration> {
+    Duration::try_from_secs_f64(value)
+        .ok()
+        .filter(|d| !d.is_zero())
+        .with_context(|| format!("--{flag} {value}: must be a number of seconds > 0"))
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
     let cors = Cors::from_args(&args.cors_origins)?;
-    serve_trees(&args.addr, args.trees, !args.no_watch, cors)
+    anyhow::ensure!(
+        args.max_connections >= 1,
+        "--max-connections must be at least 1"
+    );
+    anyhow::ensure!(args.max_streams >= 1, "--max-streams must be at least 1");
+    let limits = Limits {
+        header_timeout: seconds("header-timeout", args.header_timeout)?,
+        idle_timeout: seconds("idle-timeout", args.idle_timeout)?,
+        max_connections: args.max_connections,
+        max_streams: args.max_streams,
+        grace: seconds("shutdown-grace", args.shutdown_grace)?,
+    };
+    serve_trees(&args.addr, args.trees, !args.no_watch, cors, limits)
 }
 
 /// Serves `trees` on `addr` until Ctrl-C, reloading them when they change
 /// on disk (what `hdlod demo` runs).
 pub fn serve(addr: &str, trees: Vec<PathBuf>) -> anyhow::Result<()> {
-    serve_trees(addr, trees, true, Cors::default())
+    serve_trees(addr, trees, true, Cors::default(), Limits::default())
 }
 
-fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool, cors: Cors) -> anyhow::Result<()> {
-    let state = AppState::load(trees.clone())?;
+/// Resolves on SIGTERM or Ctrl-C (SIGINT).
+async fn stop_signal() {
+    use tokio::signal::unix::{SignalKind, signal};
+    match signal(SignalKind::terminate()) {
+        Ok(mut term) => {
+            tokio::select! {
+                _ = term.recv() => {}
+                _ = tokio::signal::ctrl_c() => {}
+            }
+        }
+        Err(e) => {
+            tracing::warn!("cannot listen for SIGTERM ({e}): Ctrl-C alone stops the server");
+            let _ = tokio::signal::ctrl_c().await;
+        }
+    }
+    tracing::info!("shutting down: draining connections");
+}
+
+fn serve_trees(
+    addr: &str,
+    trees: Vec<PathBuf>,
+    watching: bool,
+    cors: Cors,
+    limits: Limits,
+) -> anyhow::Result<()> {
+    api::memory::limit_arenas();
+    let state = AppState::load(trees.clone(), &limits)?;
     if watching {
         watch(state.clone(), &trees)?;
     }
@@ -80,11 +144,8 @@ fn serve_trees(addr: &str, trees: Vec<PathBuf>, watching: bool, cors: Cors) -> a
                 }
             }
         });
-        axum::serve(listener, api::router(state, &cors))
-            .with_graceful_shutdown(async {
-                let _ = tokio::signal::ctrl_c().await;
-            })
-            .await?;
+        let app = api::router(state.clone(), &cors);
+        listener::serve(listener, app, state, limits, stop_signal()).await;
         Ok(())
     })
 }

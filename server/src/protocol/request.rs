@@ -4,6 +4,7 @@
 //! request's time and view, checked against the tree.
 
 use glam::DVec3;
+use hdlod::input::quote;
 use hdlod::scene::Up;
 use hdlod::time::TimeValue;
 use hdlod::tree::cut::Presence;
@@ -39,7 +40,7 @@ pub fn parse_presence(field: &str, text: &str) -> Result<Presence, ProtocolError
         "exact" => Ok(Presence::Exact),
         other => Err(ProtocolError::new(
             field,
-            format!("{other:?} is not a presence rule (paper or exact)"),
+            format!("{} is not a presence rule (paper or exact)", quote(other)),
         )),
     }
 }
@@ -76,20 +77,20 @@ fn vec3(name: &str, text: &str) -> Result<[f64; 3], ProtocolError> {
 fn number(name: &str, text: &str) -> Result<f64, ProtocolError> {
     text.trim()
         .parse()
-        .map_err(|_| ProtocolError::new(name, format!("{text:?} is not a number")))
+        .map_err(|_| ProtocolError::new(name, format!("{} is not a number", quote(text))))
 }
 
 fn dimension(name: &str, text: &str) -> Result<u32, ProtocolError> {
-    text.trim()
-        .parse()
-        .map_err(|_| ProtocolError::new(name, format!("{text:?} is not a whole number >= 0")))
+    text.trim().parse().map_err(|_| {
+        ProtocolError::new(name, format!("{} is not a whole number >= 0", quote(text)))
+    })
 }
 
 /// A `WxH` size such as `1920x1080`.
 fn parse_viewport(name: &str, text: &str) -> Result<Viewport, ProtocolError> {
     let (w, h) = text
         .split_once(['x', 'X'])
-        .ok_or_else(|| ProtocolError::new(name, format!("{text:?} is not WIDTHxHEIGHT")))?;
+        .ok_or_else(|| ProtocolError::new(name, format!("{} is not WIDTHxHEIGHT", quote(text))))?;
     Ok(Viewport {
         width: dimension(&format!("{name}.width"), w)?,
         height: dimension(&format!("{name}.height"), h)?,

@@ -83,9 +83,40 @@ pub fn assert_content_type(response: &reqwest::blocking::Response, media_type: &
 /// document's components; the other components ride along so that
 /// references between them resolve.
 pub fn assert_component(doc: &Value, name: &str, value: &Value) {
-    let schema = serde_json::json!({"$defs": doc["components"]["schemas"], "$ref": format!("#/$defs/{name}")});
+    let schema = serde_json::json!({
+        "components": {"schemas": doc["components"]["schemas"]},
+        "$ref": format!("#/components/schemas/{name}"),
+    });
     let validator = jsonschema::validator_for(&schema).unwrap();
     assert_valid(&validator, value, &format!("{name} in {value}"));
+}
+
+/// Asserts that the served component `name` is the schema file
+/// `schemas/api/FILE.schema.json`, but for its `$id` and `$schema` and
+/// its references, which the server points into the document.
+pub fn assert_served_file(doc: &Value, name: &str, file: &str) {
+    fn plain(v: &Value) -> Value {
+        match v {
+            Value::Object(o) => Value::Object(
+                o.iter()
+                    .filter(|(k, _)| !matches!(k.as_str(), "$id" | "$schema"))
+                    .map(|(k, v)| {
+                        let v = if k == "$ref" { Value::Null } else { plain(v) };
+                        (k.clone(), v)
+                    })
+                    .collect(),
+            ),
+            Value::Array(a) => Value::Array(a.iter().map(plain).collect()),
+            other => other.clone(),
+        }
+    }
+    let path = repo().join(format!("schemas/api/{file}.schema.json"));
+    let text = std::fs::read_to_string(path).unwrap();
+    assert_eq!(
+        plain(&doc["components"]["schemas"][name]),
+        plain(&serde_json::from_str::<Value>(&text).unwrap()),
+        "{name}"
+    );
 }
 
 /// A running `hdlod` that listens on a free loopback port; killed on drop.
@@ -162,6 +193,19 @@ impl Server {
 
     pub fn pid(&self) -> u32 {
         self.child.id()
+    }
+
+    /// Whether the server ended successfully within `limit` (`None`: it
+    /// still runs).
+    pub fn wait_for_exit(&mut self, limit: Duration) -> Option<bool> {
+        let start = std::time::Instant::now();
+        while start.elapsed() < limit {
+            if let Some(status) = self.child.try_wait().unwrap() {
+                return Some(status.success());
+            }
+            std::thread::sleep(Duration::from_millis(50));
+        }
+        None
     }
 
     /// The JSON body of `GET PATH`, whatever its status.
