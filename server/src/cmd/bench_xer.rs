@@ -56,10 +56,15 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scale = Scale::parse(&args.scale)?;
     let scene = skyscraper(scale, 1);
     let (text, counts) = xer_of(&scene);
-    let dir = tempfile_dir()?;
-    let path = match &args.out {
-        Some(p) => p.clone(),
-        None => dir.join("site.xer"),
+    // Dropped (and removed) at the end; made only when no --out is given.
+    let temp = match &args.out {
+        Some(_) => None,
+        None => Some(tempfile::Builder::new().prefix("hdlod-bench-xer-").tempdir()?),
+    };
+    let path = match (&args.out, &temp) {
+        (Some(p), _) => p.clone(),
+        (None, Some(dir)) => dir.path().join("site.xer"),
+        (None, None) => unreachable!("a temporary directory without --out"),
     };
     std::fs::write(&path, &text).with_context(|| path.display().to_string())?;
     let mut times = Vec::new();
@@ -80,9 +85,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         read_ms: [times[times.len() / 2], times[0], times[times.len() - 1]],
         tasks,
     };
-    if args.out.is_none() {
-        let _ = std::fs::remove_dir_all(&dir);
-    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
@@ -102,13 +104,6 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
-}
-
-/// A fresh directory for the file when none is given.
-fn tempfile_dir() -> anyhow::Result<PathBuf> {
-    let dir = std::env::temp_dir().join(format!("hdlod-bench-xer-{}", std::process::id()));
-    std::fs::create_dir_all(&dir).with_context(|| dir.display().to_string())?;
-    Ok(dir)
 }
 
 /// The site's schedule as XER text, with its activity, WBS node and link
