@@ -9,8 +9,9 @@
 
 mod common;
 
+use std::io::{BufRead, BufReader};
 use std::path::Path;
-use std::process::Command;
+use std::process::{Command, Stdio};
 
 use common::{
     SCENE, Server, assert_content_type, assert_success, assert_valid, browser_ready, build_tree,
@@ -793,6 +794,67 @@ fn the_viewer_loads_every_cluster_of_a_large_cut_in_chromium() {
         "{added} new clusters in one cut, {} requests refused and retried, at most {} in flight",
         requests["refused"], requests["peak"]
     );
+}
+
+/// A stream whose server goes away comes back by itself: the page, its
+/// view never moved, reconnects to the server started again on the same
+/// address and asks its view again, and draws that server's cut. (Behind a
+/// load balancer the new stream is another replica's: docs/deploy.md.)
+#[test]
+fn the_viewer_resumes_its_view_after_the_server_restarts_in_chromium() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tree = build_tree(dir.path());
+    let first = Server::start(&tree);
+    let address = first.base.trim_start_matches("http://").to_owned();
+    let control = dir.path().join("restarted");
+    let mut driver = Command::new("node")
+        .arg(repo().join("tools/browser/reconnect.mjs"))
+        .args([first.base.as_str(), SCENE])
+        .arg(&control)
+        .stdout(Stdio::piped())
+        .spawn()
+        .unwrap();
+    let mut lines = BufReader::new(driver.stdout.take().unwrap()).lines();
+    let mut next = || -> Value {
+        let line = lines
+            .next()
+            .expect("the driver ended early")
+            .expect("the driver's output is text");
+        serde_json::from_str(&line).unwrap_or_else(|e| panic!("not JSON ({e}): {line}"))
+    };
+    let ready = next();
+    assert_eq!(ready["phase"], "ready", "{ready}");
+    // Killed (SIGKILL: no close frame), then the same tree on the same address.
+    drop(first);
+    let second = Server::spawn(&[
+        "serve".as_ref(),
+        "--addr".as_ref(),
+        address.as_ref(),
+        tree.as_os_str(),
+    ]);
+    std::fs::write(&control, "").unwrap();
+    let done = next();
+    assert!(driver.wait().unwrap().success());
+    assert_eq!(done["phase"], "done", "{done}");
+    assert_eq!(done["errors"], serde_json::json!([]), "{done}");
+    let (before, after) = (&done["before"], &done["after"]);
+    assert!(f(&after["answers"]) > f(&before["answers"]), "{done}");
+    assert_eq!(after["error"], Value::Null, "{after}");
+    // The same view, and the drawn cut is the new server's for it.
+    assert_eq!(ids(&after["ids"]), ids(&before["ids"]));
+    let cut = second.post_json(&format!("/api/v1/scenes/{SCENE}/cut"), &done["request"]);
+    let mut served: Vec<u64> = cut["clusters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| c["id"].as_u64().unwrap())
+        .collect();
+    served.sort_unstable();
+    assert_eq!(ids(&after["ids"]), served);
+    assert!(!ids(&after["ids"]).is_empty());
 }
 
 /// `hdlod bench image` on the tiny site: every cell of table 2 rendered at

@@ -54,6 +54,7 @@ const viewer = {
   frameMs: 0,
   lastRequest: null, // the request of the cut that is drawn
   seq: 0,
+  answers: 0, // cut answers drawn, over every connection
   viewKey: "",
   needsDraw: true,
   matrices: null,
@@ -315,6 +316,7 @@ async function onMessage(msg, request, millis) {
   viewer.stats = msg.stats;
   viewer.latency = millis;
   viewer.seq = msg.seq;
+  viewer.answers += 1;
   viewer.lastRequest = request;
   viewer.needsDraw = true;
   updateStats();
@@ -702,6 +704,7 @@ function testHook() {
         latencyMs: viewer.latency,
         frameMs: viewer.frameMs,
         seq: viewer.seq,
+        answers: viewer.answers,
         settled: this.settled(),
         dynamicScreenPositions,
         target: camera && camera.target.slice(),

@@ -18,6 +18,7 @@ export class CutConnection {
     this.inFlight = null;
     this.retry = 500;
     this.socket = null;
+    this.last = null;
   }
 
   open() {
@@ -26,6 +27,10 @@ export class CutConnection {
     ws.onopen = () => {
       this.retry = 500;
       this.handlers.status(null);
+      // A new stream (after a restart, or another replica behind a load
+      // balancer) knows nothing of this viewer: the last view goes again,
+      // so the cut comes back without waiting for the view to move.
+      if (!this.pending && this.last) this.pending = this.last;
       this.flush();
     };
     ws.onmessage = async (event) => {
@@ -64,6 +69,7 @@ export class CutConnection {
     const ws = this.socket;
     if (!ws || ws.readyState !== WebSocket.OPEN || this.inFlight || !this.pending) return;
     this.inFlight = { body: this.pending, at: performance.now() };
+    this.last = this.pending;
     this.pending = null;
     ws.send(JSON.stringify(this.inFlight.body));
   }

@@ -59,7 +59,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     // Dropped (and removed) at the end; made only when no --out is given.
     let temp = match &args.out {
         Some(_) => None,
-        None => Some(tempfile::Builder::new().prefix("hdlod-bench-xer-").tempdir()?),
+        None => Some(
+            tempfile::Builder::new()
+                .prefix("hdlod-bench-xer-")
+                .tempdir()?,
+        ),
     };
     let path = match (&args.out, &temp) {
         (Some(p), _) => p.clone(),
