@@ -65,12 +65,12 @@ pub(super) fn make_parent(
 
 /// The baked colour of a cluster's `mesh` of error `eps`, made from
 /// `children` (their geometry and baked colour), when the build bakes
-/// (docs/method.md section 3, "Baked colour"). Triangles a child had as
-/// they are, with vertex colours, keep those; the others take the colour
-/// of the nearest point of the original objects where they are kept (the
-/// full detail, exact), else of the children's geometry with its own
-/// baked colour. A texel is `eps` wide: about a pixel where the cut draws
-/// the cluster at its budget.
+/// (docs/method.md section 3, "Baked colour"). The colour is that of the
+/// original objects where they are kept (the full detail, exact), else of
+/// the children's geometry with its own baked colour: both lie within
+/// `eps` of the mesh, which is how far in front of and behind a texel the
+/// colour is looked for. A texel is `eps` wide: about a pixel where the
+/// cut draws the cluster at its budget.
 pub(super) fn bake_colour(
     ctx: &Context,
     mesh: &Mesh,
@@ -79,10 +79,6 @@ pub(super) fn bake_colour(
     originals: Option<&[Arc<Mesh>]>,
 ) -> Option<Baked> {
     if !ctx.config.bake {
-        return None;
-    }
-    let keep = bake::kept_exactly(mesh, children);
-    if keep.iter().all(|k| *k) {
         return None;
     }
     let sources: Vec<Source> = match originals {
@@ -97,9 +93,10 @@ pub(super) fn bake_colour(
     };
     let options = BakeOptions {
         texel: eps as f32,
+        reach: eps as f32,
         max_size: ctx.config.bake_max_texels,
     };
-    bake::bake(mesh, &keep, &sources, &options)
+    bake::bake(mesh, &sources, &options)
 }
 
 /// Clusters whose original objects have at most this many triangles in all

@@ -6,19 +6,23 @@
 //! texel taken from the original surface it stands for), with the charts of
 //! Sander, Snyder, Gortler and Hoppe, "Texture mapping progressive
 //! meshes", SIGGRAPH 2001, reduced to their simplest form: one planar
-//! chart per connected set of coplanar triangles, its bounding rectangle
-//! in the plane, shelf-packed (next-fit decreasing height) into one atlas
-//! with a texel of gutter around each chart.
+//! chart per connected set of coplanar triangles of one object and vertex
+//! colour, its bounding rectangle in the plane, shelf-packed (next-fit
+//! decreasing height) into one atlas with a texel of gutter around each
+//! chart.
 //!
 //! Only colour changes: positions, triangles and feature ids are the
 //! reduced mesh's as they are, and so is every error bound measured on
-//! them. Triangles that a cluster keeps exactly as a child had them, with
-//! their vertex colours, keep those; the others (proxies, simplified
-//! parts, and textured triangles of a child, whose texture the merge does
-//! not carry) get a chart. A texel takes the colour of the point of the
-//! source surface nearest to its centre: the original objects where the
-//! builder keeps them, else the children's geometry with their own
-//! textures. A chart whose texels are all one colour shrinks to one texel.
+//! them. A texel takes the colour the source surface shows in front of
+//! it: the first source surface met along the chart's normal from `reach`
+//! in front of the texel to `reach` behind it (a wall kept as it was takes
+//! the window bands the reduction dropped in front of it), else the
+//! nearest point of the source. The source is the original objects where
+//! the builder keeps them, else the children's geometry with their own
+//! baked colour. A chart of one colour, that of its vertices, keeps its
+//! vertex colours; one of another colour shrinks to one texel. Plain areas
+//! are filled block by block (`Surface::fill`), so only colour borders
+//! cost a query per texel.
 
 use std::collections::{HashMap, HashSet};
 
@@ -58,6 +62,9 @@ pub struct BakeOptions {
     /// The texel's side, scene units: the cluster's error, about a pixel
     /// where the cut draws it at its budget.
     pub texel: f32,
+    /// How far in front of and behind a texel the source is looked for:
+    /// the mesh's bound of its distance to the sources.
+    pub reach: f32,
     /// The most texels along either side of the atlas; charts are baked
     /// coarser than `texel` when they would not fit.
     pub max_size: u32,
@@ -75,113 +82,113 @@ const UNIFORM: u8 = 2;
 /// Coarser texels by this factor while the charts do not fit the atlas.
 const COARSER: f32 = 1.25;
 
-/// The triangles of `mesh` that some source holds exactly (the same corner
-/// positions, colours and feature) with vertex colours: they may keep
-/// theirs.
-pub fn kept_exactly(mesh: &Mesh, sources: &[Source]) -> Vec<bool> {
-    let mut exact: HashSet<TriangleKey> = HashSet::new();
-    for s in sources {
-        for k in 0..s.mesh.triangle_count() {
-            if s.baked.is_none_or(|b| b.corners[k].is_none()) {
-                exact.insert(triangle_key(s.mesh, k));
-            }
-        }
-    }
-    (0..mesh.triangle_count())
-        .map(|k| exact.contains(&triangle_key(mesh, k)))
-        .collect()
-}
-
-type TriangleKey = ([([u32; 3], [u32; 4]); 3], u32);
-
-/// A triangle's corners (position and colour bits) in a fixed order, and
-/// its feature: the same triangle whatever its first corner.
-fn triangle_key(mesh: &Mesh, k: usize) -> TriangleKey {
-    let t = &mesh.indices[k * 3..k * 3 + 3];
-    let mut corners = [0, 1, 2].map(|c| {
-        let i = t[c] as usize;
-        (
-            mesh.positions[i].to_array().map(f32::to_bits),
-            mesh.colors
-                .get(i)
-                .copied()
-                .unwrap_or([1.0; 4])
-                .map(f32::to_bits),
-        )
-    });
-    corners.sort_unstable();
-    let feature = mesh.features.get(t[0] as usize).copied().unwrap_or(0);
-    (corners, feature)
-}
-
-/// Bakes the colour of `sources` into the triangles of `mesh` not marked
-/// in `keep`. `None` when every triangle keeps its vertex colours, when
-/// the sources are empty, or when the charts cannot fit `max_size` even at
-/// a texel each.
-pub fn bake(
-    mesh: &Mesh,
-    keep: &[bool],
-    sources: &[Source],
-    options: &BakeOptions,
-) -> Option<Baked> {
-    let todo: Vec<usize> = (0..mesh.triangle_count()).filter(|&k| !keep[k]).collect();
-    if todo.is_empty() {
+/// Bakes the colour of `sources` into the triangles of `mesh`: each texel
+/// the colour the source shows there seen from the front of its chart (the
+/// first source surface met along the chart's normal from `reach` in front
+/// of the texel to `reach` behind it), or, where that meets none, of the
+/// source's nearest point. Charts of one colour that their triangles'
+/// vertices already have keep their vertex colours. `None` when all do,
+/// when the sources are empty, or when the charts cannot fit `max_size`
+/// even at a texel each.
+pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Baked> {
+    if mesh.is_empty() {
         return None;
     }
     let surface = Surface::new(sources)?;
-    let charts = charts(mesh, &todo);
+    let all: Vec<usize> = (0..mesh.triangle_count()).collect();
+    let charts = charts(mesh, &all);
     let max = options.max_size.max(WHITE + 2 * GUTTER);
-    // Each chart at least one texel and its gutter: past this many, none fits.
-    let least = (1 + 2 * GUTTER).pow(2) as u64;
-    if charts.len() as u64 * least + u64::from(WHITE * WHITE) > u64::from(max) * u64::from(max) {
-        return None;
-    }
-    let mut texel = if options.texel > 0.0 && options.texel.is_finite() {
+    let inner = (max - 2 * GUTTER) as f32;
+    let longest = charts
+        .iter()
+        .map(|c| c.size.max_element())
+        .fold(0.0, f32::max);
+    let start = if options.texel > 0.0 && options.texel.is_finite() {
         options.texel
     } else {
-        let longest = charts
-            .iter()
-            .map(|c| c.size.max_element())
-            .fold(0.0, f32::max);
-        (longest / max as f32).max(f32::MIN_POSITIVE)
+        (longest / inner).max(f32::MIN_POSITIVE)
     };
+    let reach = options.reach.max(0.0);
+    // Each chart sampled at the texel, or coarser where it would not fit.
+    let first: Vec<(f32, [u32; 2], Vec<[u8; 4]>)> = charts
+        .iter()
+        .map(|c| {
+            let texel = start.max(c.size.max_element() / inner);
+            let size = c.texels(texel);
+            (texel, size, surface.sample(c, size, texel, reach))
+        })
+        .collect();
+    // Charts that need a texture: not one colour, or one other than their
+    // vertices'; one colour shrinks to one texel.
+    let mut wanted: Vec<(usize, bool)> = Vec::new();
+    for (k, (_, size, texels)) in first.iter().enumerate() {
+        let uniform = is_uniform(texels, *size);
+        let centre = texels[(GUTTER * size[0] + GUTTER) as usize];
+        let own = vertex_colour(mesh, &charts[k].triangles).map(encode);
+        let plain =
+            uniform && own.is_some_and(|c| (0..4).all(|i| c[i].abs_diff(centre[i]) <= UNIFORM));
+        if !plain {
+            wanted.push((k, uniform));
+        }
+    }
+    if wanted.is_empty() {
+        return None;
+    }
+    let least = (1 + 2 * GUTTER).pow(2) as u64;
+    if wanted.len() as u64 * least + u64::from(WHITE * WHITE) > u64::from(max) * u64::from(max) {
+        return None;
+    }
+    let mut texel = start;
     let (sizes, layout) = loop {
-        let sizes: Vec<[u32; 2]> = charts.iter().map(|c| c.texels(texel)).collect();
+        let sizes: Vec<[u32; 2]> = wanted
+            .iter()
+            .map(|&(k, uniform)| {
+                if uniform {
+                    [1 + 2 * GUTTER; 2]
+                } else {
+                    charts[k].texels(texel)
+                }
+            })
+            .collect();
         if let Some(layout) = pack(&sizes, max) {
             break (sizes, layout);
         }
         texel *= COARSER;
     };
-    let mut baked: Vec<Vec<[u8; 4]>> = charts
+    let texels: Vec<Vec<[u8; 4]>> = wanted
         .iter()
         .zip(&sizes)
-        .map(|(c, &size)| surface.sample(c, size, texel))
-        .collect();
-    // Uniform charts shrink to one texel, and the rest is packed again; the
-    // first layout stands if that one does not fit.
-    let uniform: Vec<bool> = baked
-        .iter()
-        .zip(&sizes)
-        .map(|(t, &s)| is_uniform(t, s))
-        .collect();
-    let mut final_sizes = sizes.clone();
-    for (k, _) in uniform.iter().enumerate().filter(|(_, u)| **u) {
-        final_sizes[k] = [1 + 2 * GUTTER; 2];
-    }
-    let (sizes, layout) = match pack(&final_sizes, max) {
-        Some(l) if uniform.iter().any(|u| *u) => {
-            for (k, _) in uniform.iter().enumerate().filter(|(_, u)| **u) {
-                let centre = baked[k][(GUTTER * sizes[k][0] + GUTTER) as usize];
-                baked[k] = vec![centre; (1 + 2 * GUTTER).pow(2) as usize];
+        .map(|(&(k, uniform), &size)| {
+            let (at, first_size, texels) = &first[k];
+            if uniform {
+                vec![
+                    texels[(GUTTER * first_size[0] + GUTTER) as usize];
+                    (size[0] * size[1]) as usize
+                ]
+            } else if *at == texel {
+                texels.clone()
+            } else {
+                surface.sample(&charts[k], size, texel, reach)
             }
-            (final_sizes, l)
-        }
-        _ => (sizes, layout),
-    };
-    Some(assemble(mesh, &charts, &sizes, &layout, &baked, texel))
+        })
+        .collect();
+    let chosen: Vec<&Chart> = wanted.iter().map(|&(k, _)| &charts[k]).collect();
+    Some(assemble(mesh, &chosen, &sizes, &layout, &texels, texel))
 }
 
-/// One chart: coplanar, edge-connected triangles of one feature, and the
+/// The one colour of every vertex of `triangles`, if they have one.
+fn vertex_colour(mesh: &Mesh, triangles: &[usize]) -> Option<[f32; 4]> {
+    let colour = |i: u32| mesh.colors.get(i as usize).copied().unwrap_or([1.0; 4]);
+    let first = colour(mesh.indices[triangles[0] * 3]);
+    triangles
+        .iter()
+        .flat_map(|&t| &mesh.indices[t * 3..t * 3 + 3])
+        .all(|&i| colour(i) == first)
+        .then_some(first)
+}
+
+/// One chart: coplanar, edge-connected triangles of one feature and
+/// vertex colour, and the
 /// rectangle of their plane that holds them.
 struct Chart {
     triangles: Vec<usize>,
@@ -193,6 +200,9 @@ struct Chart {
     size: Vec2,
     /// Every corner was the same point (a degenerate triangle).
     point: bool,
+    /// The plane's normal, the side the chart is seen from (`None` for a
+    /// segment or a point).
+    normal: Option<Vec3>,
 }
 
 impl Chart {
@@ -218,10 +228,11 @@ impl Chart {
         (Vec2::new(d.dot(self.u), d.dot(self.v)) - self.low) / texel + Vec2::splat(GUTTER as f32)
     }
 
-    /// The centre of texel `(i, j)` in the scene.
-    fn texel_centre(&self, i: u32, j: u32, texel: f32) -> Vec3 {
-        let x = self.low.x + (i as f32 - GUTTER as f32 + 0.5) * texel;
-        let y = self.low.y + (j as f32 - GUTTER as f32 + 0.5) * texel;
+    /// The point of the plane at `(x, y)` texels from the chart's corner
+    /// (gutter included): texel `(i, j)`'s centre is at `(i + 0.5, j + 0.5)`.
+    fn point(&self, x: f32, y: f32, texel: f32) -> Vec3 {
+        let x = self.low.x + (x - GUTTER as f32) * texel;
+        let y = self.low.y + (y - GUTTER as f32) * texel;
         self.origin + self.u * x + self.v * y
     }
 }
@@ -237,6 +248,9 @@ fn charts(mesh: &Mesh, todo: &[usize]) -> Vec<Chart> {
         [0, 1, 2].map(|c| mesh.positions[t[c] as usize])
     };
     let feature = |k: usize| mesh.features.get(mesh.indices[k * 3] as usize).copied();
+    // A chart keeps to one vertex colour, so that a plain region kept as
+    // it was is a plain chart, which keeps its vertex colour.
+    let colour = |k: usize| vertex_colour(mesh, &[k]).map(|c| c.map(f32::to_bits));
     let normal = |k: usize| {
         let [a, b, c] = corners(k);
         (b - a).cross(c - a).try_normalize()
@@ -274,7 +288,10 @@ fn charts(mesh: &Mesh, todo: &[usize]) -> Vec<Chart> {
                 let [p, q, r] = corners(k);
                 for (x, y) in [(p, q), (q, r), (r, p)] {
                     for &m in &by_edge[&edge(x, y)] {
-                        if seen.contains(&m) || feature(m) != feature(seed) {
+                        if seen.contains(&m)
+                            || feature(m) != feature(seed)
+                            || colour(m) != colour(seed)
+                        {
                             continue;
                         }
                         let Some(nm) = normal(m) else { continue };
@@ -338,6 +355,7 @@ fn chart(triangles: &[usize], corners: &dyn Fn(usize) -> [Vec3; 3]) -> Chart {
         low: lo,
         size: hi - lo,
         point: hi == lo,
+        normal,
     }
 }
 
@@ -408,7 +426,7 @@ fn is_uniform(texels: &[[u8; 4]], [w, h]: [u32; 2]) -> bool {
 /// The atlas of the baked charts, and every triangle's corners in it.
 fn assemble(
     mesh: &Mesh,
-    charts: &[Chart],
+    charts: &[&Chart],
     sizes: &[[u32; 2]],
     ([width, height], at): &([u32; 2], Vec<[u32; 2]>),
     baked: &[Vec<[u8; 4]>],
@@ -459,8 +477,24 @@ struct Surface<'a> {
     set: TriangleSet,
     /// Per input triangle: its source and its index there.
     owners: Vec<(u32, u32)>,
+    /// Per input triangle: its texel where it is one colour all over (its
+    /// corners' colours alike, or its texture coordinates one point).
+    flat: Vec<Option<[u8; 4]>>,
     sources: &'a [Source<'a>],
 }
+
+/// How a chart is sampled: its texel, how far in front and behind the
+/// source is looked for, and its rows' length.
+#[derive(Clone, Copy)]
+struct Sampling<'a> {
+    chart: &'a Chart,
+    texel: f32,
+    reach: f32,
+    row: u32,
+}
+
+/// Blocks of at most this many texels are sampled texel by texel.
+const LEAST_BLOCK: u32 = 2;
 
 impl<'a> Surface<'a> {
     fn new(sources: &'a [Source<'a>]) -> Option<Self> {
@@ -470,30 +504,145 @@ impl<'a> Surface<'a> {
             .flat_map(|(s, src)| (0..src.mesh.triangle_count() as u32).map(move |k| (s as u32, k)))
             .collect();
         let set = TriangleSet::new(sources.iter().flat_map(|s| s.mesh.triangles()));
+        let flat = owners
+            .iter()
+            .map(|&(s, k)| {
+                let source = &sources[s as usize];
+                let t = &source.mesh.indices[k as usize * 3..k as usize * 3 + 3];
+                match source.baked.map(|b| (b, b.corners[k as usize])) {
+                    Some((b, Some(uv))) => (uv[0] == uv[1] && uv[0] == uv[2])
+                        .then(|| encode(sample_bilinear(&b.atlas, uv[0]))),
+                    _ => {
+                        let colour = |c: usize| {
+                            source
+                                .mesh
+                                .colors
+                                .get(t[c] as usize)
+                                .copied()
+                                .unwrap_or([1.0; 4])
+                        };
+                        (colour(0) == colour(1) && colour(0) == colour(2))
+                            .then(|| encode(colour(0)))
+                    }
+                }
+            })
+            .collect();
         (!set.is_empty()).then_some(Surface {
             set,
             owners,
+            flat,
             sources,
         })
     }
 
     /// The texels of `chart`, `size` texels of side `texel`, row by row.
-    fn sample(&self, chart: &Chart, [w, h]: [u32; 2], texel: f32) -> Vec<[u8; 4]> {
-        let mut out = Vec::with_capacity((w * h) as usize);
+    fn sample(&self, chart: &Chart, [w, h]: [u32; 2], texel: f32, reach: f32) -> Vec<[u8; 4]> {
+        let mut out = vec![[255; 4]; (w * h) as usize];
         let mut hint = None;
-        for j in 0..h {
-            for i in 0..w {
-                let p = chart.texel_centre(i, j, texel);
-                out.push(match self.set.nearest(p, hint) {
-                    Some(n) => {
-                        hint = Some(n.triangle);
-                        encode(self.colour_at(p, n.triangle))
+        let at = Sampling {
+            chart,
+            texel,
+            reach,
+            row: w,
+        };
+        self.fill(&at, [0, 0, w, h], &mut out, &mut hint);
+        out
+    }
+
+    /// The colour the source shows at `p` of a chart seen along `normal`:
+    /// the first surface met from `reach` in front of `p` to `reach`
+    /// behind it, else the nearest.
+    fn texel(
+        &self,
+        p: Vec3,
+        normal: Option<Vec3>,
+        reach: f32,
+        hint: &mut Option<u32>,
+    ) -> Option<[u8; 4]> {
+        if let Some(n) = normal.filter(|_| reach > 0.0)
+            && let Some((t, along)) = self.set.first_hit(p + n * reach, -n, 2.0 * reach)
+        {
+            return Some(encode(self.colour_at(p + n * (reach - along), t)));
+        }
+        let n = self.set.nearest(p, *hint)?;
+        *hint = Some(n.triangle);
+        Some(encode(self.colour_at(p, n.triangle)))
+    }
+
+    /// Fills the block `[i, j, w, h]` of a chart's texels (rows `row`
+    /// long). A block whose centre is `d` from the surface and whose texel
+    /// centres lie within `r` of its centre finds each of their nearest
+    /// points within `d + 2 r` of the centre (the distance to a surface is
+    /// 1-Lipschitz): when every triangle that near is of one colour, so is
+    /// the block. Otherwise it is split in four, down to single texels,
+    /// each sampled at its centre. Large plain areas cost a few queries,
+    /// and only colour borders are sampled texel by texel.
+    fn fill(
+        &self,
+        at: &Sampling,
+        [i0, j0, w, h]: [u32; 4],
+        out: &mut [[u8; 4]],
+        hint: &mut Option<u32>,
+    ) {
+        let Sampling {
+            chart,
+            texel,
+            reach,
+            row,
+        } = *at;
+        if w * h <= LEAST_BLOCK {
+            for j in j0..j0 + h {
+                for i in i0..i0 + w {
+                    let p = chart.point(i as f32 + 0.5, j as f32 + 0.5, texel);
+                    if let Some(c) = self.texel(p, chart.normal, reach, hint) {
+                        out[(j * row + i) as usize] = c;
                     }
-                    None => [255; 4],
-                });
+                }
+            }
+            return;
+        }
+        let centre = chart.point(
+            i0 as f32 + w as f32 / 2.0,
+            j0 as f32 + h as f32 / 2.0,
+            texel,
+        );
+        let Some(n) = self.set.nearest(centre, *hint) else {
+            return;
+        };
+        *hint = Some(n.triangle);
+        let r = 0.5 * texel * (((w - 1).pow(2) + (h - 1).pow(2)) as f32).sqrt();
+        // Nearest points lie within `d + 2 r` of the centre, surfaces met
+        // in front or behind within `r + reach`; a little more for the
+        // rounding of the distances.
+        let reach = (n.distance_squared.sqrt() + 2.0 * r).max(r + reach) + 1e-3 * texel;
+        let mut colour = None;
+        let one = self.set.all_within(centre, reach, |t| {
+            match (self.flat[self.set.input_index(t) as usize], colour) {
+                (None, _) => false,
+                (Some(c), None) => {
+                    colour = Some(c);
+                    true
+                }
+                (Some(c), Some(k)) => c == k,
+            }
+        });
+        if let (true, Some(c)) = (one, colour) {
+            for j in j0..j0 + h {
+                out[(j * row + i0) as usize..(j * row + i0 + w) as usize].fill(c);
+            }
+            return;
+        }
+        let (wl, hl) = (w.div_ceil(2), h.div_ceil(2));
+        for [i, j, bw, bh] in [
+            [i0, j0, wl, hl],
+            [i0 + wl, j0, w - wl, hl],
+            [i0, j0 + hl, wl, h - hl],
+            [i0 + wl, j0 + hl, w - wl, h - hl],
+        ] {
+            if bw > 0 && bh > 0 {
+                self.fill(at, [i, j, bw, bh], out, hint);
             }
         }
-        out
     }
 
     /// The linear colour of the source at the point of `triangle` (a
@@ -711,6 +860,14 @@ mod tests {
         panic!("{p} is not on the quad");
     }
 
+    fn options(texel: f32, max_size: u32) -> BakeOptions {
+        BakeOptions {
+            texel,
+            reach: 0.05,
+            max_size,
+        }
+    }
+
     fn near(a: [f32; 4], b: [f32; 4]) -> bool {
         (0..3).all(|k| (a[k] - b[k]).abs() < 0.02)
     }
@@ -718,28 +875,11 @@ mod tests {
     #[test]
     fn a_banded_wall_reduced_to_a_quad_keeps_its_bands() {
         let (wall, quad) = banded_wall();
-        let keep = kept_exactly(
-            &quad,
-            &[Source {
-                mesh: &wall,
-                baked: None,
-            }],
-        );
-        assert_eq!(keep, [false, false]);
-        let options = BakeOptions {
-            texel: 0.05,
-            max_size: 1024,
-        };
-        let baked = bake(
-            &quad,
-            &keep,
-            &[Source {
-                mesh: &wall,
-                baked: None,
-            }],
-            &options,
-        )
-        .unwrap();
+        let sources = [Source {
+            mesh: &wall,
+            baked: None,
+        }];
+        let baked = bake(&quad, &sources, &options(0.05, 1024)).unwrap();
         // One chart of 200 x 60 texels and its gutter, beside the white block.
         assert!(baked.atlas.width <= 1024 && baked.atlas.height <= 1024);
         assert!(baked.atlas.width * baked.atlas.height >= 202 * 62);
@@ -765,12 +905,7 @@ mod tests {
             mesh: &wall,
             baked: None,
         }];
-        let keep = kept_exactly(&quad, &sources);
-        let options = BakeOptions {
-            texel: 0.001,
-            max_size: 64,
-        };
-        let baked = bake(&quad, &keep, &sources, &options).unwrap();
+        let baked = bake(&quad, &sources, &options(0.001, 64)).unwrap();
         assert!(
             baked.atlas.width <= 64 && baked.atlas.height <= 64,
             "{}x{}",
@@ -789,17 +924,7 @@ mod tests {
             mesh: &wall,
             baked: None,
         }];
-        let keep = kept_exactly(&quad, &sources);
-        let baked = bake(
-            &quad,
-            &keep,
-            &sources,
-            &BakeOptions {
-                texel: 0.1,
-                max_size: 1024,
-            },
-        )
-        .unwrap();
+        let baked = bake(&quad, &sources, &options(0.1, 1024)).unwrap();
         let a = &baked.atlas;
         // Every texel around the chart (the gutter) is the wall's or the
         // band's colour, not the atlas's black background.
@@ -835,19 +960,7 @@ mod tests {
             baked: None,
         }];
         // The wall itself kept as it is: nothing to bake.
-        assert!(kept_exactly(&wall, &sources).iter().all(|k| *k));
-        assert!(
-            bake(
-                &wall,
-                &[true; 12],
-                &sources,
-                &BakeOptions {
-                    texel: 0.1,
-                    max_size: 256
-                }
-            )
-            .is_none()
-        );
+        assert!(bake(&wall, &sources, &options(0.1, 256)).is_none());
         // A quad over one band only: one colour, one texel.
         let mut quad = Mesh::default();
         for (x, y) in [(0.0, 0.55), (10.0, 0.55), (10.0, 0.95), (0.0, 0.95)] {
@@ -855,16 +968,7 @@ mod tests {
             quad.colors.push(WALL);
         }
         quad.indices.extend([0, 1, 2, 0, 2, 3]);
-        let baked = bake(
-            &quad,
-            &[false, false],
-            &sources,
-            &BakeOptions {
-                texel: 0.01,
-                max_size: 1024,
-            },
-        )
-        .unwrap();
+        let baked = bake(&quad, &sources, &options(0.01, 1024)).unwrap();
         assert!(
             baked.atlas.width * baked.atlas.height <= 64,
             "{}x{}",
@@ -875,6 +979,64 @@ mod tests {
             colour_on_quad(&quad, &baked, Vec3::new(2.0, 0.7, 0.01)),
             BAND
         ));
+    }
+
+    /// A plain wall with bands 2 cm in front of it (a building's window
+    /// bands), reduced to the wall alone: the wall's triangles are kept as
+    /// they were, and take the bands seen in front of them.
+    #[test]
+    fn a_kept_wall_takes_the_bands_in_front_of_it() {
+        let (banded, _) = banded_wall();
+        let mut wall = Mesh::default();
+        for (x, y) in [(0.0, 0.0), (10.0, 0.0), (10.0, 3.0), (0.0, 3.0)] {
+            wall.positions.push(Vec3::new(x, y, 0.0));
+            wall.colors.push(WALL);
+        }
+        wall.indices.extend([0, 1, 2, 0, 2, 3]);
+        let mut source = wall.clone();
+        let base = source.positions.len() as u32;
+        source
+            .positions
+            .extend(banded.positions.iter().map(|p| *p + Vec3::Z * 0.02));
+        source.colors.extend(&banded.colors);
+        source
+            .indices
+            .extend(banded.indices.iter().map(|i| i + base));
+        let sources = [Source {
+            mesh: &source,
+            baked: None,
+        }];
+        let baked = bake(&wall, &sources, &options(0.05, 1024)).unwrap();
+        for (y, expected) in [(0.75, BAND), (1.25, WALL), (2.75, BAND)] {
+            let got = colour_on_quad(&wall, &baked, Vec3::new(4.0, y, 0.0));
+            assert!(near(got, expected), "at y = {y}: {got:?}");
+        }
+    }
+
+    #[test]
+    fn plain_blocks_are_filled_as_their_texels_would_be_sampled() {
+        let (wall, quad) = banded_wall();
+        let sources = [Source {
+            mesh: &wall,
+            baked: None,
+        }];
+        let surface = Surface::new(&sources).unwrap();
+        let chart = &charts(&quad, &[0, 1])[0];
+        for texel in [0.013, 0.07, 0.3] {
+            let size = chart.texels(texel);
+            let filled = surface.sample(chart, size, texel, 0.05);
+            for j in 0..size[1] {
+                for i in 0..size[0] {
+                    let p = chart.point(i as f32 + 0.5, j as f32 + 0.5, texel);
+                    let one = surface.texel(p, chart.normal, 0.05, &mut None).unwrap();
+                    assert_eq!(
+                        filled[(j * size[0] + i) as usize],
+                        one,
+                        "texel {texel}: ({i}, {j})"
+                    );
+                }
+            }
+        }
     }
 
     #[test]
