@@ -798,14 +798,8 @@ fn the_viewer_loads_every_cluster_of_a_large_cut_in_chromium() {
 /// `hdlod bench image` on the tiny site: every cell of table 2 rendered at
 /// 1 px and at full detail, the report following its schema, full detail
 /// drawing leaves only and more triangles than the cut, the pictures kept.
-#[test]
-fn hdlod_bench_image_compares_the_cut_with_full_detail() {
-    if !browser_ready() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let tree = build_tree(dir.path());
-    let pictures = dir.path().join("pictures");
+/// `hdlod bench image --json` on `tree` at 640x360, pictures in `pictures`.
+fn bench_image(tree: &Path, pictures: &Path) -> Value {
     let out = hdlod(&[
         "bench".as_ref(),
         "image".as_ref(),
@@ -827,6 +821,18 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
         &report,
         "bench image --json",
     );
+    report
+}
+
+#[test]
+fn hdlod_bench_image_compares_the_cut_with_full_detail() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tree = build_tree(dir.path());
+    let pictures = dir.path().join("pictures");
+    let report = bench_image(&tree, &pictures);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 12);
     let mut differs = 0;
@@ -843,4 +849,37 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
     }
     // The cut is coarser than full detail, and it shows somewhere.
     assert!(differs > 0);
+    // Baked colour: textures in the cuts, and fewer pixels differ than in
+    // a tree of the same geometry built without it.
+    let plain = dir.path().join("plain");
+    let config = dir.path().join("plain.json");
+    std::fs::write(&config, r#"{"bake": false}"#).unwrap();
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        repo().join("fixtures/skyscraper-tiny").as_os_str(),
+        "--out".as_ref(),
+        plain.as_os_str(),
+        "--config".as_ref(),
+        config.as_os_str(),
+    ]));
+    let without = bench_image(&plain, &dir.path().join("plain-pictures"));
+    let share = |r: &Value| {
+        r["cells"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| f(&c["share16"]))
+            .sum::<f64>()
+    };
+    assert!(
+        share(&report) < share(&without),
+        "baked {} against plain {}",
+        share(&report),
+        share(&without)
+    );
+    assert!(cells.iter().any(|c| f(&c["cut"]["textureBytes"]) > 0.0));
+    for (a, b) in cells.iter().zip(without["cells"].as_array().unwrap()) {
+        assert_eq!(a["cut"]["triangles"], b["cut"]["triangles"], "{a}");
+        assert_eq!(f(&b["cut"]["textureBytes"]), 0.0);
+    }
 }
