@@ -499,11 +499,11 @@ fn an_objects_triangles_lie_within_eps_of_the_object() {
 /// Built with it, reduced clusters carry a texture that reads back.
 #[test]
 fn baked_colour_changes_colour_only() {
-    let plain = build(&BuildConfig {
-        bake: false,
+    let plain = built();
+    let baked = &build(&BuildConfig {
+        bake: true,
         ..BuildConfig::default()
     });
-    let baked = built();
     assert_eq!(plain.tree.clusters.len(), baked.tree.clusters.len());
     let path = |b: &Built, hash: &str| b.dir.join("geometry").join(format!("{hash}.glb"));
     let corners = |m: &Mesh| -> Vec<(Vec3, Option<u32>)> {
@@ -513,6 +513,7 @@ fn baked_colour_changes_colour_only() {
             .collect()
     };
     let mut textured = 0;
+    let mut files = Vec::new();
     for (a, b) in plain.tree.clusters.iter().zip(&baked.tree.clusters) {
         assert_eq!(
             (a.eps, a.gamma, a.triangles, a.w, a.level, &a.children),
@@ -525,7 +526,7 @@ fn baked_colour_changes_colour_only() {
             assert_eq!(a.geometry.is_none(), b.geometry.is_none());
             continue;
         };
-        let before = read_mesh(&path(&plain, ga)).unwrap();
+        let before = read_mesh(&path(plain, ga)).unwrap();
         let (after, texture) = read_textured_mesh(&path(baked, gb)).unwrap();
         let (x, y) = (corners(&before), corners(&after));
         assert_eq!(x.len(), y.len(), "cluster {}", a.id);
@@ -540,6 +541,7 @@ fn baked_colour_changes_colour_only() {
         }
         if let Some(t) = texture {
             textured += 1;
+            files.push(path(baked, gb));
             assert!(!b.is_leaf(), "leaf {} has a texture", b.id);
             assert_eq!(t.uvs.len(), after.positions.len());
             assert!(
@@ -557,4 +559,5 @@ fn baked_colour_changes_colour_only() {
         }
     }
     assert!(textured > 10, "{textured} textured clusters");
+    common::assert_no_gltf_errors(&files);
 }

@@ -850,19 +850,21 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
     // The cut is coarser than full detail, and it shows somewhere.
     assert!(differs > 0);
     // Baked colour: textures in the cuts, and fewer pixels differ than in
-    // a tree of the same geometry built without it.
-    let plain = dir.path().join("plain");
-    let config = dir.path().join("plain.json");
-    std::fs::write(&config, r#"{"bake": false}"#).unwrap();
+    // the tree of the same geometry built without it.
+    let baked = dir.path().join("baked");
+    let config = dir.path().join("baked.json");
+    std::fs::write(&config, r#"{"bake": true}"#).unwrap();
     assert_success(&hdlod(&[
         "build".as_ref(),
         repo().join("fixtures/skyscraper-tiny").as_os_str(),
         "--out".as_ref(),
-        plain.as_os_str(),
+        baked.as_os_str(),
         "--config".as_ref(),
         config.as_os_str(),
     ]));
-    let without = bench_image(&plain, &dir.path().join("plain-pictures"));
+    let without = report;
+    let report = bench_image(&baked, &dir.path().join("baked-pictures"));
+    let cells = report["cells"].as_array().unwrap();
     let share = |r: &Value| {
         r["cells"]
             .as_array()

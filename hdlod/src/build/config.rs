@@ -45,7 +45,10 @@ pub struct BuildConfig {
     /// Bake the colours a reduced cluster drops into a texture of its own
     /// (`geometry::bake`): a box or quad keeps its part's colour pattern
     /// as texels, not triangles. Colour only: geometry and every `eps`
-    /// are the same either way.
+    /// are the same either way. Off by default: on the small site it
+    /// halves the pixels that differ from full detail at the table's
+    /// nearest camera but not at its farthest, and misses the 1% target
+    /// (docs/benchmarks.md, "What the eye sees").
     pub bake: bool,
     /// The most texels along either side of a cluster's baked texture; a
     /// cluster whose texels of its error's size would not fit is baked
@@ -68,7 +71,7 @@ impl Default for BuildConfig {
             dynamic_budgets: vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
             min_reduction: 0.8,
             error_metric: ErrorMetric::Geometry,
-            bake: true,
+            bake: false,
             bake_max_texels: 1024,
             schedule: None,
         }
