@@ -7,9 +7,12 @@ use std::collections::HashMap;
 use std::path::{Path, PathBuf};
 use std::sync::OnceLock;
 
+use glam::Vec3;
 use hdlod::build::{BuildConfig, Silent, StepFunction, build_to};
+use hdlod::geometry::Mesh;
 use hdlod::geometry::{ErrorMetric, HausdorffOptions, Part, hausdorff, merge};
-use hdlod::io::gltf::read_mesh;
+use hdlod::io::gltf::{read_mesh, read_textured_mesh};
+use hdlod::io::texture::decode_png;
 use hdlod::scene::{Class, Scene, format};
 use hdlod::tree::{ClusterClass, Tree, load};
 
@@ -488,4 +491,73 @@ fn an_objects_triangles_lie_within_eps_of_the_object() {
     }
     // The check saw reduced geometry, not only leaves.
     assert!(coarse > 10, "{coarse} reduced features");
+}
+
+/// Baked colour changes colour only: built without it, the tree has the
+/// same clusters with the same errors, boxes and triangles, and every
+/// cluster's triangles the same corners and objects in the same order.
+/// Built with it, reduced clusters carry a texture that reads back.
+#[test]
+fn baked_colour_changes_colour_only() {
+    let plain = built();
+    let baked = &build(&BuildConfig {
+        bake: true,
+        ..BuildConfig::default()
+    });
+    assert_eq!(plain.tree.clusters.len(), baked.tree.clusters.len());
+    let path = |b: &Built, hash: &str| b.dir.join("geometry").join(format!("{hash}.glb"));
+    let corners = |m: &Mesh| -> Vec<(Vec3, Option<u32>)> {
+        m.indices
+            .iter()
+            .map(|&i| (m.positions[i as usize], m.features.get(i as usize).copied()))
+            .collect()
+    };
+    let mut textured = 0;
+    let mut files = Vec::new();
+    for (a, b) in plain.tree.clusters.iter().zip(&baked.tree.clusters) {
+        assert_eq!(
+            (a.eps, a.gamma, a.triangles, a.w, a.level, &a.children),
+            (b.eps, b.gamma, b.triangles, b.w, b.level, &b.children),
+            "cluster {}",
+            a.id
+        );
+        assert_eq!(a.bounds, b.bounds, "cluster {}", a.id);
+        let (Some(ga), Some(gb)) = (&a.geometry, &b.geometry) else {
+            assert_eq!(a.geometry.is_none(), b.geometry.is_none());
+            continue;
+        };
+        let before = read_mesh(&path(plain, ga)).unwrap();
+        let (after, texture) = read_textured_mesh(&path(baked, gb)).unwrap();
+        let (x, y) = (corners(&before), corners(&after));
+        assert_eq!(x.len(), y.len(), "cluster {}", a.id);
+        for ((p, f), (q, g)) in x.iter().zip(&y) {
+            // The same point, but for the rounding of the GLB's local origin.
+            assert!(
+                p.distance(*q) <= 1e-5 * p.length().max(1.0),
+                "cluster {}: {p} {q}",
+                a.id
+            );
+            assert_eq!(f, g, "cluster {}", a.id);
+        }
+        if let Some(t) = texture {
+            textured += 1;
+            files.push(path(baked, gb));
+            assert!(!b.is_leaf(), "leaf {} has a texture", b.id);
+            assert_eq!(t.uvs.len(), after.positions.len());
+            assert!(
+                t.uvs
+                    .iter()
+                    .all(|uv| (0.0..=1.0).contains(&uv.x) && (0.0..=1.0).contains(&uv.y))
+            );
+            let atlas = decode_png(&t.png).unwrap();
+            let cap = BuildConfig::default().bake_max_texels;
+            assert!(
+                atlas.width <= cap && atlas.height <= cap,
+                "cluster {}",
+                b.id
+            );
+        }
+    }
+    assert!(textured > 10, "{textured} textured clusters");
+    common::assert_no_gltf_errors(&files);
 }

@@ -860,14 +860,8 @@ fn the_viewer_resumes_its_view_after_the_server_restarts_in_chromium() {
 /// `hdlod bench image` on the tiny site: every cell of table 2 rendered at
 /// 1 px and at full detail, the report following its schema, full detail
 /// drawing leaves only and more triangles than the cut, the pictures kept.
-#[test]
-fn hdlod_bench_image_compares_the_cut_with_full_detail() {
-    if !browser_ready() {
-        return;
-    }
-    let dir = tempfile::tempdir().unwrap();
-    let tree = build_tree(dir.path());
-    let pictures = dir.path().join("pictures");
+/// `hdlod bench image --json` on `tree` at 640x360, pictures in `pictures`.
+fn bench_image(tree: &Path, pictures: &Path) -> Value {
     let out = hdlod(&[
         "bench".as_ref(),
         "image".as_ref(),
@@ -889,6 +883,18 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
         &report,
         "bench image --json",
     );
+    report
+}
+
+#[test]
+fn hdlod_bench_image_compares_the_cut_with_full_detail() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tree = build_tree(dir.path());
+    let pictures = dir.path().join("pictures");
+    let report = bench_image(&tree, &pictures);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 12);
     let mut differs = 0;
@@ -905,4 +911,39 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
     }
     // The cut is coarser than full detail, and it shows somewhere.
     assert!(differs > 0);
+    // Baked colour: textures in the cuts, and fewer pixels differ than in
+    // the tree of the same geometry built without it.
+    let baked = dir.path().join("baked");
+    let config = dir.path().join("baked.json");
+    std::fs::write(&config, r#"{"bake": true}"#).unwrap();
+    assert_success(&hdlod(&[
+        "build".as_ref(),
+        repo().join("fixtures/skyscraper-tiny").as_os_str(),
+        "--out".as_ref(),
+        baked.as_os_str(),
+        "--config".as_ref(),
+        config.as_os_str(),
+    ]));
+    let without = report;
+    let report = bench_image(&baked, &dir.path().join("baked-pictures"));
+    let cells = report["cells"].as_array().unwrap();
+    let share = |r: &Value| {
+        r["cells"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|c| f(&c["share16"]))
+            .sum::<f64>()
+    };
+    assert!(
+        share(&report) < share(&without),
+        "baked {} against plain {}",
+        share(&report),
+        share(&without)
+    );
+    assert!(cells.iter().any(|c| f(&c["cut"]["textureBytes"]) > 0.0));
+    for (a, b) in cells.iter().zip(without["cells"].as_array().unwrap()) {
+        assert_eq!(a["cut"]["triangles"], b["cut"]["triangles"], "{a}");
+        assert_eq!(f(&b["cut"]["textureBytes"]), 0.0);
+    }
 }

@@ -1,7 +1,9 @@
 // A minimal GLB reader for what the server's tree writer emits
 // (hdlod/src/io/glb.rs): one mesh of triangle primitives with POSITION,
 // NORMAL and COLOR_0 (optional), the scene object of each vertex as
-// `_FEATURE_ID_0` (EXT_mesh_features; optional), and indices. Written here rather than
+// `_FEATURE_ID_0` (EXT_mesh_features; optional), indices, and the baked
+// colour of a reduced cluster (optional): TEXCOORD_0 and the material's
+// baseColorTexture, a PNG in the binary chunk, which COLOR_0 multiplies. Written here rather than
 // bundling a glTF library: the viewer has no build step and this subset is
 // about a hundred lines. A node's `translation` is the local origin its mesh's
 // positions are stored from (the writer keeps them small for f32); it is
@@ -69,8 +71,24 @@ function readFeatureIds(gltf, bin, index, what) {
   return data instanceof Float32Array ? data : Float32Array.from(data);
 }
 
+// The PNG (or other image) bytes of a primitive's base colour texture when
+// they are in the binary chunk: {bytes, type}, or null.
+function readImage(gltf, bin, prim, what) {
+  const info = gltf.materials?.[prim.material]?.pbrMetallicRoughness?.baseColorTexture;
+  if (!info) return null;
+  const image = gltf.images?.[gltf.textures?.[info.index]?.source];
+  if (!image) throw new GlbError(`${what}: base colour texture ${info.index} has no image`);
+  const view = gltf.bufferViews?.[image.bufferView];
+  if (!view) return null;
+  const start = view.byteOffset || 0;
+  if (start + view.byteLength > bin.byteLength) throw new GlbError(`${what}: its image runs past the binary chunk`);
+  return { bytes: new Uint8Array(bin.buffer, bin.byteOffset + start, view.byteLength), type: image.mimeType || "image/png", texCoord: info.texCoord || 0 };
+}
+
 // -> {positions, normals|null, colors|null (RGBA), features|null (one per
-// vertex, -1 for none), indices (Uint32Array), triangles}
+// vertex, -1 for none), uvs|null (texture coordinates), image|null (the
+// bytes and MIME type of the colour texture), indices (Uint32Array),
+// triangles}
 export function parseGlb(buffer) {
   const dv = new DataView(buffer);
   if (buffer.byteLength < 20 || dv.getUint32(0, true) !== MAGIC) throw new GlbError("not a GLB file");
@@ -103,11 +121,15 @@ export function parseGlb(buffer) {
       const nor = a.NORMAL !== undefined ? readAccessor(gltf, bin, a.NORMAL, `${what} NORMAL`) : null;
       const col = a.COLOR_0 !== undefined ? readAccessor(gltf, bin, a.COLOR_0, `${what} COLOR_0`) : null;
       const fid = a._FEATURE_ID_0 !== undefined ? readFeatureIds(gltf, bin, a._FEATURE_ID_0, `${what} _FEATURE_ID_0`) : null;
+      const image = readImage(gltf, bin, prim, what);
+      const uvName = image && `TEXCOORD_${image.texCoord}`;
+      const uv = image && a[uvName] !== undefined ? readAccessor(gltf, bin, a[uvName], `${what} ${uvName}`) : null;
+      if (uv && (uv.components !== 2 || uv.count !== pos.count)) throw new GlbError(`${what}: ${uvName} is not one VEC2 per vertex`);
       const idx = prim.indices !== undefined
         ? readAccessor(gltf, bin, prim.indices, `${what} indices`).data
         : Uint32Array.from({ length: pos.count }, (_, i) => i);
       if (fid && fid.length !== pos.count) throw new GlbError(`${what}: ${fid.length} feature ids for ${pos.count} vertices`);
-      parts.push({ pos, nor, col, fid, idx, origin: origins.get(m) });
+      parts.push({ pos, nor, col, fid, idx, uv, image: uv ? image : null, origin: origins.get(m) });
     }
   }
   if (!parts.length) throw new GlbError("no triangle primitive");
@@ -121,6 +143,10 @@ export function parseGlb(buffer) {
   const colors = hasColors ? new Float32Array(vertices * 4).fill(1) : null;
   // A primitive without feature ids is not pickable: -1 marks its vertices.
   const features = parts.some((p) => p.fid) ? new Float32Array(vertices).fill(-1) : null;
+  // One texture per cluster: the first primitive's; the others' vertices
+  // read its corner (our writer makes one primitive).
+  const textured = parts.find((p) => p.uv);
+  const uvs = textured ? new Float32Array(vertices * 2) : null;
   const indices = new Uint32Array(indexCount);
   let v = 0;
   let i = 0;
@@ -133,6 +159,7 @@ export function parseGlb(buffer) {
     }
     if (normals) normals.set(p.nor.data, v * 3);
     if (features && p.fid) features.set(p.fid, v);
+    if (p === textured) uvs.set(p.uv.data, v * 2);
     if (colors && p.col) {
       for (let k = 0; k < p.col.count; k++) {
         for (let c = 0; c < p.col.components; c++) colors[(v + k) * 4 + c] = p.col.data[k * p.col.components + c];
@@ -145,5 +172,5 @@ export function parseGlb(buffer) {
     v += p.pos.count;
     i += p.idx.length;
   }
-  return { positions, normals, colors, features, indices, triangles: indexCount / 3 };
+  return { positions, normals, colors, features, uvs, image: textured ? textured.image : null, indices, triangles: indexCount / 3 };
 }

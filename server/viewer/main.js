@@ -313,6 +313,7 @@ async function onMessage(msg, request, millis) {
     if (held) held.transform = u.transform && new Float32Array(u.transform);
   }
   if (viewer.missing.size > 0) retryMissingLater();
+  cache.evict(new Set([...viewer.clusters.values(), ...viewer.missing.values()].map((c) => c.info.geometry)));
   viewer.stats = msg.stats;
   viewer.latency = millis;
   viewer.seq = msg.seq;
@@ -659,6 +660,18 @@ async function search(q, mode) {
   }
 }
 
+function cutBytes() {
+  const drawn = new Map();
+  for (const c of viewer.clusters.values()) drawn.set(c.info.geometry, c.gpu);
+  let bytes = 0;
+  let textureBytes = 0;
+  for (const gpu of drawn.values()) {
+    bytes += gpu.fileBytes || 0;
+    textureBytes += gpu.textureFileBytes || 0;
+  }
+  return { cutBytes: bytes, cutTextureBytes: textureBytes };
+}
+
 // The read-only test hook (docs/viewer.md): the browser tests drive the
 // viewer through it instead of hunting pixels.
 function testHook() {
@@ -696,6 +709,9 @@ function testHook() {
         baseline: viewer.stats ? viewer.stats.baseline_triangles : null,
         baselineObjects: viewer.stats ? viewer.stats.baseline_objects : null,
         glbBytes: cache ? cache.bytes : 0,
+        // The GLB bytes of the distinct geometry drawn, and of its textures.
+        ...cutBytes(),
+        gpuFreed: cache ? cache.freed : 0,
         glbFiles: cache ? cache.files : 0,
         loading: cache ? cache.loading : 0,
         missing: viewer.missing.size,

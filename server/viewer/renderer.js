@@ -1,5 +1,8 @@
 // WebGL2 drawing: one vertex array and one draw call per cluster, a
-// headlight Lambert over vertex colours (or a colour per class or level).
+// headlight Lambert over vertex colours times the cluster's baked colour
+// texture when it has one (or a colour per class or level). The texture's
+// texels are sRGB, as glTF's base colour: an SRGB8_ALPHA8 texture gives
+// them back linear, as the vertex colours are.
 // Dynamic clusters get their cut transform as the model matrix. Picking is
 // one more pass of the same clusters into an offscreen framebuffer with
 // feature ids as colours, scissored to the pixel under the cursor, read
@@ -18,6 +21,7 @@ layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aColor;
 layout(location = 3) in float aFeature;
+layout(location = 4) in vec2 aUv;
 uniform mat4 uViewProj;
 uniform mat4 uModel;
 uniform sampler2D uState;
@@ -32,6 +36,7 @@ uniform int uPass;
 out vec3 vWorld;
 out vec3 vNormal;
 out vec4 vColor;
+out vec2 vUv;
 flat out float vFeature;
 flat out vec4 vState;
 flat out vec4 vLook;
@@ -61,6 +66,7 @@ void main() {
   vWorld = world.xyz;
   vNormal = mat3(uModel) * aNormal;
   vColor = aColor;
+  vUv = aUv;
   vFeature = aFeature;
   vState = state;
   vLook = vec4(look.rgb, lookA > 1 ? float(lookA - 2) / 253.0 : -1.0);
@@ -73,10 +79,13 @@ precision highp int;
 in vec3 vWorld;
 in vec3 vNormal;
 in vec4 vColor;
+in vec2 vUv;
 flat in float vFeature;
 flat in vec4 vState;
 flat in vec4 vLook;
 uniform vec3 uEye;
+uniform sampler2D uColour;
+uniform bool uHasTexture;
 uniform vec4 uTint;
 uniform bool uHasNormals;
 uniform int uPass;
@@ -93,7 +102,10 @@ void main() {
   vec3 n = uHasNormals ? normalize(vNormal) : normalize(cross(dFdx(vWorld), dFdy(vWorld)));
   vec3 l = normalize(uEye - vWorld);
   float lambert = abs(dot(n, l));
-  vec3 base = vLook.a >= 0.0 ? vLook.rgb : uTint.a > 0.0 ? uTint.rgb : vColor.rgb;
+  // A look (task colour) or a tint stands for the whole feature, texture
+  // and all, as it does for vertex colours.
+  vec3 own = uHasTexture ? vColor.rgb * texture(uColour, vUv).rgb : vColor.rgb;
+  vec3 base = vLook.a >= 0.0 ? vLook.rgb : uTint.a > 0.0 ? uTint.rgb : own;
   if (vState.a > 0.5) base = mix(base, vec3(0.1, 0.75, 0.95), 0.6);
   if (vState.b > 0.5) base = mix(base, vec3(1.0, 0.45, 0.0), 0.75);
   vec3 lit = base * (0.3 + 0.7 * lambert);
@@ -150,7 +162,7 @@ export class Renderer {
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
     this.program = program;
     this.u = {};
-    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass"]) {
+    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass", "uColour", "uHasTexture"]) {
       this.u[name] = gl.getUniformLocation(program, name);
     }
     gl.enable(gl.DEPTH_TEST);
@@ -206,8 +218,10 @@ export class Renderer {
     return 4 * this.stateWidth;
   }
 
-  // GPU buffers of a parsed GLB: {vao, count, hasNormals}.
-  upload(mesh) {
+  // GPU buffers of a parsed GLB and its decoded colour texture (an
+  // ImageBitmap, or null): {vao, buffers, texture, count, bytes (on the
+  // GPU), hasNormals, ...}.
+  upload(mesh, image) {
     const gl = this.gl;
     const vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
@@ -224,15 +238,40 @@ export class Renderer {
     if (mesh.normals) attribute(1, mesh.normals, 3);
     if (mesh.colors) attribute(2, mesh.colors, 4);
     if (mesh.features) attribute(3, mesh.features, 1);
+    let texture = null;
+    if (mesh.uvs && image) {
+      attribute(4, mesh.uvs, 2);
+      texture = gl.createTexture();
+      gl.bindTexture(gl.TEXTURE_2D, texture);
+      gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
+      gl.texImage2D(gl.TEXTURE_2D, 0, gl.SRGB8_ALPHA8, gl.RGBA, gl.UNSIGNED_BYTE, image);
+      // Linear without mipmaps, clamped, as the GLB's sampler says: a
+      // baked texel is about a pixel where the cut draws the cluster.
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
+      gl.bindTexture(gl.TEXTURE_2D, null);
+    }
     const ib = gl.createBuffer();
     buffers.push(ib);
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.indices, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
+    const attributes = [mesh.positions, mesh.normals, mesh.colors, mesh.features, texture && mesh.uvs, mesh.indices];
+    const bytes = attributes.reduce((s, a) => s + (a ? a.byteLength : 0), 0) + (texture ? 4 * image.width * image.height : 0);
     return {
-      vao, buffers, count: mesh.indices.length,
+      vao, buffers, texture, bytes, count: mesh.indices.length,
       hasNormals: !!mesh.normals, hasColors: !!mesh.colors, hasFeatures: !!mesh.features,
     };
+  }
+
+  // Frees what upload() made.
+  free(gpu) {
+    const gl = this.gl;
+    gl.deleteVertexArray(gpu.vao);
+    for (const b of gpu.buffers) gl.deleteBuffer(b);
+    if (gpu.texture) gl.deleteTexture(gpu.texture);
   }
 
   // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null),
@@ -276,13 +315,18 @@ export class Renderer {
     gl.bindTexture(gl.TEXTURE_2D, this.looksTexture);
     gl.uniform1i(this.u.uLooks, 1);
     gl.uniform1i(this.u.uLookCount, this.lookCount);
-    gl.activeTexture(gl.TEXTURE0);
+    gl.uniform1i(this.u.uColour, 2);
+    gl.activeTexture(gl.TEXTURE2);
     for (const item of items) {
       const g = item.gpu;
       if (which === 2 && !g.hasFeatures && item.feature == null) continue;
       gl.uniformMatrix4fv(this.u.uModel, false, item.transform || IDENTITY);
       gl.uniform4f(this.u.uTint, ...(item.tint || [0, 0, 0]), item.tint ? 1 : 0);
       gl.uniform1i(this.u.uHasNormals, g.hasNormals ? 1 : 0);
+      gl.uniform1i(this.u.uHasTexture, g.texture ? 1 : 0);
+      // Unit 2 always holds a complete texture: the looks' when the item
+      // has none (never read then).
+      gl.bindTexture(gl.TEXTURE_2D, g.texture || this.looksTexture);
       gl.bindVertexArray(g.vao);
       // Constant attributes are context state, not the vertex array's.
       if (!g.hasColors) gl.vertexAttrib4f(2, 0.75, 0.75, 0.75, 1);
@@ -290,6 +334,8 @@ export class Renderer {
       gl.drawElements(gl.TRIANGLES, g.count, gl.UNSIGNED_INT, 0);
     }
     gl.bindVertexArray(null);
+    gl.bindTexture(gl.TEXTURE_2D, null);
+    gl.activeTexture(gl.TEXTURE0);
   }
 
   // Feature ids of the drawn items in the device-pixel rectangle

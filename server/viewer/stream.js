@@ -100,13 +100,23 @@ async function fetchBuffer(url) {
   return r.arrayBuffer();
 }
 
+// The GPU memory the cache keeps beyond what the drawn cut uses: past it,
+// the geometry and textures the cut dropped longest ago are freed.
+const GPU_BUDGET = 512 * 1024 * 1024;
+
 // GLBs are content-addressed (the hash is in the URL): each is fetched and
-// uploaded once and kept for the session.
+// uploaded once and kept while the GPU memory allows (evict()). A cluster's
+// baked colour texture, a PNG in its GLB, is decoded by the browser.
 export class GeometryCache {
   constructor(renderer) {
     this.renderer = renderer;
     this.entries = new Map();
+    // url -> what upload() made, in the order last used.
+    this.uploaded = new Map();
+    this.gpuBytes = 0;
+    this.freed = 0;
     this.bytes = 0;
+    this.textureBytes = 0;
     this.files = 0;
     this.loading = 0;
     // Requests in flight, the most at once, and failed attempts tried again.
@@ -121,16 +131,30 @@ export class GeometryCache {
     if (!entry) {
       this.loading++;
       entry = this.fetchRetrying(url)
-        .then((buffer) => {
+        .then(async (buffer) => {
           let mesh;
+          let image = null;
           try {
             mesh = parseGlb(buffer);
+            if (mesh.image) {
+              image = await createImageBitmap(new Blob([mesh.image.bytes], { type: mesh.image.type }), {
+                colorSpaceConversion: "none",
+                premultiplyAlpha: "none",
+              });
+            }
           } catch (e) {
             throw new Error(`${url}: ${e.message}`);
           }
           this.bytes += buffer.byteLength;
+          if (mesh.image) this.textureBytes += mesh.image.bytes.byteLength;
           this.files++;
-          return this.renderer.upload(mesh);
+          const gpu = this.renderer.upload(mesh, image);
+          if (image) image.close();
+          gpu.fileBytes = buffer.byteLength;
+          gpu.textureFileBytes = mesh.image ? mesh.image.bytes.byteLength : 0;
+          this.uploaded.set(url, gpu);
+          this.gpuBytes += gpu.bytes;
+          return gpu;
         })
         .catch((e) => {
           // A failed load can be asked for again (the page retries the
@@ -142,6 +166,26 @@ export class GeometryCache {
       this.entries.set(url, entry);
     }
     return entry;
+  }
+
+  // Frees the geometry not in `inUse` (a Set of URLs the drawn cut holds),
+  // least recently used first, while the GPU holds more than the budget.
+  evict(inUse) {
+    for (const url of inUse) {
+      const gpu = this.uploaded.get(url);
+      if (!gpu) continue;
+      this.uploaded.delete(url);
+      this.uploaded.set(url, gpu);
+    }
+    for (const [url, gpu] of this.uploaded) {
+      if (this.gpuBytes <= GPU_BUDGET) break;
+      if (inUse.has(url)) continue;
+      this.renderer.free(gpu);
+      this.uploaded.delete(url);
+      this.entries.delete(url);
+      this.gpuBytes -= gpu.bytes;
+      this.freed++;
+    }
   }
 
   async fetchRetrying(url) {

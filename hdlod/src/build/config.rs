@@ -42,6 +42,18 @@ pub struct BuildConfig {
     /// times the triangles per cut; docs/benchmarks.md). Either is a bound
     /// of the geometric distance (docs/method.md section 2).
     pub error_metric: ErrorMetric,
+    /// Bake the colours a reduced cluster drops into a texture of its own
+    /// (`geometry::bake`): a box or quad keeps its part's colour pattern
+    /// as texels, not triangles. Colour only: geometry and every `eps`
+    /// are the same either way. Off by default: on the small site it
+    /// halves the pixels that differ from full detail at the table's
+    /// nearest camera but not at its farthest, and misses the 1% target
+    /// (docs/benchmarks.md, "What the eye sees").
+    pub bake: bool,
+    /// The most texels along either side of a cluster's baked texture; a
+    /// cluster whose texels of its error's size would not fit is baked
+    /// coarser.
+    pub bake_max_texels: u32,
     /// When constructed and demolished objects count as present; `None`
     /// keeps the scene file's own `schedule_options`.
     pub schedule: Option<ScheduleOptions>,
@@ -59,6 +71,8 @@ impl Default for BuildConfig {
             dynamic_budgets: vec![0.005, 0.01, 0.02, 0.05, 0.1, 0.2, 0.5],
             min_reduction: 0.8,
             error_metric: ErrorMetric::Geometry,
+            bake: false,
+            bake_max_texels: 1024,
             schedule: None,
         }
     }
@@ -99,6 +113,9 @@ impl BuildConfig {
         }
         if !(self.min_reduction > 0.0 && self.min_reduction <= 1.0) {
             return bad("min_reduction", "must be in (0, 1]");
+        }
+        if !(16..=8192).contains(&self.bake_max_texels) {
+            return bad("bake_max_texels", "must be between 16 and 8192");
         }
         Ok(())
     }

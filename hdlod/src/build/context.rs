@@ -10,6 +10,7 @@ use super::config::BuildConfig;
 use super::outputs::GeometrySink;
 use super::steps::StepFunction;
 use crate::geometry::Mesh;
+use crate::geometry::bake::{Baked, Source};
 use crate::scene::Motion;
 use crate::tree::{Aabb, Cluster, ClusterClass};
 
@@ -37,9 +38,22 @@ pub(super) struct Active {
     /// level's geometry (and the originals below kept for the direct
     /// bound, `parent::stored_eps`).
     pub mesh: Arc<Mesh>,
+    /// The colour baked into `mesh` where it dropped detail, when it was
+    /// (`parent::bake_colour`); dropped with the mesh.
+    pub baked: Option<Arc<Baked>>,
     /// The original objects' geometry below, while it has at most
     /// `parent::DIRECT_MAX_TRIANGLES` triangles.
     pub originals: Option<Vec<Arc<Mesh>>>,
+}
+
+impl Active {
+    /// The cluster's geometry as a surface to bake colour from.
+    pub fn source(&self) -> Source<'_> {
+        Source {
+            mesh: &self.mesh,
+            baked: self.baked.as_deref(),
+        }
+    }
 }
 
 /// A cluster record before it has an id. `Node::new` sets what every

@@ -14,9 +14,10 @@ use rayon::prelude::*;
 
 use super::context::{Context, Node, add};
 use super::outputs::{LevelStats, Progress};
-use super::parent::reduce_within;
+use super::parent::{bake_colour, reduce_within};
 use super::steps::StepFunction;
 use crate::Result;
+use crate::geometry::bake::Source;
 use crate::geometry::{self, Mesh, Part};
 use crate::scene::{Scene, Visibility};
 use crate::tree::{Cluster, ClusterClass};
@@ -40,7 +41,7 @@ struct Version {
 fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
     let bounds = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let mut out = vec![Version {
-        hash: ctx.sink.put(mesh)?,
+        hash: ctx.sink.put(mesh, None)?,
         triangles: mesh.triangle_count() as u64,
         eps: 0.0,
         bounds,
@@ -64,10 +65,13 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
             continue;
         }
         let eps = f64::from(h).max(previous.eps);
+        // Baked from the model itself, as the bound is measured.
+        let model = Source { mesh, baked: None };
+        let baked = bake_colour(ctx, &reduced, eps, &[model], None);
         // Contains the finer versions' boxes, as a parent's box must.
         let (lo, hi) = reduced.bounds().unwrap_or(bounds);
         out.push(Version {
-            hash: ctx.sink.put(&reduced)?,
+            hash: ctx.sink.put(&reduced, baked.as_ref())?,
             triangles: reduced.triangle_count() as u64,
             eps,
             bounds: (lo.min(previous.bounds.0), hi.max(previous.bounds.1)),

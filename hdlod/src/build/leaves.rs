@@ -113,7 +113,7 @@ pub(super) fn leaves(
                 }],
                 0.0,
             );
-            let hash = sink.put(&mesh)?;
+            let hash = sink.put(&mesh, None)?;
             progress.advance(1);
             Ok((mesh, hash))
         })
@@ -158,6 +158,7 @@ pub(super) fn leaves(
             vis: vec![vis],
             originals: (mesh.triangle_count() <= DIRECT_MAX_TRIANGLES).then(|| vec![mesh.clone()]),
             mesh,
+            baked: None,
         });
     }
     Ok(leaves)

@@ -23,6 +23,7 @@ use super::parent::{Parent, make_parent, single_parent};
 use super::steps::StepFunction;
 use crate::Result;
 use crate::geometry::Mesh;
+use crate::geometry::bake::Baked;
 use crate::tree::{Cluster, ClusterClass};
 
 /// Clusters one class level by level; answers the ids of the clusters left
@@ -74,6 +75,7 @@ pub(super) fn cluster_class(
                 mesh,
                 eps,
                 hash,
+                baked,
                 originals,
             } = parent?;
             let children: Vec<&Active> = g.iter().map(|&i| &active[i]).collect();
@@ -113,10 +115,11 @@ pub(super) fn cluster_class(
                 vis,
                 originals,
                 mesh: Arc::new(mesh),
+                baked: baked.map(Arc::new),
             });
         }
         let alone: Vec<usize> = (0..active.len()).filter(|&i| !taken[i]).collect();
-        let singles: Vec<Option<(Mesh, f64)>> = alone
+        let singles: Vec<Option<(Mesh, f64, Option<Baked>)>> = alone
             .par_iter()
             .map(|&i| single_parent(ctx, &active[i], &th))
             .collect();
@@ -126,7 +129,7 @@ pub(super) fn cluster_class(
                 continue;
             }
             let single = singles.next_if(|(j, _)| *j == i).and_then(|(_, s)| s);
-            let Some((mesh, eps)) = single else {
+            let Some((mesh, eps, baked)) = single else {
                 next.push(a);
                 continue;
             };
@@ -144,7 +147,10 @@ pub(super) fn cluster_class(
                 eps,
                 gamma,
                 children: vec![a.id],
-                geometry: Some((ctx.sink.put(&mesh)?, mesh.triangle_count() as u64)),
+                geometry: Some((
+                    ctx.sink.put(&mesh, baked.as_ref())?,
+                    mesh.triangle_count() as u64,
+                )),
                 ..Node::new(kind, level, (lo, hi), &a.steps)
             };
             let w = node.w;
@@ -156,6 +162,7 @@ pub(super) fn cluster_class(
                 w,
                 eps,
                 mesh: Arc::new(mesh),
+                baked: baked.map(Arc::new),
                 ..a
             });
         }

@@ -4,18 +4,28 @@
 
 use crate::Result;
 use crate::geometry::Mesh;
-use crate::io::glb::mesh_to_glb;
+use crate::geometry::bake::Baked;
+use crate::io::glb::{mesh_to_glb, textured_mesh_to_glb};
+use crate::io::texture::textured;
 use crate::tree::TreeWriter;
 
-/// Where the builder puts cluster geometry; answers the content hash under
-/// which the mesh is stored. Called from several threads.
+/// Where the builder puts cluster geometry, with its baked colour if it
+/// has one; answers the content hash under which it is stored. Called
+/// from several threads.
 pub trait GeometrySink: Sync {
-    fn put(&self, mesh: &Mesh) -> Result<String>;
+    fn put(&self, mesh: &Mesh, baked: Option<&Baked>) -> Result<String>;
 }
 
 impl GeometrySink for TreeWriter {
-    fn put(&self, mesh: &Mesh) -> Result<String> {
-        self.put_geometry(&mesh_to_glb(mesh))
+    fn put(&self, mesh: &Mesh, baked: Option<&Baked>) -> Result<String> {
+        let glb = match baked {
+            Some(b) => {
+                let (drawn, texture) = textured(mesh, b);
+                textured_mesh_to_glb(&drawn, Some(&texture))
+            }
+            None => mesh_to_glb(mesh),
+        };
+        self.put_geometry(&glb)
     }
 }
 

@@ -10,14 +10,16 @@ use glam::Mat4;
 use super::config::Thresholds;
 use super::context::{Active, Context};
 use crate::Result;
+use crate::geometry::bake::{self, BakeOptions, Baked, Source};
 use crate::geometry::{self, ErrorMetric, Mesh, Part, SimplifyOptions, Strategy};
 
-/// A parent made by `make_parent`: its geometry, `eps_c`, geometry hash and
-/// the originals below it (if kept).
+/// A parent made by `make_parent`: its geometry, `eps_c`, geometry hash,
+/// baked colour and the originals below it (if kept).
 pub(super) struct Parent {
     pub mesh: Mesh,
     pub eps: f64,
     pub hash: String,
+    pub baked: Option<Baked>,
     pub originals: Option<Vec<Arc<Mesh>>>,
 }
 
@@ -49,13 +51,52 @@ pub(super) fn make_parent(
     let (mesh, h) = reduce_within(&union, budget, tolerance, metric).unwrap_or((union, 0.0));
     let originals = originals_of(&children);
     let eps = stored_eps(&mesh, h, child_eps, originals.as_deref(), tolerance, metric);
-    let hash = ctx.sink.put(&mesh)?;
+    let sources: Vec<Source> = children.iter().map(|c| c.source()).collect();
+    let baked = bake_colour(ctx, &mesh, eps, &sources, originals.as_deref());
+    let hash = ctx.sink.put(&mesh, baked.as_ref())?;
     Ok(Parent {
         mesh,
         eps,
         hash,
+        baked,
         originals,
     })
+}
+
+/// The baked colour of a cluster's `mesh` of error `eps`, made from
+/// `children` (their geometry and baked colour), when the build bakes
+/// (docs/method.md section 3, "Baked colour"). The colour is that of the
+/// original objects where they are kept (the full detail, exact), else of
+/// the children's geometry with its own baked colour: both lie within
+/// `eps` of the mesh, which is how far in front of and behind a texel the
+/// colour is looked for. A texel is `eps` wide: about a pixel where the
+/// cut draws the cluster at its budget.
+pub(super) fn bake_colour(
+    ctx: &Context,
+    mesh: &Mesh,
+    eps: f64,
+    children: &[Source],
+    originals: Option<&[Arc<Mesh>]>,
+) -> Option<Baked> {
+    if !ctx.config.bake {
+        return None;
+    }
+    let sources: Vec<Source> = match originals {
+        Some(o) => o
+            .iter()
+            .map(|m| Source {
+                mesh: m,
+                baked: None,
+            })
+            .collect(),
+        None => children.to_vec(),
+    };
+    let options = BakeOptions {
+        texel: eps as f32,
+        reach: eps as f32,
+        max_size: ctx.config.bake_max_texels,
+    };
+    bake::bake(mesh, &sources, &options)
 }
 
 /// Clusters whose original objects have at most this many triangles in all
@@ -129,8 +170,12 @@ fn direct_eps(
 /// may be more than one pixel where the cut reaches it, so the cut draws
 /// the leaf. Instead it gets a parent of its own: its geometry reduced
 /// within `eps(l)`, when that keeps at most `min_reduction` of its
-/// triangles. Answers the parent's geometry and error.
-pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<(Mesh, f64)> {
+/// triangles. Answers the parent's geometry, error and baked colour.
+pub(super) fn single_parent(
+    ctx: &Context,
+    child: &Active,
+    th: &Thresholds,
+) -> Option<(Mesh, f64, Option<Baked>)> {
     let triangles = child.mesh.triangle_count();
     if (triangles as f64) * ctx.config.min_reduction < QUAD_TRIANGLES {
         return None;
@@ -150,7 +195,14 @@ pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> O
         tolerance,
         metric,
     );
-    Some((mesh, eps))
+    let baked = bake_colour(
+        ctx,
+        &mesh,
+        eps,
+        &[child.source()],
+        child.originals.as_deref(),
+    );
+    Some((mesh, eps, baked))
 }
 
 /// The fewest triangles a part is reduced to (a quad): a cluster with fewer

@@ -204,6 +204,97 @@ impl TriangleSet {
         [t.a.into(), t.b.into(), t.c.into()]
     }
 
+    /// The first triangle (a handle) the segment from `origin` along `dir`
+    /// (a unit vector) meets within `length`, either side of it, and how
+    /// far along (Moller and Trumbore, "Fast, minimum storage ray-triangle
+    /// intersection", 1997).
+    pub fn first_hit(&self, origin: Vec3, dir: Vec3, length: f32) -> Option<(u32, f32)> {
+        let (o, d) = (Vec3A::from(origin), Vec3A::from(dir));
+        let inverse = d.recip();
+        let mut best: Option<(u32, f32)> = None;
+        let visit = |i: usize, best: &mut Option<(u32, f32)>| {
+            let t = &self.tris[i];
+            let (e1, e2) = (t.b - t.a, t.c - t.a);
+            let p = d.cross(e2);
+            let det = e1.dot(p);
+            if det.abs() <= f32::EPSILON * e1.length() * e2.length() {
+                return;
+            }
+            let s = o - t.a;
+            let u = s.dot(p) / det;
+            let q = s.cross(e1);
+            let v = d.dot(q) / det;
+            let along = e2.dot(q) / det;
+            let limit = best.map_or(length, |b| b.1);
+            if u >= 0.0 && v >= 0.0 && u + v <= 1.0 && (0.0..=limit).contains(&along) {
+                *best = Some((i as u32, along));
+            }
+        };
+        let Some(bvh) = &self.bvh else {
+            for i in 0..self.tris.len() {
+                visit(i, &mut best);
+            }
+            return best;
+        };
+        // The slab test: where the segment enters a node's box, if it does.
+        let enters = |aabb: &Aabb| {
+            let t0 = (aabb.min - o) * inverse;
+            let t1 = (aabb.max - o) * inverse;
+            let near = t0.min(t1).max_element().max(0.0);
+            let far = t0.max(t1).min_element();
+            (near <= far).then_some(near)
+        };
+        let nodes = &bvh.nodes;
+        let mut stack: Vec<u32> = vec![0];
+        while let Some(index) = stack.pop() {
+            let node = &nodes[index as usize];
+            match enters(node.aabb()) {
+                Some(near) if near <= best.map_or(length, |b| b.1) => {}
+                _ => continue,
+            }
+            if node.is_leaf() {
+                let first = node.first_index as usize;
+                for i in first..first + node.prim_count as usize {
+                    visit(i, &mut best);
+                }
+                continue;
+            }
+            stack.extend([node.first_index, node.first_index + 1]);
+        }
+        best
+    }
+
+    /// Calls `visit` on every triangle (a handle) with a point within
+    /// `radius` of `p`, until it answers false; answers whether none did.
+    pub fn all_within(&self, p: Vec3, radius: f32, mut visit: impl FnMut(u32) -> bool) -> bool {
+        let p = Vec3A::from(p);
+        let r2 = radius * radius;
+        let mut check = |i: usize| {
+            let t = &self.tris[i];
+            closest_point_on_triangle(p, t.a, t.b, t.c).distance_squared(p) > r2 || visit(i as u32)
+        };
+        let Some(bvh) = &self.bvh else {
+            return (0..self.tris.len()).all(check);
+        };
+        let nodes = &bvh.nodes;
+        let mut stack: Vec<u32> = vec![0];
+        while let Some(index) = stack.pop() {
+            let node = &nodes[index as usize];
+            if box_distance_squared(p, node.aabb()) > r2 {
+                continue;
+            }
+            if node.is_leaf() {
+                let first = node.first_index as usize;
+                if !(first..first + node.prim_count as usize).all(&mut check) {
+                    return false;
+                }
+                continue;
+            }
+            stack.extend([node.first_index, node.first_index + 1]);
+        }
+        true
+    }
+
     /// The nearest triangle to `p`. `hint`, a triangle from an earlier query
     /// on a nearby point, seeds the search radius. `None` for an empty set.
     pub fn nearest(&self, p: Vec3, hint: Option<u32>) -> Option<Nearest> {
@@ -291,6 +382,69 @@ mod tests {
         let q = closest_point_on_triangle(p, a, b, c);
         assert!((q - Vec3A::new(1.5, 0.0, 0.0)).length() < 1e-6);
         assert_eq!(closest_point_on_triangle(p, a, a, a), a);
+    }
+
+    #[test]
+    fn triangles_within_a_radius_are_all_visited() {
+        let mut tris = Vec::new();
+        for i in 0..20 {
+            for j in 0..20 {
+                let o = Vec3::new(i as f32, (i * j % 7) as f32 * 0.3, j as f32);
+                tris.push([o, o + Vec3::X, o + Vec3::Z]);
+            }
+        }
+        let set = TriangleSet::new(tris.iter().copied());
+        let p = Vec3::new(7.3, 0.5, 11.2);
+        for radius in [0.1, 1.0, 3.5] {
+            let mut found = Vec::new();
+            assert!(set.all_within(p, radius, |t| {
+                found.push(set.input_index(t));
+                true
+            }));
+            found.sort_unstable();
+            let near: Vec<u32> = (0..tris.len() as u32)
+                .filter(|&i| {
+                    let [a, b, c] = tris[i as usize];
+                    closest_point_on_triangle(p.into(), a.into(), b.into(), c.into())
+                        .distance(p.into())
+                        <= radius
+                })
+                .collect();
+            assert_eq!(found, near, "radius {radius}");
+        }
+        assert!(!set.all_within(p, 3.5, |_| false));
+    }
+
+    #[test]
+    fn segments_find_their_first_triangle() {
+        let mut tris = Vec::new();
+        for i in 0..20 {
+            for j in 0..20 {
+                let o = Vec3::new(i as f32, j as f32 * 0.1, 0.0);
+                tris.push([o, o + Vec3::X, o + Vec3::Y * 0.1]);
+            }
+        }
+        // A layer in front at z = 1 over part of it.
+        let front = Vec3::new(3.0, 0.0, 1.0);
+        tris.push([front, front + Vec3::X * 4.0, front + Vec3::Y * 4.0]);
+        let set = TriangleSet::new(tris.iter().copied());
+        let down = Vec3::NEG_Z;
+        let (t, along) = set.first_hit(Vec3::new(3.5, 0.5, 2.0), down, 4.0).unwrap();
+        assert_eq!(set.input_index(t), 400);
+        assert!((along - 1.0).abs() < 1e-5);
+        let (t, along) = set
+            .first_hit(Vec3::new(10.2, 0.52, 2.0), down, 4.0)
+            .unwrap();
+        assert_eq!(set.input_index(t), 10 * 20 + 5);
+        assert!((along - 2.0).abs() < 1e-5);
+        assert!(
+            set.first_hit(Vec3::new(10.2, 0.52, 2.0), down, 1.5)
+                .is_none()
+        );
+        assert!(
+            set.first_hit(Vec3::new(30.0, 0.5, 2.0), down, 4.0)
+                .is_none()
+        );
     }
 
     #[test]

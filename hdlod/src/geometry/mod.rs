@@ -1,6 +1,7 @@
 //! Triangle geometry: the indexed mesh every stage shares, merging,
 //! simplification to an error budget, the Hausdorff bound and measures.
 
+pub mod bake;
 mod closest;
 mod color_bound;
 mod distance;

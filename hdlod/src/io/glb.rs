@@ -19,6 +19,7 @@ use gltf::json::{self, validation::Checked::Valid, validation::USize64};
 
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
+use crate::io::texture::Texture;
 
 // The bulk copies below write the in-memory representation; glTF is
 // little-endian.
@@ -41,25 +42,45 @@ compile_error!("the GLB writer copies memory as little-endian bytes");
 /// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
 /// an empty scene.
 pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
-    glb_with_features(mesh, None)
+    glb_with_features(mesh, None, None)
 }
 
-/// [`mesh_to_glb`] with a property table (`EXT_structural_metadata`) whose
+/// [`mesh_to_glb`] with a colour texture: `TEXCOORD_0` from its
+/// coordinates (one per vertex) and its PNG as the material's
+/// `baseColorTexture`, which `COLOR_0` multiplies (glTF 2.0, section
+/// 3.9.2), sampled linearly and clamped at the edges.
+pub fn textured_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>) -> Vec<u8> {
+    glb_with_features(mesh, texture, None)
+}
+
+/// [`textured_mesh_to_glb`] with a property table (`EXT_structural_metadata`) whose
 /// rows are the mesh's feature ids: feature `i` of the mesh is row `i`, so
 /// the ids must run over `0..table.count`.
-pub fn mesh_to_glb_with_table(mesh: &Mesh, table: &PropertyTable) -> Vec<u8> {
-    glb_with_features(mesh, Some(table))
+pub fn mesh_to_glb_with_table(
+    mesh: &Mesh,
+    texture: Option<&Texture>,
+    table: &PropertyTable,
+) -> Vec<u8> {
+    glb_with_features(mesh, texture, Some(table))
 }
 
-fn glb_with_features(mesh: &Mesh, table: Option<&PropertyTable>) -> Vec<u8> {
+fn glb_with_features(
+    mesh: &Mesh,
+    texture: Option<&Texture>,
+    table: Option<&PropertyTable>,
+) -> Vec<u8> {
     let mesh = &*unit_normals(mesh);
     let mut glb = GlbBuilder::new();
     let mut nodes = Vec::new();
     let mut features = None;
     if !mesh.is_empty() {
         let (local, centre) = centred(mesh);
-        let accessors = glb.add_mesh(&local);
-        let material = glb.double_sided_material();
+        let mut accessors = glb.add_mesh(&local);
+        let texture = texture.map(|t| {
+            accessors.uvs = Some(glb.add_uvs(&t.uvs));
+            glb.add_texture(&t.png)
+        });
+        let material = glb.double_sided_material(texture);
         let m = glb.add_primitive(&accessors, Some(material));
         features = accessors.features.map(|(_, count)| (m.value(), count));
         nodes.push(glb.add_node_at(m, centre));
@@ -303,6 +324,8 @@ pub(crate) struct MeshAccessors {
     positions: json::Index<json::Accessor>,
     normals: Option<json::Index<json::Accessor>>,
     colors: Option<json::Index<json::Accessor>>,
+    /// Texture coordinates, set by the caller that adds a texture.
+    uvs: Option<json::Index<json::Accessor>>,
     /// The feature ids and how many distinct ones there are.
     features: Option<(json::Index<json::Accessor>, usize)>,
     indices: json::Index<json::Accessor>,
@@ -390,9 +413,55 @@ impl GlbBuilder {
             positions,
             normals,
             colors,
+            uvs: None,
             features,
             indices,
         }
+    }
+
+    /// Appends texture coordinates (one per vertex) to the buffer.
+    fn add_uvs(&mut self, uvs: &[glam::Vec2]) -> json::Index<json::Accessor> {
+        self.accessor(
+            bytemuck::cast_slice(uvs),
+            uvs.len(),
+            json::accessor::Type::Vec2,
+            json::accessor::ComponentType::F32,
+            json::buffer::Target::ArrayBuffer,
+            None,
+        )
+    }
+
+    /// A texture of the PNG `png` (its bytes in the buffer), sampled
+    /// linearly without mipmaps (a baked texel is about a pixel where the
+    /// cluster is drawn) and clamped at the edges.
+    fn add_texture(&mut self, png: &[u8]) -> json::Index<json::Texture> {
+        let view = self.push_view(png, None);
+        // Later attributes start 4-byte aligned again.
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        let image = self.root.push(json::Image {
+            buffer_view: Some(view),
+            mime_type: Some(json::image::MimeType("image/png".into())),
+            name: None,
+            uri: None,
+            extensions: None,
+            extras: None,
+        });
+        let sampler = self.root.push(json::texture::Sampler {
+            mag_filter: Some(Valid(json::texture::MagFilter::Linear)),
+            min_filter: Some(Valid(json::texture::MinFilter::Linear)),
+            name: None,
+            wrap_s: Valid(json::texture::WrappingMode::ClampToEdge),
+            wrap_t: Valid(json::texture::WrappingMode::ClampToEdge),
+            extensions: None,
+            extras: None,
+        });
+        self.root.push(json::Texture {
+            name: None,
+            sampler: Some(sampler),
+            source: image,
+            extensions: None,
+            extras: None,
+        })
     }
 
     fn accessor(
@@ -439,6 +508,9 @@ impl GlbBuilder {
         }
         if let Some(a) = accessors.colors {
             attributes.insert(Valid(json::mesh::Semantic::Colors(0)), a);
+        }
+        if let Some(a) = accessors.uvs {
+            attributes.insert(Valid(json::mesh::Semantic::TexCoords(0)), a);
         }
         if let Some((a, _)) = accessors.features {
             attributes.insert(
@@ -521,12 +593,22 @@ impl GlbBuilder {
         m
     }
 
-    /// A white, non-metallic material seen from both sides.
-    fn double_sided_material(&mut self) -> json::Index<json::Material> {
+    /// A white, non-metallic material seen from both sides, with `texture`
+    /// as its base colour when given.
+    fn double_sided_material(
+        &mut self,
+        texture: Option<json::Index<json::Texture>>,
+    ) -> json::Index<json::Material> {
         self.root.push(json::Material {
             double_sided: true,
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
                 metallic_factor: json::material::StrengthFactor(0.0),
+                base_color_texture: texture.map(|index| json::texture::Info {
+                    index,
+                    tex_coord: 0,
+                    extensions: None,
+                    extras: None,
+                }),
                 ..Default::default()
             },
             ..Default::default()

@@ -17,11 +17,14 @@ use gltf::mesh::Mode;
 
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
+use crate::io::texture::Texture;
 
 /// The meshes of a glTF file and the nodes that place them.
 #[derive(Debug, Clone, Default)]
 pub(crate) struct Model {
     pub meshes: Vec<Mesh>,
+    /// Each mesh's colour texture, when it has one ([`read_textured_mesh`]).
+    pub textures: Vec<Option<Texture>>,
     pub nodes: Vec<ModelNode>,
 }
 
@@ -56,7 +59,22 @@ impl ModelNode {
 /// colours differ (node colours then fill in); normals and feature ids
 /// (`_FEATURE_ID_0`) when every node has them.
 pub fn read_mesh(path: &Path) -> Result<Mesh> {
+    Ok(flatten(&read_model(path)?))
+}
+
+/// [`read_mesh`] and, for a file of one mesh node whose primitive has
+/// texture coordinates and an embedded PNG as its base colour texture (a
+/// tree's cluster GLB with baked colour), that texture, as it is.
+pub fn read_textured_mesh(path: &Path) -> Result<(Mesh, Option<Texture>)> {
     let model = read_model(path)?;
+    let texture = match &model.nodes[..] {
+        [node] => model.textures[node.mesh].clone(),
+        _ => None,
+    };
+    Ok((flatten(&model), texture))
+}
+
+fn flatten(model: &Model) -> Mesh {
     let used = |node: &ModelNode| &model.meshes[node.mesh];
     let first_color = model.nodes.first().map(|n| n.color);
     let want_colors = model
@@ -90,7 +108,7 @@ pub fn read_mesh(path: &Path) -> Result<Mesh> {
         out.positions.extend_from_slice(&part.positions);
         out.indices.extend(part.indices.iter().map(|i| i + offset));
     }
-    Ok(out)
+    out
 }
 
 /// What makes two glTF meshes the same scene mesh: the accessors each
@@ -139,7 +157,10 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
             None => {
                 let m = read_node_mesh(&mesh, &buffers)
                     .map_err(|m| Error::invalid(path, at(&mesh), m))?;
+                let texture = read_texture(&mesh, &buffers, m.positions.len())
+                    .map_err(|m| Error::invalid(path, at(&mesh), m))?;
                 model.meshes.push(m);
+                model.textures.push(texture);
                 shared.insert(key.clone(), model.meshes.len() - 1);
                 model.meshes.len() - 1
             }
@@ -415,6 +436,65 @@ fn read_feature_ids(
         }
     };
     Ok(ids)
+}
+
+/// The colour texture of a mesh of one primitive with `TEXCOORD_0` (as
+/// `FLOAT`) and a base colour texture whose image is a PNG in the buffer;
+/// `None` for any other mesh.
+fn read_texture(
+    mesh: &gltf::Mesh,
+    buffers: &[gltf::buffer::Data],
+    vertices: usize,
+) -> Result<Option<Texture>, String> {
+    let mut primitives = mesh.primitives();
+    let (Some(p), None) = (primitives.next(), primitives.next()) else {
+        return Ok(None);
+    };
+    let Some(info) = p.material().pbr_metallic_roughness().base_color_texture() else {
+        return Ok(None);
+    };
+    let Some(acc) = p.get(&gltf::Semantic::TexCoords(info.tex_coord())) else {
+        return Ok(None);
+    };
+    let gltf::image::Source::View { view, mime_type } = info.texture().source().source() else {
+        return Ok(None);
+    };
+    if mime_type != "image/png" {
+        return Ok(None);
+    }
+    let at = |m: String| format!("primitive {}: {m}", p.index());
+    check_accessor(&acc, "TEXCOORD", &[gltf::accessor::Dimensions::Vec2], true).map_err(at)?;
+    let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let uvs: Vec<glam::Vec2> = reader
+        .read_tex_coords(info.tex_coord())
+        .ok_or_else(|| {
+            at(format!(
+                "TEXCOORD accessor {} lies outside its buffer",
+                acc.index()
+            ))
+        })?
+        .into_f32()
+        .map(glam::Vec2::from)
+        .collect();
+    if uvs.len() != vertices {
+        return Err(at("TEXCOORD and POSITION counts differ".into()));
+    }
+    if let Some(i) = uvs.iter().position(|uv| !uv.is_finite()) {
+        return Err(at(format!("texture coordinate {i} is not finite")));
+    }
+    let png = buffers
+        .get(view.buffer().index())
+        .and_then(|b| b.0.get(view.offset()..view.offset() + view.length()))
+        .ok_or_else(|| {
+            at(format!(
+                "image buffer view {} lies outside its buffer",
+                view.index()
+            ))
+        })?;
+    Ok(Some(Texture {
+        uvs,
+        png: png.to_vec(),
+    }))
 }
 
 /// One glTF mesh as one scene mesh, its primitives merged.

@@ -17,7 +17,8 @@
 //! ids: the tree names its object, which all its vertices take.
 
 use crate::geometry::Mesh;
-use crate::io::glb::{Column, PropertyTable, mesh_to_glb, mesh_to_glb_with_table};
+use crate::io::glb::{Column, PropertyTable, mesh_to_glb_with_table, textured_mesh_to_glb};
+use crate::io::texture::Texture;
 use crate::scene::appearance::Look;
 use crate::scene::{Profile, property};
 use crate::tree::ObjectTables;
@@ -32,12 +33,14 @@ pub struct State<'a> {
     pub t: f64,
 }
 
-/// The GLB of a tile: `mesh` (the cluster's geometry) with a property
+/// The GLB of a tile: `mesh` (the cluster's geometry) with its colour
+/// texture (baked colour, as the cluster's GLB has it) and a property
 /// table of its objects, and of their state when `state` is given;
 /// `object` names the object of a mesh without feature ids. A mesh with
-/// neither is written plain.
+/// neither is written without the table.
 pub fn content(
     mesh: &Mesh,
+    texture: Option<&Texture>,
     object: Option<u32>,
     tables: &ObjectTables,
     state: Option<State>,
@@ -45,7 +48,7 @@ pub fn content(
     let mut mesh = mesh.clone();
     let objects: Vec<u32> = if mesh.features.is_empty() {
         let Some(object) = object else {
-            return mesh_to_glb(&mesh);
+            return textured_mesh_to_glb(&mesh, texture);
         };
         mesh.features = vec![0; mesh.positions.len()];
         vec![object]
@@ -58,7 +61,7 @@ pub fn content(
         }
         distinct
     };
-    mesh_to_glb_with_table(&mesh, &table(&objects, tables, state))
+    mesh_to_glb_with_table(&mesh, texture, &table(&objects, tables, state))
 }
 
 fn table(objects: &[u32], tables: &ObjectTables, state: Option<State>) -> PropertyTable {

@@ -197,7 +197,7 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
     let path = s.dir.join("geometry").join(format!("{hash}.glb"));
     // Reading and writing a GLB is blocking work.
     tokio::task::spawn_blocking(move || -> Result<Vec<u8>, ApiError> {
-        let mesh = hdlod::io::read_mesh(&path)?;
+        let (mesh, texture) = hdlod::io::read_textured_mesh(&path)?;
         let tree = &s.tree;
         let tables = tree.objects.as_ref().expect("checked above");
         let default = Profile::default();
@@ -205,6 +205,7 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
         let state = t.map(|t| content::State { profile, t });
         Ok(content::content(
             &mesh,
+            texture.as_ref(),
             tree.dynamic_object(id),
             tables,
             state,

@@ -70,6 +70,11 @@ struct Render {
     clusters: u64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     leaves: Option<u64>,
+    /// GLB bytes of the distinct geometry drawn, textures included.
+    bytes: u64,
+    /// Of those, the textures' PNG bytes.
+    #[serde(rename = "textureBytes")]
+    texture_bytes: u64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -135,16 +140,18 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.width, report.height, report.pixel_error
     );
     println!(
-        "| time | screen | cut triangles | full triangles | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) |"
+        "| time | screen | cut triangles | full triangles | cut bytes (textures) | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) |"
     );
-    println!("|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|");
     for c in &report.cells {
         println!(
-            "| {} | {} | {} | {} | {} | {:.2}% | {:.2}% | {} |",
+            "| {} | {} | {} | {} | {} ({}) | {} | {:.2}% | {:.2}% | {} |",
             c.time,
             c.screen,
             c.cut.triangles,
             c.full.triangles,
+            c.cut.bytes,
+            c.cut.texture_bytes,
             c.scene_pixels,
             100.0 * c.share16,
             100.0 * c.share48,

@@ -108,13 +108,20 @@ fn write(
                     .geometry
                     .as_ref()
                     .context("a tile with content has geometry")?;
-                let mesh =
-                    hdlod::io::read_mesh(&tree_dir.join(GEOMETRY_DIR).join(format!("{hash}.glb")))?;
+                let (mesh, texture) = hdlod::io::read_textured_mesh(
+                    &tree_dir.join(GEOMETRY_DIR).join(format!("{hash}.glb")),
+                )?;
                 let state = status.then(|| content::State {
                     profile: tables.appearance().unwrap_or(&default),
                     t: slice.time,
                 });
-                let glb = content::content(&mesh, tree.dynamic_object(id), tables, state);
+                let glb = content::content(
+                    &mesh,
+                    texture.as_ref(),
+                    tree.dynamic_object(id),
+                    tables,
+                    state,
+                );
                 fs::write(&to, glb).with_context(|| to.display().to_string())?;
             }
             None => {
