@@ -127,14 +127,13 @@ fn a_notch_between_two_triangles_is_not_taken_for_a_convex_pair() {
 }
 
 #[test]
-fn a_sliver_along_the_edge_of_a_notched_pair_is_bounded_by_its_height() {
+fn a_sliver_along_the_edge_of_a_notched_pair_is_bounded_within_the_tolerance() {
     // The arrowhead of the notch test, and 0.1 above it a long thin
     // triangle lying along the shared edge, two corners over one half and
     // one over the other, 0.112 from the first: the pair is not convex,
-    // and no one half is within the tolerance of every corner, so it is
-    // the sliver cut along the shared edge that settles it. The bound
-    // stays a bound (every sampled point is within it) and is within the
-    // tolerance of the true 0.1.
+    // and no one half is within the tolerance of every corner, so the
+    // search must split it. The bound stays a bound (every sampled point
+    // is within it) and is within the tolerance of the true 0.1.
     let b = mesh(
         &[
             [0.0, 0.0, 0.0],

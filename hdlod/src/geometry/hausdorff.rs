@@ -298,14 +298,7 @@ impl Ord for Open {
 ///   function's, so its maximum over `c` is at most the corners' largest
 ///   plus `2 delta`. A rectangle's two halves (every face of a box, a wall,
 ///   a slab) are such a pair; without this bound a triangle of A lying
-///   across their diagonal is split along it down to the tolerance;
-/// - for two triangles that share an edge, convex or not, flat or folded:
-///   `c` cut in two along their edge, each piece held to one of them (see
-///   `split_pair`). Faces of real models are fans of long slivers (a steel
-///   profile's flange, a plate with chamfers), whose neighbours make no
-///   convex pair; a triangle of A lying along such a shared edge was split
-///   until its length, not its width, came within the tolerance: hundreds
-///   of thousands of pieces for one 7 m column.
+///   across their diagonal is split along it down to the tolerance.
 fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 3]) -> f32 {
     let lipschitz = (0..3)
         .map(|i| {
@@ -335,72 +328,8 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
             best =
                 best.min(union_bound(b, c, d, nearest, &[t, u], best - 2.0 * delta) + 2.0 * delta);
         }
-        best = split_pair(b, (t, u), c, d, nearest, best);
     }
     best
-}
-
-/// A bound of `d(p, B)` over `c` from two triangles `t` and `u` of B that
-/// share an edge, at most `best`: a plane through that edge cuts `c` into
-/// two convex pieces, `d(., t)` bounds `d(., B)` on `t`'s side and
-/// `d(., u)` on `u`'s, and each is convex, so each piece's largest is at
-/// one of its corners: `c`'s corners on that side and the points where
-/// `c`'s edges cross the plane. Any plane would give a bound; the one
-/// through the shared edge and the triangles' mean normal makes it tight
-/// where `c` lies along the edge over both, flat or folded, convex or not.
-/// No inside test decides the argument, so a corner on the rim of B (the
-/// edge of a box) is no case apart.
-fn split_pair(
-    b: &TriangleSet,
-    (t, u): (u32, u32),
-    c: &[Vec3; 3],
-    d: &[f32; 3],
-    nearest: &[u32; 3],
-    best: f32,
-) -> f32 {
-    let tc = b.corners(t);
-    let uc = b.corners(u);
-    let mut shared = (0..3).filter(|&k| uc.contains(&tc[k]));
-    let (Some(k0), Some(k1), None) = (shared.next(), shared.next(), shared.next()) else {
-        return best;
-    };
-    let (p, q, r) = (tc[k0], tc[k1], tc[3 - k0 - k1]);
-    let Some(s) = uc.iter().find(|x| **x != p && **x != q) else {
-        return best;
-    };
-    let nt = (q - p).cross(r - p).normalize_or_zero();
-    // `u` is wound either way: its normal turned to `t`'s side.
-    let nu = (q - p).cross(p - *s).normalize_or_zero();
-    let m = (q - p).cross(nt + nu);
-    let m = if m.dot(r - p) < 0.0 { -m } else { m };
-    let side = c.map(|x| m.dot(x - p));
-    let distance = |x: Vec3, on: u32, k: Option<usize>| match k {
-        Some(k) if nearest[k] == on => d[k],
-        _ => b.distance_to(x, on),
-    };
-    let mut worst = 0.0f32;
-    for k in 0..3 {
-        // A corner on the plane belongs to both pieces.
-        if side[k] >= 0.0 {
-            worst = worst.max(distance(c[k], t, Some(k)));
-        }
-        if side[k] <= 0.0 {
-            worst = worst.max(distance(c[k], u, Some(k)));
-        }
-        if worst >= best {
-            return best;
-        }
-    }
-    for (i, j) in [(0, 1), (1, 2), (2, 0)] {
-        if (side[i] > 0.0 && side[j] < 0.0) || (side[i] < 0.0 && side[j] > 0.0) {
-            let x = c[i] + (c[j] - c[i]) * (side[i] / (side[i] - side[j])).clamp(0.0, 1.0);
-            worst = worst.max(distance(x, t, None)).max(distance(x, u, None));
-            if worst >= best {
-                return best;
-            }
-        }
-    }
-    worst
 }
 
 /// If triangles `t` and `u` of B share an edge and, with `u` projected onto
