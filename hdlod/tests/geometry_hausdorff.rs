@@ -127,6 +127,42 @@ fn a_notch_between_two_triangles_is_not_taken_for_a_convex_pair() {
 }
 
 #[test]
+fn a_sliver_along_the_edge_of_a_notched_pair_is_bounded_within_the_tolerance() {
+    // The arrowhead of the notch test, and 0.1 above it a long thin
+    // triangle lying along the shared edge, two corners over one half and
+    // one over the other, 0.112 from the first: the pair is not convex,
+    // and no one half is within the tolerance of every corner, so the
+    // search must split it. The bound stays a bound (every sampled point
+    // is within it) and is within the tolerance of the true 0.1.
+    let b = mesh(
+        &[
+            [0.0, 0.0, 0.0],
+            [1.0, 0.0, 0.0],
+            [1.5, 0.5, 0.0],
+            [1.5, -0.5, 0.0],
+        ],
+        &[0, 1, 2, 0, 3, 1],
+    );
+    let a = mesh(
+        &[[0.05, 0.001, 0.1], [0.95, 0.002, 0.1], [0.5, -0.05, 0.1]],
+        &[0, 1, 2],
+    );
+    for tolerance in [1e-2, 1e-4] {
+        let h = hausdorff(&a, &b, &opts(tolerance));
+        assert!(h.ab >= 0.1 && h.ab <= 0.1 + tolerance + 1e-5, "{h:?}");
+        let within = bound_within(&a, &b, tolerance, 10.0, ErrorMetric::Geometry).unwrap();
+        assert!(within >= h.lower && within <= h.bound + tolerance, "{within} {h:?}");
+        let picks: Vec<(usize, f32, f32)> = (0..200)
+            .map(|k| (0, (k % 20) as f32 / 20.0, (k / 20) as f32 / 10.0))
+            .collect();
+        for p in points_on(&a, &picks) {
+            let d = brute_distance(p, &b);
+            assert!(d <= h.ab && d <= within, "{d} {h:?}");
+        }
+    }
+}
+
+#[test]
 fn a_valley_between_two_triangles_counts_their_fold() {
     // Two faces rising at a slope of 0.5 away from their shared edge (the
     // y axis): a triangle 0.5 above has its corners over the faces, 0.27

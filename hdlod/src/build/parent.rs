@@ -136,6 +136,10 @@ fn stored_eps(
     metric: ErrorMetric,
 ) -> f64 {
     let recursive = f64::from(h) + child_eps;
+    // Nothing removed: no direct bound could go below the children's.
+    if h == 0.0 {
+        return recursive;
+    }
     originals.map_or(recursive, |o| {
         direct_eps(mesh, o, tolerance, recursive, metric)
             .map_or(recursive, |direct| direct.min(recursive))

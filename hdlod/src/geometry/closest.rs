@@ -123,6 +123,13 @@ pub struct TriangleSet {
     bvh: Option<Bvh2>,
 }
 
+thread_local! {
+    /// The traversal stack of `TriangleSet::nearest`, kept per thread: the
+    /// Hausdorff search makes millions of queries, and a stack allocated
+    /// per query put the allocator high in a tree build's profile.
+    static STACK: std::cell::RefCell<Vec<(u32, f32)>> = const { std::cell::RefCell::new(Vec::new()) };
+}
+
 /// The result of a nearest query: the squared distance and the triangle
 /// (an opaque handle to pass back as a hint).
 #[derive(Clone, Copy, Debug)]
@@ -323,34 +330,36 @@ impl TriangleSet {
             return (best.triangle != u32::MAX).then_some(best);
         };
         let nodes = &bvh.nodes;
-        let mut stack: Vec<(u32, f32)> = Vec::with_capacity(64);
-        stack.push((0, box_distance_squared(p, nodes[0].aabb())));
-        while let Some((index, d)) = stack.pop() {
-            if d >= best.distance_squared {
-                continue;
-            }
-            let node = &nodes[index as usize];
-            if node.is_leaf() {
-                let first = node.first_index as usize;
-                for i in first..first + node.prim_count as usize {
-                    visit(i, &mut best);
+        STACK.with_borrow_mut(|stack| {
+            stack.clear();
+            stack.push((0, box_distance_squared(p, nodes[0].aabb())));
+            while let Some((index, d)) = stack.pop() {
+                if d >= best.distance_squared {
+                    continue;
                 }
-                continue;
+                let node = &nodes[index as usize];
+                if node.is_leaf() {
+                    let first = node.first_index as usize;
+                    for i in first..first + node.prim_count as usize {
+                        visit(i, &mut best);
+                    }
+                    continue;
+                }
+                let left = node.first_index;
+                let right = left + 1;
+                let dl = box_distance_squared(p, nodes[left as usize].aabb());
+                let dr = box_distance_squared(p, nodes[right as usize].aabb());
+                // The nearer child is pushed last so that it is searched first
+                // and shrinks the radius for its sibling.
+                if dl < dr {
+                    stack.push((right, dr));
+                    stack.push((left, dl));
+                } else {
+                    stack.push((left, dl));
+                    stack.push((right, dr));
+                }
             }
-            let left = node.first_index;
-            let right = left + 1;
-            let dl = box_distance_squared(p, nodes[left as usize].aabb());
-            let dr = box_distance_squared(p, nodes[right as usize].aabb());
-            // The nearer child is pushed last so that it is searched first
-            // and shrinks the radius for its sibling.
-            if dl < dr {
-                stack.push((right, dr));
-                stack.push((left, dl));
-            } else {
-                stack.push((left, dl));
-                stack.push((right, dr));
-            }
-        }
+        });
         (best.triangle != u32::MAX).then_some(best)
     }
 }

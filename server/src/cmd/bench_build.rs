@@ -1,6 +1,8 @@
 //! `hdlod bench build`: build time per object as the scene grows, to show
-//! the builder's n log n growth (issue: the scaling benchmark). Writes the
-//! table and an SVG plot into docs/.
+//! the builder's n log n growth (issue: the scaling benchmark), the table
+//! and an SVG plot into docs/ on request; or, given a scene, that scene's
+//! build repeated: median wall and CPU time and the peak memory, the
+//! figures the build's speed targets are stated in.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -13,12 +15,19 @@ use serde::Serialize;
 
 #[derive(clap::Args)]
 pub struct Args {
+    /// A scene (a directory with scene.json, or the file) to build
+    /// `--repeats` times instead of the scaling series.
+    scene: Option<PathBuf>,
+    /// Builds of SCENE; the medians are reported.
+    #[arg(long, default_value_t = 3)]
+    repeats: usize,
     /// Storeys of the paper's tower to build (about 830 objects each).
     #[arg(long, value_delimiter = ',', default_value = "12,24,48,96")]
     storeys: Vec<usize>,
-    /// Where the trees are built (removed afterwards).
-    #[arg(long, default_value = "out/bench-build")]
-    work: PathBuf,
+    /// Where the trees are built (removed afterwards); by default a
+    /// directory in the system's temporary directory.
+    #[arg(long)]
+    work: Option<PathBuf>,
     /// Write the table into this markdown file (between the markers
     /// `<!-- build-scaling -->` and `<!-- /build-scaling -->`) and the plot
     /// beside it as build-scaling.svg.
@@ -39,6 +48,12 @@ struct Row {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
+    let work = args.work.clone().unwrap_or_else(|| {
+        std::env::temp_dir().join(format!("hdlod-bench-build-{}", std::process::id()))
+    });
+    if let Some(scene) = &args.scene {
+        return repeated(&args, scene, &work);
+    }
     let mut rows = Vec::new();
     for &storeys in &args.storeys {
         let scene = skyscraper(Scale::Storeys(storeys), 1);
@@ -47,7 +62,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             .iter()
             .map(|o| scene.meshes[o.mesh].triangle_count())
             .sum();
-        let out = args.work.join(format!("storeys-{storeys}"));
+        let out = work.join(format!("storeys-{storeys}"));
         let started = Instant::now();
         let (tree, _) = build_to(&scene, &BuildConfig::default(), &out, &Silent)
             .with_context(|| format!("building {}", out.display()))?;
@@ -81,6 +96,118 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         replace_section(doc, "build-scaling", &table)?;
     }
     Ok(())
+}
+
+/// One build of a scene: wall time, and the CPU time (user and system,
+/// every thread) of this process over it.
+#[derive(Serialize)]
+struct Run {
+    wall_seconds: f64,
+    cpu_seconds: f64,
+}
+
+/// What `--json` prints for a scene.
+#[derive(Serialize)]
+struct Repeated {
+    scene: String,
+    objects: usize,
+    triangles: usize,
+    clusters: usize,
+    runs: Vec<Run>,
+    median_wall_seconds: f64,
+    median_cpu_seconds: f64,
+    /// The process's peak resident set over every build (and the scene's
+    /// load), in bytes.
+    peak_rss_bytes: u64,
+}
+
+fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
+    anyhow::ensure!(args.repeats > 0, "--repeats must be at least 1");
+    let scene = hdlod::scene::format::load(path)
+        .with_context(|| format!("cannot load the scene {}", path.display()))?;
+    let triangles = scene
+        .objects
+        .iter()
+        .map(|o| scene.meshes[o.mesh].triangle_count())
+        .sum();
+    let out = work.join("tree");
+    let mut runs = Vec::new();
+    let mut clusters = 0;
+    for k in 0..args.repeats {
+        let (cpu, started) = (cpu_seconds(), Instant::now());
+        let (tree, _) = build_to(&scene, &BuildConfig::default(), &out, &Silent)
+            .with_context(|| format!("building {}", out.display()))?;
+        let run = Run {
+            wall_seconds: started.elapsed().as_secs_f64(),
+            cpu_seconds: cpu_seconds() - cpu,
+        };
+        clusters = tree.clusters.len();
+        drop(tree);
+        std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
+        if !args.json {
+            eprintln!(
+                "build {}/{}: {:.2} s wall, {:.2} s CPU",
+                k + 1,
+                args.repeats,
+                run.wall_seconds,
+                run.cpu_seconds
+            );
+        }
+        runs.push(run);
+    }
+    let _ = std::fs::remove_dir(work);
+    let median = |f: fn(&Run) -> f64| {
+        let mut v: Vec<f64> = runs.iter().map(f).collect();
+        v.sort_by(f64::total_cmp);
+        v[v.len() / 2]
+    };
+    let report = Repeated {
+        scene: scene.name.clone(),
+        objects: scene.objects.len(),
+        triangles,
+        clusters,
+        median_wall_seconds: median(|r| r.wall_seconds),
+        median_cpu_seconds: median(|r| r.cpu_seconds),
+        peak_rss_bytes: peak_rss_bytes(),
+        runs,
+    };
+    if args.json {
+        println!("{}", serde_json::to_string_pretty(&report)?);
+    } else {
+        println!(
+            "{}: {} objects, {} triangles, {} clusters; median of {}: {:.2} s wall, {:.2} s CPU; peak {:.0} MiB",
+            report.scene,
+            report.objects,
+            report.triangles,
+            report.clusters,
+            args.repeats,
+            report.median_wall_seconds,
+            report.median_cpu_seconds,
+            report.peak_rss_bytes as f64 / (1024.0 * 1024.0)
+        );
+    }
+    Ok(())
+}
+
+fn usage() -> libc::rusage {
+    // SAFETY: `getrusage` only writes the struct it is given.
+    unsafe {
+        let mut usage: libc::rusage = std::mem::zeroed();
+        libc::getrusage(libc::RUSAGE_SELF, &mut usage);
+        usage
+    }
+}
+
+/// User and system time of every thread of this process so far.
+fn cpu_seconds() -> f64 {
+    let u = usage();
+    let seconds = |t: libc::timeval| t.tv_sec as f64 + t.tv_usec as f64 * 1e-6;
+    seconds(u.ru_utime) + seconds(u.ru_stime)
+}
+
+/// The peak resident set of this process so far (Linux gives kilobytes).
+fn peak_rss_bytes() -> u64 {
+    usage().ru_maxrss.max(0) as u64 * 1024
 }
 
 /// The table, with the growth exponent between consecutive sizes:
