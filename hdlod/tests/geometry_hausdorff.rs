@@ -151,7 +151,10 @@ fn a_sliver_along_the_edge_of_a_notched_pair_is_bounded_within_the_tolerance() {
         let h = hausdorff(&a, &b, &opts(tolerance));
         assert!(h.ab >= 0.1 && h.ab <= 0.1 + tolerance + 1e-5, "{h:?}");
         let within = bound_within(&a, &b, tolerance, 10.0, ErrorMetric::Geometry).unwrap();
-        assert!(within >= h.lower && within <= h.bound + tolerance, "{within} {h:?}");
+        assert!(
+            within >= h.lower && within <= h.bound + tolerance,
+            "{within} {h:?}"
+        );
         let picks: Vec<(usize, f32, f32)> = (0..200)
             .map(|k| (0, (k % 20) as f32 / 20.0, (k / 20) as f32 / 10.0))
             .collect();
