@@ -393,8 +393,8 @@ mod tests {
         assert_eq!(closest_point_on_triangle(p, a, a, a), a);
     }
 
-    #[test]
-    fn triangles_within_a_radius_are_all_visited() {
+    /// 400 small triangles on a staggered grid: enough for a BVH.
+    fn grid() -> Vec<[Vec3; 3]> {
         let mut tris = Vec::new();
         for i in 0..20 {
             for j in 0..20 {
@@ -402,6 +402,12 @@ mod tests {
                 tris.push([o, o + Vec3::X, o + Vec3::Z]);
             }
         }
+        tris
+    }
+
+    #[test]
+    fn triangles_within_a_radius_are_all_visited() {
+        let tris = grid();
         let set = TriangleSet::new(tris.iter().copied());
         let p = Vec3::new(7.3, 0.5, 11.2);
         for radius in [0.1, 1.0, 3.5] {
@@ -458,13 +464,7 @@ mod tests {
 
     #[test]
     fn bvh_search_matches_linear_scan() {
-        let mut tris = Vec::new();
-        for i in 0..20 {
-            for j in 0..20 {
-                let o = Vec3::new(i as f32, (i * j % 7) as f32 * 0.3, j as f32);
-                tris.push([o, o + Vec3::X, o + Vec3::Z]);
-            }
-        }
+        let tris = grid();
         let set = TriangleSet::new(tris.iter().copied());
         assert!(set.bvh.is_some());
         for k in 0..200 {
