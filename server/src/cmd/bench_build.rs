@@ -48,9 +48,20 @@ struct Row {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let work = args.work.clone().unwrap_or_else(|| {
-        std::env::temp_dir().join(format!("hdlod-bench-build-{}", std::process::id()))
-    });
+    // Removed when dropped, killed runs aside; made only without --work.
+    let temp = match &args.work {
+        Some(_) => None,
+        None => Some(
+            tempfile::Builder::new()
+                .prefix("hdlod-bench-build-")
+                .tempdir()?,
+        ),
+    };
+    let work = match (&args.work, &temp) {
+        (Some(w), _) => w.clone(),
+        (None, Some(t)) => t.path().to_owned(),
+        (None, None) => unreachable!("a temporary directory without --work"),
+    };
     if let Some(scene) = &args.scene {
         return repeated(&args, scene, &work);
     }
