@@ -5,7 +5,7 @@
 use crate::Result;
 use crate::geometry::Mesh;
 use crate::geometry::bake::Baked;
-use crate::io::glb::{mesh_to_glb, textured_mesh_to_glb};
+use crate::io::glb::{Encoding, encoded_mesh_to_glb};
 use crate::io::texture::textured;
 use crate::tree::TreeWriter;
 
@@ -21,9 +21,9 @@ impl GeometrySink for TreeWriter {
         let glb = match baked {
             Some(b) => {
                 let (drawn, texture) = textured(mesh, b);
-                textured_mesh_to_glb(&drawn, Some(&texture))
+                encoded_mesh_to_glb(&drawn, Some(&texture), Encoding::Compact)
             }
-            None => mesh_to_glb(mesh),
+            None => encoded_mesh_to_glb(mesh, None, Encoding::Compact),
         };
         self.put_geometry(&glb)
     }

@@ -42,7 +42,24 @@ compile_error!("the GLB writer copies memory as little-endian bytes");
 /// The mesh should pass [`Mesh::validate`]; an empty mesh gives a GLB with
 /// an empty scene.
 pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
-    glb_with_features(mesh, None, None)
+    glb_with_features(mesh, None, None, Encoding::Plain)
+}
+
+/// How a GLB stores its vertex data.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Encoding {
+    /// `f32` attributes and `u32` indices: any glTF 2.0 reader.
+    Plain,
+    /// Quantized attributes (`KHR_mesh_quantization`) compressed by
+    /// meshoptimizer's codecs (`EXT_meshopt_compression`); what a tree
+    /// stores ([`super::compact`]).
+    #[default]
+    Compact,
+}
+
+/// [`textured_mesh_to_glb`] in the given encoding.
+pub fn encoded_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>, encoding: Encoding) -> Vec<u8> {
+    glb_with_features(mesh, texture, None, encoding)
 }
 
 /// [`mesh_to_glb`] with a colour texture: `TEXCOORD_0` from its
@@ -50,7 +67,7 @@ pub fn mesh_to_glb(mesh: &Mesh) -> Vec<u8> {
 /// `baseColorTexture`, which `COLOR_0` multiplies (glTF 2.0, section
 /// 3.9.2), sampled linearly and clamped at the edges.
 pub fn textured_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>) -> Vec<u8> {
-    glb_with_features(mesh, texture, None)
+    glb_with_features(mesh, texture, None, Encoding::Plain)
 }
 
 /// [`textured_mesh_to_glb`] with a property table (`EXT_structural_metadata`) whose
@@ -60,30 +77,49 @@ pub fn mesh_to_glb_with_table(
     mesh: &Mesh,
     texture: Option<&Texture>,
     table: &PropertyTable,
+    encoding: Encoding,
 ) -> Vec<u8> {
-    glb_with_features(mesh, texture, Some(table))
+    glb_with_features(mesh, texture, Some(table), encoding)
 }
 
 fn glb_with_features(
     mesh: &Mesh,
     texture: Option<&Texture>,
     table: Option<&PropertyTable>,
+    encoding: Encoding,
 ) -> Vec<u8> {
     let mesh = &*unit_normals(mesh);
+    let (local, centre) = centred(mesh);
+    glb_at(&local, centre, texture, table, encoding)
+}
+
+/// The GLB of `local`, a mesh placed at `centre` (its node's translation).
+pub(crate) fn glb_at(
+    local: &Mesh,
+    centre: Vec3,
+    texture: Option<&Texture>,
+    table: Option<&PropertyTable>,
+    encoding: Encoding,
+) -> Vec<u8> {
     let mut glb = GlbBuilder::new();
     let mut nodes = Vec::new();
     let mut features = None;
-    if !mesh.is_empty() {
-        let (local, centre) = centred(mesh);
-        let mut accessors = glb.add_mesh(&local);
+    if !local.is_empty() {
+        let (mut accessors, scale) = match encoding {
+            Encoding::Plain => (glb.add_mesh(local), 1.0),
+            Encoding::Compact => glb.add_compact_mesh(local),
+        };
         let texture = texture.map(|t| {
-            accessors.uvs = Some(glb.add_uvs(&t.uvs));
+            accessors.uvs = Some(match encoding {
+                Encoding::Plain => glb.add_uvs(&t.uvs),
+                Encoding::Compact => glb.add_compact_uvs(&t.uvs),
+            });
             glb.add_texture(&t.png)
         });
         let material = glb.double_sided_material(texture);
         let m = glb.add_primitive(&accessors, Some(material));
         features = accessors.features.map(|(_, count)| (m.value(), count));
-        nodes.push(glb.add_node_at(m, centre));
+        nodes.push(glb.add_node_at(m, centre, scale));
     }
     let Some((m, count)) = features else {
         return glb.finish(nodes);
@@ -221,7 +257,7 @@ fn lod_to_glb(levels: &[Mesh], coverage: &[f32]) -> Vec<u8> {
             let (local, centre) = centred(mesh);
             let accessors = glb.add_mesh(&local);
             let m = glb.add_primitive(&accessors, None);
-            glb.add_node_at(m, centre)
+            glb.add_node_at(m, centre, 1.0)
         })
         .collect();
     let lower: Vec<usize> = nodes[1..].iter().map(|n| n.value()).collect();
@@ -298,7 +334,7 @@ fn centred(mesh: &Mesh) -> (std::borrow::Cow<'_, Mesh>, Vec3) {
 /// none) always have them: they are normalised, and a normal of zero
 /// length becomes the normal of a triangle at its vertex (+z if none has
 /// one).
-fn unit_normals(mesh: &Mesh) -> std::borrow::Cow<'_, Mesh> {
+pub(crate) fn unit_normals(mesh: &Mesh) -> std::borrow::Cow<'_, Mesh> {
     let unit = |n: &Vec3| (n.length() - 1.0).abs() <= 1e-4;
     if mesh.normals.iter().all(unit) {
         return std::borrow::Cow::Borrowed(mesh);
@@ -321,22 +357,26 @@ fn unit_normals(mesh: &Mesh) -> std::borrow::Cow<'_, Mesh> {
 /// The accessors of one mesh written into the buffer.
 #[derive(Debug, Clone, Copy)]
 pub(crate) struct MeshAccessors {
-    positions: json::Index<json::Accessor>,
-    normals: Option<json::Index<json::Accessor>>,
-    colors: Option<json::Index<json::Accessor>>,
+    pub(super) positions: json::Index<json::Accessor>,
+    pub(super) normals: Option<json::Index<json::Accessor>>,
+    pub(super) colors: Option<json::Index<json::Accessor>>,
     /// Texture coordinates, set by the caller that adds a texture.
-    uvs: Option<json::Index<json::Accessor>>,
+    pub(super) uvs: Option<json::Index<json::Accessor>>,
     /// The feature ids and how many distinct ones there are.
-    features: Option<(json::Index<json::Accessor>, usize)>,
-    indices: json::Index<json::Accessor>,
+    pub(super) features: Option<(json::Index<json::Accessor>, usize)>,
+    pub(super) indices: json::Index<json::Accessor>,
 }
 
 /// Builds one GLB: meshes into the binary chunk, then primitives, materials
 /// and nodes that refer to them.
 pub(crate) struct GlbBuilder {
-    root: json::Root,
-    bin: Vec<u8>,
+    pub(super) root: json::Root,
+    pub(super) bin: Vec<u8>,
     materials: HashMap<[u32; 4], json::Index<json::Material>>,
+    /// The compressed views' `EXT_meshopt_compression` objects, by view.
+    pub(super) compressed: Vec<(usize, serde_json::Value)>,
+    /// The byte length of the fallback buffer, the views decompressed.
+    pub(super) fallback: usize,
 }
 
 impl GlbBuilder {
@@ -347,6 +387,8 @@ impl GlbBuilder {
             root,
             bin: Vec::new(),
             materials: HashMap::new(),
+            compressed: Vec::new(),
+            fallback: 0,
         }
     }
 
@@ -464,7 +506,7 @@ impl GlbBuilder {
         })
     }
 
-    fn accessor(
+    pub(super) fn accessor(
         &mut self,
         bytes: &[u8],
         count: usize,
@@ -536,7 +578,7 @@ impl GlbBuilder {
     }
 
     /// Appends `bytes` to the buffer where it ends now, as a buffer view.
-    fn push_view(
+    pub(super) fn push_view(
         &mut self,
         bytes: &[u8],
         target: Option<json::validation::Checked<json::buffer::Target>>,
@@ -635,15 +677,18 @@ impl GlbBuilder {
     }
 
     /// A node placing `mesh` at `translation` (its local origin), none
-    /// when that is zero.
+    /// when that is zero, scaled by `scale` (the quantization's), none when
+    /// that is one.
     fn add_node_at(
         &mut self,
         mesh: json::Index<json::Mesh>,
         translation: Vec3,
+        scale: f32,
     ) -> json::Index<json::Node> {
         self.root.push(json::Node {
             mesh: Some(mesh),
             translation: (translation != Vec3::ZERO).then(|| translation.to_array()),
+            scale: (scale != 1.0).then_some([scale; 3]),
             ..Default::default()
         })
     }
@@ -659,6 +704,7 @@ impl GlbBuilder {
         self.close(nodes);
         let mut value = serde_json::to_value(&self.root).expect("glTF JSON serialises");
         edit(&mut value);
+        super::compact::declare(&mut value, &self.compressed, self.fallback);
         let json_bytes = serde_json::to_vec(&value).expect("JSON serialises");
         let mut out = Vec::with_capacity(json_bytes.len() + self.bin.len() + 40);
         write_container(&mut out, &json_bytes, &self.bin).expect("writing to a Vec cannot fail");
@@ -687,6 +733,9 @@ impl GlbBuilder {
 
     /// The GLB bytes, with `nodes` as the roots of the one scene.
     pub(crate) fn finish(mut self, nodes: Vec<json::Index<json::Node>>) -> Vec<u8> {
+        if !self.compressed.is_empty() {
+            return self.finish_with(nodes, |_| {});
+        }
         self.close(nodes);
         let json_bytes = json::serialize::to_vec(&self.root).expect("glTF JSON serialises");
         let mut out = Vec::with_capacity(json_bytes.len() + self.bin.len() + 40);

@@ -124,6 +124,13 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
     let invalid =
         |e: gltf::Error| Error::invalid(path, "glTF", format!("not a valid glTF/GLB file: {e}"));
     glb_length_fits(&bytes).map_err(|m| Error::invalid(path, "GLB header", m))?;
+    // The compact form (a tree's cluster GLBs) is read as its plain form:
+    // the gltf crate decodes neither of its extensions.
+    let bytes = match crate::io::compact::plain(&bytes) {
+        Ok(std::borrow::Cow::Owned(plain)) => plain,
+        Ok(std::borrow::Cow::Borrowed(_)) => bytes,
+        Err(m) => return Err(Error::invalid(path, "EXT_meshopt_compression", m)),
+    };
     let gltf::Gltf { document, blob } =
         gltf::Gltf::from_slice_without_validation(&bytes).map_err(invalid)?;
     drop(bytes);

@@ -2,6 +2,7 @@
 //! out ([`obj`]), PLY in ([`ply`]), a mesh's colour texture ([`texture`]);
 //! [`read_mesh`] picks the reader by the file's extension.
 
+pub mod compact;
 pub mod glb;
 pub mod gltf;
 pub mod obj;

@@ -17,7 +17,9 @@
 //! ids: the tree names its object, which all its vertices take.
 
 use crate::geometry::Mesh;
-use crate::io::glb::{Column, PropertyTable, mesh_to_glb_with_table, textured_mesh_to_glb};
+use crate::io::glb::{
+    Column, Encoding, PropertyTable, mesh_to_glb_with_table, textured_mesh_to_glb,
+};
 use crate::io::texture::Texture;
 use crate::scene::appearance::Look;
 use crate::scene::{Profile, property};
@@ -61,7 +63,12 @@ pub fn content(
         }
         distinct
     };
-    mesh_to_glb_with_table(&mesh, texture, &table(&objects, tables, state))
+    mesh_to_glb_with_table(
+        &mesh,
+        texture,
+        &table(&objects, tables, state),
+        Encoding::Plain,
+    )
 }
 
 fn table(objects: &[u32], tables: &ObjectTables, state: Option<State>) -> PropertyTable {

@@ -1,0 +1,648 @@
+//! The compact form of a cluster GLB, the one a tree stores: attributes
+//! quantized after `KHR_mesh_quantization`
+//! (<https://github.com/KhronosGroup/glTF/tree/main/extensions/2.0/Khronos/KHR_mesh_quantization>)
+//! and every vertex and index view compressed by meshoptimizer's codecs
+//! after `EXT_meshopt_compression`
+//! (<https://github.com/KhronosGroup/glTF/tree/main/extensions/2.0/Vendor/EXT_meshopt_compression>),
+//! and the way back to the plain form for readers without either.
+//!
+//! Quantization: positions are normalized `SHORT` of the mesh's largest
+//! half extent `s` around its bounds' centre (the node's uniform `scale` and
+//! `translation`), so a position moves by at most `s / 65534` along each
+//! axis; normals normalized `BYTE`, colours normalized `UNSIGNED_BYTE`,
+//! texture coordinates normalized `UNSIGNED_SHORT`. Feature ids stay `FLOAT`
+//! (exact, and a run of equal ids costs the vertex codec almost nothing),
+//! indices `UNSIGNED_SHORT` below 65,536 vertices. Each vertex stream is
+//! padded to a multiple of 4 bytes, as both extensions ask.
+//!
+//! Compression: the compressed streams are the GLB's binary chunk (buffer
+//! 0); the views point into buffer 1, a fallback buffer without data, so
+//! the file requires the extension. Vertex streams use the `ATTRIBUTES`
+//! mode (codec version 0, the one `EXT_meshopt_compression` names),
+//! indices the `TRIANGLES` mode. Both codecs are lossless, except that the
+//! index codec may rotate a triangle's corners (keeping its winding and
+//! the triangles' order): the plain form ([`plain`]) holds exactly the
+//! quantized values, as `f32`.
+
+use std::borrow::Cow;
+
+use glam::{Vec2, Vec3};
+use gltf::json::{self, validation::Checked::Valid, validation::USize64};
+use serde_json::Value;
+
+use super::glb::{Encoding, GlbBuilder, MeshAccessors, glb_at, unit_normals};
+use super::texture::Texture;
+use crate::geometry::Mesh;
+
+const MESHOPT: &str = "EXT_meshopt_compression";
+const QUANTIZATION: &str = "KHR_mesh_quantization";
+
+/// The largest value of a normalized signed short.
+const SHORT: f32 = 32767.0;
+
+impl GlbBuilder {
+    /// [`GlbBuilder::add_mesh`] quantized and compressed; the scale of the
+    /// positions, the node's.
+    pub(super) fn add_compact_mesh(&mut self, mesh: &Mesh) -> (MeshAccessors, f32) {
+        let n = mesh.positions.len();
+        let extent = mesh
+            .positions
+            .iter()
+            .fold(0.0f32, |m, p| m.max(p.abs().max_element()));
+        let scale = if extent > 0.0 && extent.is_finite() {
+            extent
+        } else {
+            1.0
+        };
+        let positions: Vec<[i16; 4]> = mesh
+            .positions
+            .iter()
+            .map(|p| {
+                let q = (*p / scale * SHORT)
+                    .round()
+                    .clamp(Vec3::splat(-SHORT), Vec3::splat(SHORT));
+                [q.x as i16, q.y as i16, q.z as i16, 0]
+            })
+            .collect();
+        let (lo, hi) = positions
+            .iter()
+            .fold(([i16::MAX; 3], [i16::MIN; 3]), |(lo, hi), p| {
+                (
+                    std::array::from_fn(|k| lo[k].min(p[k])),
+                    std::array::from_fn(|k| hi[k].max(p[k])),
+                )
+            });
+        let positions = self.compressed_accessor(
+            bytemuck::cast_slice(&positions),
+            8,
+            n,
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::I16,
+            Some((lo.map(f32::from).to_vec(), hi.map(f32::from).to_vec())),
+        );
+        let normals = (!mesh.normals.is_empty()).then(|| {
+            let q: Vec<[i8; 4]> = mesh
+                .normals
+                .iter()
+                .map(|v| {
+                    let q = (*v * 127.0)
+                        .round()
+                        .clamp(Vec3::splat(-127.0), Vec3::splat(127.0));
+                    [q.x as i8, q.y as i8, q.z as i8, 0]
+                })
+                .collect();
+            self.compressed_accessor(
+                bytemuck::cast_slice(&q),
+                4,
+                n,
+                json::accessor::Type::Vec3,
+                json::accessor::ComponentType::I8,
+                None,
+            )
+        });
+        let colors = (!mesh.colors.is_empty()).then(|| {
+            let q: Vec<[u8; 4]> = mesh
+                .colors
+                .iter()
+                .map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
+                .collect();
+            self.compressed_accessor(
+                bytemuck::cast_slice(&q),
+                4,
+                n,
+                json::accessor::Type::Vec4,
+                json::accessor::ComponentType::U8,
+                None,
+            )
+        });
+        let features = (!mesh.features.is_empty()).then(|| {
+            let mut distinct = mesh.features.clone();
+            distinct.sort_unstable();
+            distinct.dedup();
+            let float: Vec<f32> = mesh.features.iter().map(|&f| f as f32).collect();
+            let accessor = self.compressed_accessor(
+                bytemuck::cast_slice(&float),
+                4,
+                n,
+                json::accessor::Type::Scalar,
+                json::accessor::ComponentType::F32,
+                None,
+            );
+            (accessor, distinct.len())
+        });
+        let indices = self.compressed_indices(&mesh.indices, n);
+        let accessors = MeshAccessors {
+            positions,
+            normals,
+            colors,
+            uvs: None,
+            features,
+            indices,
+        };
+        (accessors, scale)
+    }
+
+    /// Texture coordinates (in `[0, 1]`, as the baker's are) quantized and
+    /// compressed.
+    pub(super) fn add_compact_uvs(&mut self, uvs: &[Vec2]) -> json::Index<json::Accessor> {
+        let q: Vec<[u16; 2]> = uvs
+            .iter()
+            .map(|uv| {
+                uv.to_array()
+                    .map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16)
+            })
+            .collect();
+        self.compressed_accessor(
+            bytemuck::cast_slice(&q),
+            4,
+            uvs.len(),
+            json::accessor::Type::Vec2,
+            json::accessor::ComponentType::U16,
+            None,
+        )
+    }
+
+    /// A vertex accessor over `raw` (`count` elements of `stride` bytes),
+    /// its view compressed; integer components normalized.
+    fn compressed_accessor(
+        &mut self,
+        raw: &[u8],
+        stride: usize,
+        count: usize,
+        kind: json::accessor::Type,
+        component: json::accessor::ComponentType,
+        min_max: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
+        let encoded = encode_vertices(raw, stride);
+        let view = self.compressed_view(
+            raw.len(),
+            &encoded,
+            Some(stride),
+            count,
+            "ATTRIBUTES",
+            json::buffer::Target::ArrayBuffer,
+        );
+        let (min, max) = match min_max {
+            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            None => (None, None),
+        };
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: None,
+            type_: Valid(kind),
+            min,
+            max,
+            name: None,
+            normalized: component != json::accessor::ComponentType::F32,
+            sparse: None,
+        })
+    }
+
+    /// The index accessor, `u16` when the vertices allow, compressed.
+    fn compressed_indices(
+        &mut self,
+        indices: &[u32],
+        vertices: usize,
+    ) -> json::Index<json::Accessor> {
+        let encoded =
+            meshopt::encode_index_buffer(indices, vertices).expect("the indices are triangles");
+        let (size, component) = if vertices <= usize::from(u16::MAX) {
+            (2, json::accessor::ComponentType::U16)
+        } else {
+            (4, json::accessor::ComponentType::U32)
+        };
+        let view = self.compressed_view(
+            indices.len() * size,
+            &encoded,
+            None,
+            indices.len(),
+            "TRIANGLES",
+            json::buffer::Target::ElementArrayBuffer,
+        );
+        // The extension's stride of an index view is the index size.
+        let last = self.compressed.last_mut().expect("just pushed");
+        last.1["byteStride"] = size.into();
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(indices.len()),
+            component_type: Valid(json::accessor::GenericComponentType(component)),
+            extensions: None,
+            extras: None,
+            type_: Valid(json::accessor::Type::Scalar),
+            min: None,
+            max: None,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    /// A view of `length` bytes in the fallback buffer whose data is
+    /// `encoded`, appended to the binary chunk.
+    fn compressed_view(
+        &mut self,
+        length: usize,
+        encoded: &[u8],
+        stride: Option<usize>,
+        count: usize,
+        mode: &str,
+        target: json::buffer::Target,
+    ) -> json::Index<json::buffer::View> {
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(encoded);
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+        let at = self.fallback;
+        self.fallback = (at + length).next_multiple_of(4);
+        let view = self.root.push(json::buffer::View {
+            // Buffer 1, the fallback; the buffer count is fixed at the end.
+            buffer: json::Index::new(1),
+            byte_length: USize64::from(length),
+            byte_offset: Some(USize64::from(at)),
+            byte_stride: stride.map(json::buffer::Stride),
+            name: None,
+            target: Some(Valid(target)),
+            extensions: None,
+            extras: None,
+        });
+        let mut extension = serde_json::json!({
+            "buffer": 0,
+            "byteOffset": offset,
+            "byteLength": encoded.len(),
+            "count": count,
+            "mode": mode,
+        });
+        if let Some(stride) = stride {
+            extension["byteStride"] = stride.into();
+        }
+        self.compressed.push((view.value(), extension));
+        view
+    }
+}
+
+/// The extensions' part of the JSON of a GLB with `compressed` views (none
+/// for a plain GLB): each view's `EXT_meshopt_compression` object, the
+/// fallback buffer of `fallback` bytes, and both extensions used and
+/// required.
+pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback: usize) {
+    if compressed.is_empty() {
+        return;
+    }
+    for (view, extension) in compressed {
+        json["bufferViews"][*view]["extensions"] = serde_json::json!({ MESHOPT: extension });
+    }
+    let buffers = json["buffers"]
+        .as_array_mut()
+        .expect("a compressed GLB has its binary chunk's buffer");
+    buffers.push(serde_json::json!({
+        "byteLength": fallback,
+        "extensions": { MESHOPT: { "fallback": true } }
+    }));
+    for key in ["extensionsUsed", "extensionsRequired"] {
+        let mut list = json[key]
+            .as_array_mut()
+            .map(std::mem::take)
+            .unwrap_or_default();
+        for name in [MESHOPT, QUANTIZATION] {
+            if !list.iter().any(|v| v == name) {
+                list.push(name.into());
+            }
+        }
+        json[key] = Value::Array(list);
+    }
+}
+
+/// Encodes `raw`, elements of `stride` bytes, with the vertex codec at the
+/// version `EXT_meshopt_compression` decoders read.
+fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
+    fn with<T>(elements: &[T]) -> Vec<u8> {
+        meshopt::encode_vertex_buffer_level(elements, 2, Some(0)).expect("a vertex stream encodes")
+    }
+    match stride {
+        4 => with(bytemuck::cast_slice::<u8, [u8; 4]>(raw)),
+        8 => with(bytemuck::cast_slice::<u8, [u8; 8]>(raw)),
+        other => unreachable!("no vertex stream of {other} bytes is written"),
+    }
+}
+
+/// Whether a GLB uses either extension of the compact form, judged by its
+/// JSON's `extensionsUsed` (a file that is no GLB is not).
+pub fn is_compact(glb: &[u8]) -> bool {
+    gltf::binary::Glb::from_slice(glb)
+        .ok()
+        .and_then(|g| serde_json::from_slice::<Value>(&g.json).ok())
+        .and_then(|json| json.get("extensionsUsed").cloned())
+        .and_then(|used| used.as_array().cloned())
+        .is_some_and(|used| used.iter().any(|u| u == MESHOPT || u == QUANTIZATION))
+}
+
+/// The plain form of a GLB: a compact one decoded and written again with
+/// `f32` attributes and `u32` indices at the same translation, its texture
+/// as it is; any other GLB unchanged. Deterministic: the plain form of one
+/// compact file is always the same bytes. An error says what of the file
+/// could not be read.
+pub fn plain(glb: &[u8]) -> Result<Cow<'_, [u8]>, String> {
+    if !is_compact(glb) {
+        return Ok(Cow::Borrowed(glb));
+    }
+    let decoded = decode(glb)?;
+    let mesh = unit_normals(&decoded.mesh);
+    Ok(Cow::Owned(glb_at(
+        &mesh,
+        decoded.translation,
+        decoded.texture.as_ref(),
+        None,
+        Encoding::Plain,
+    )))
+}
+
+/// A compact GLB's one mesh in its node's frame (scaled, not translated),
+/// the node's translation and the texture.
+#[derive(Debug, Clone)]
+pub struct Decoded {
+    pub mesh: Mesh,
+    pub translation: Vec3,
+    pub texture: Option<Texture>,
+}
+
+/// Reads the mesh of a GLB as this module writes it: one node with one
+/// triangle primitive, views compressed or not, attributes quantized or
+/// not.
+pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
+    let container = gltf::binary::Glb::from_slice(glb).map_err(|e| format!("not a GLB: {e}"))?;
+    let json: Value =
+        serde_json::from_slice(&container.json).map_err(|e| format!("JSON chunk: {e}"))?;
+    let bin: &[u8] = container.bin.as_deref().unwrap_or(&[]);
+    let file = File { json: &json, bin };
+    let Some((index, node)) = json["nodes"]
+        .as_array()
+        .into_iter()
+        .flatten()
+        .enumerate()
+        .find(|(_, n)| n.get("mesh").is_some())
+    else {
+        return Ok(Decoded {
+            mesh: Mesh::default(),
+            translation: Vec3::ZERO,
+            texture: None,
+        });
+    };
+    let vec3 = |key: &str, default: f32| -> Result<Vec3, String> {
+        match node.get(key) {
+            None => Ok(Vec3::splat(default)),
+            Some(v) => serde_json::from_value::<[f32; 3]>(v.clone())
+                .map(Vec3::from)
+                .map_err(|e| format!("nodes[{index}].{key}: {e}")),
+        }
+    };
+    let translation = vec3("translation", 0.0)?;
+    let scale = vec3("scale", 1.0)?;
+    let m = node["mesh"].as_u64().unwrap_or(0) as usize;
+    let primitive = &json["meshes"][m]["primitives"][0];
+    let attributes = &primitive["attributes"];
+    let attribute = |name: &str| -> Result<Option<(Vec<f32>, usize)>, String> {
+        attributes
+            .get(name)
+            .and_then(Value::as_u64)
+            .map(|a| file.accessor(a as usize))
+            .transpose()
+    };
+    let (positions, k) = attribute("POSITION")?.ok_or("the primitive has no POSITION")?;
+    let n = positions.len() / k.max(1);
+    let mut mesh = Mesh {
+        positions: positions
+            .chunks_exact(3)
+            .map(|p| Vec3::from_slice(p) * scale)
+            .collect(),
+        ..Mesh::default()
+    };
+    if let Some((normals, 3)) = attribute("NORMAL")? {
+        mesh.normals = normals.chunks_exact(3).map(Vec3::from_slice).collect();
+    }
+    match attribute("COLOR_0")? {
+        Some((colors, 4)) => {
+            mesh.colors = colors
+                .chunks_exact(4)
+                .map(|c| [c[0], c[1], c[2], c[3]])
+                .collect();
+        }
+        Some((colors, 3)) => {
+            mesh.colors = colors
+                .chunks_exact(3)
+                .map(|c| [c[0], c[1], c[2], 1.0])
+                .collect();
+        }
+        _ => {}
+    }
+    if let Some((features, 1)) = attribute("_FEATURE_ID_0")? {
+        mesh.features = features.iter().map(|&f| f as u32).collect();
+    }
+    mesh.indices = match primitive.get("indices").and_then(Value::as_u64) {
+        Some(a) => file
+            .accessor(a as usize)?
+            .0
+            .into_iter()
+            .map(|i| i as u32)
+            .collect(),
+        None => (0..n as u32).collect(),
+    };
+    let texture = match attribute("TEXCOORD_0")? {
+        Some((uvs, 2)) => file.base_color_png(primitive)?.map(|png| Texture {
+            uvs: uvs.chunks_exact(2).map(Vec2::from_slice).collect(),
+            png,
+        }),
+        _ => None,
+    };
+    for (what, len) in [
+        ("NORMAL", mesh.normals.len()),
+        ("COLOR_0", mesh.colors.len()),
+        ("_FEATURE_ID_0", mesh.features.len()),
+    ] {
+        if len != 0 && len != n {
+            return Err(format!("{what} has {len} elements for {n} vertices"));
+        }
+    }
+    Ok(Decoded {
+        mesh,
+        translation,
+        texture,
+    })
+}
+
+/// A GLB's JSON and binary chunk.
+struct File<'a> {
+    json: &'a Value,
+    bin: &'a [u8],
+}
+
+impl File<'_> {
+    /// The bytes of view `v` as the accessors see them: decompressed when
+    /// the view is compressed.
+    fn view(&self, v: usize) -> Result<(Cow<'_, [u8]>, Option<usize>), String> {
+        let view = &self.json["bufferViews"][v];
+        let at =
+            |value: &Value, key: &str| value.get(key).and_then(Value::as_u64).unwrap_or(0) as usize;
+        let slice = |offset: usize, length: usize| {
+            offset
+                .checked_add(length)
+                .and_then(|end| self.bin.get(offset..end))
+                .ok_or_else(|| format!("bufferViews[{v}] runs past the binary chunk"))
+        };
+        let stride = view
+            .get("byteStride")
+            .and_then(Value::as_u64)
+            .map(|s| s as usize);
+        let Some(ext) = view.get("extensions").and_then(|e| e.get(MESHOPT)) else {
+            if at(view, "buffer") != 0 {
+                return Err(format!("bufferViews[{v}] is not in the binary chunk"));
+            }
+            return Ok((
+                Cow::Borrowed(slice(at(view, "byteOffset"), at(view, "byteLength"))?),
+                stride,
+            ));
+        };
+        if at(ext, "buffer") != 0 {
+            return Err(format!(
+                "bufferViews[{v}]: compressed data not in the binary chunk"
+            ));
+        }
+        let data = slice(at(ext, "byteOffset"), at(ext, "byteLength"))?;
+        let count = at(ext, "count");
+        let size = at(ext, "byteStride");
+        if ext.get("filter").is_some_and(|f| f != "NONE") {
+            return Err(format!("bufferViews[{v}]: meshopt filters are not read"));
+        }
+        let bad = |e: meshopt::Error| format!("bufferViews[{v}]: not meshopt data: {e:?}");
+        if count.checked_mul(size) != Some(at(view, "byteLength")) {
+            return Err(format!(
+                "bufferViews[{v}]: {count} elements of {size} bytes are not its byteLength"
+            ));
+        }
+        let unknown = || {
+            format!(
+                "bufferViews[{v}]: meshopt mode {} with stride {size} is not read",
+                ext["mode"]
+            )
+        };
+        let bytes = match ext["mode"].as_str() {
+            Some("ATTRIBUTES") => decode_vertices(data, count, size)
+                .ok_or_else(unknown)?
+                .map_err(bad)?,
+            Some("TRIANGLES") if size == 2 => bytemuck::cast_slice(
+                &meshopt::decode_index_buffer::<u16>(data, count).map_err(bad)?,
+            )
+            .to_vec(),
+            Some("TRIANGLES") if size == 4 => bytemuck::cast_slice(
+                &meshopt::decode_index_buffer::<u32>(data, count).map_err(bad)?,
+            )
+            .to_vec(),
+            _ => return Err(unknown()),
+        };
+        Ok((Cow::Owned(bytes), stride))
+    }
+
+    /// Accessor `a` as `f32` components (integers normalized when the
+    /// accessor says so) and the number of components per element.
+    fn accessor(&self, a: usize) -> Result<(Vec<f32>, usize), String> {
+        let accessor = &self.json["accessors"][a];
+        let field = |key: &str| accessor.get(key).and_then(Value::as_u64);
+        let view = field("bufferView").ok_or(format!("accessors[{a}] has no bufferView"))?;
+        let (bytes, stride) = self.view(view as usize)?;
+        let components = match accessor["type"].as_str() {
+            Some("SCALAR") => 1,
+            Some("VEC2") => 2,
+            Some("VEC3") => 3,
+            Some("VEC4") => 4,
+            other => return Err(format!("accessors[{a}]: type {other:?} is not read")),
+        };
+        let normalized = accessor["normalized"].as_bool().unwrap_or(false);
+        let kind = field("componentType").unwrap_or(0);
+        let size = match kind {
+            5120 | 5121 => 1,
+            5122 | 5123 => 2,
+            5125 | 5126 => 4,
+            other => return Err(format!("accessors[{a}]: componentType {other} is not read")),
+        };
+        let count = field("count").unwrap_or(0) as usize;
+        let offset = field("byteOffset").unwrap_or(0) as usize;
+        let stride = stride.unwrap_or(components * size);
+        let end = count
+            .saturating_sub(1)
+            .saturating_mul(stride)
+            .saturating_add(offset)
+            .saturating_add(components * size);
+        if count > 0 && end > bytes.len() {
+            return Err(format!("accessors[{a}] runs past its view"));
+        }
+        let mut out = Vec::with_capacity(count * components);
+        for i in 0..count {
+            for c in 0..components {
+                let at = offset + i * stride + c * size;
+                let b = &bytes[at..at + size];
+                let value = match kind {
+                    5120 => norm(f32::from(b[0] as i8), 127.0, normalized),
+                    5121 => norm(f32::from(b[0]), 255.0, normalized),
+                    5122 => norm(
+                        f32::from(i16::from_le_bytes([b[0], b[1]])),
+                        SHORT,
+                        normalized,
+                    ),
+                    5123 => norm(
+                        f32::from(u16::from_le_bytes([b[0], b[1]])),
+                        65535.0,
+                        normalized,
+                    ),
+                    5125 => u32::from_le_bytes([b[0], b[1], b[2], b[3]]) as f32,
+                    _ => f32::from_le_bytes([b[0], b[1], b[2], b[3]]),
+                };
+                out.push(value);
+            }
+        }
+        Ok((out, components))
+    }
+
+    /// The PNG of the primitive's base colour texture, when its image is
+    /// in the binary chunk.
+    fn base_color_png(&self, primitive: &Value) -> Result<Option<Vec<u8>>, String> {
+        let Some(material) = primitive.get("material").and_then(Value::as_u64) else {
+            return Ok(None);
+        };
+        let info =
+            &self.json["materials"][material as usize]["pbrMetallicRoughness"]["baseColorTexture"];
+        let Some(texture) = info.get("index").and_then(Value::as_u64) else {
+            return Ok(None);
+        };
+        let source = self.json["textures"][texture as usize]["source"].as_u64();
+        let view = source.and_then(|s| self.json["images"][s as usize]["bufferView"].as_u64());
+        match view {
+            Some(v) => Ok(Some(self.view(v as usize)?.0.into_owned())),
+            None => Ok(None),
+        }
+    }
+}
+
+/// A normalized integer's value as glTF defines it (`max(c / max, -1)`).
+fn norm(value: f32, max: f32, normalized: bool) -> f32 {
+    if normalized {
+        (value / max).max(-1.0)
+    } else {
+        value
+    }
+}
+
+/// `count` elements of `size` bytes decoded by the vertex codec, `None`
+/// for a size this reader does not decode.
+fn decode_vertices(data: &[u8], count: usize, size: usize) -> Option<meshopt::Result<Vec<u8>>> {
+    let bytes = match size {
+        4 => meshopt::decode_vertex_buffer::<[u8; 4]>(data, count).map(|v| v.concat()),
+        8 => meshopt::decode_vertex_buffer::<[u8; 8]>(data, count).map(|v| v.concat()),
+        12 => meshopt::decode_vertex_buffer::<[u8; 12]>(data, count).map(|v| v.concat()),
+        16 => meshopt::decode_vertex_buffer::<[u8; 16]>(data, count).map(|v| v.concat()),
+        _ => return None,
+    };
+    Some(bytes)
+}

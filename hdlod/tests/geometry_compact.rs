@@ -1,0 +1,262 @@
+//! The compact GLB form (`hdlod::io::compact`): what is written reads back
+//! within the quantization's error (positions, normals, colours, texture
+//! coordinates) and exactly (feature ids, the texture's PNG, the triangles
+//! in order, each with its winding); the
+//! plain form derived from it is today's `f32` GLB; both pass the Khronos
+//! glTF validator; a tree stores the compact form under the hash of its
+//! bytes.
+
+mod common;
+
+use std::path::PathBuf;
+
+use common::assert_no_gltf_errors;
+use glam::{Vec2, Vec3};
+use hdlod::geometry::Mesh;
+use hdlod::geometry::bake::Atlas;
+use hdlod::io::compact;
+use hdlod::io::glb::{Encoding, encoded_mesh_to_glb, mesh_to_glb};
+use hdlod::io::texture::{Texture, encode_png};
+
+/// Two boxes of two objects far from the origin (as a georeferenced site's
+/// clusters are), with colours.
+fn two_objects() -> Mesh {
+    let mut a = Mesh::cuboid(
+        Vec3::new(1000.0, 2000.0, 5.0),
+        Vec3::new(1012.5, 2003.0, 9.25),
+        3,
+    );
+    a.features = vec![7; a.positions.len()];
+    a.colors = vec![[0.8, 0.2, 0.1, 1.0]; a.positions.len()];
+    let mut b = Mesh::cuboid(
+        Vec3::new(1001.0, 2001.0, 9.25),
+        Vec3::new(1002.0, 2002.0, 30.0),
+        2,
+    );
+    b.features = vec![300_000; b.positions.len()];
+    b.colors = vec![[0.1, 0.5, 0.9, 0.5]; b.positions.len()];
+    let offset = a.positions.len() as u32;
+    a.positions.extend(b.positions);
+    a.normals.extend(b.normals);
+    a.colors.extend(b.colors);
+    a.features.extend(b.features);
+    a.indices.extend(b.indices.iter().map(|i| i + offset));
+    a
+}
+
+/// The mesh with a texture: one coordinate per vertex over a small atlas.
+fn textured() -> (Mesh, Texture) {
+    let mesh = two_objects();
+    let uvs = mesh
+        .positions
+        .iter()
+        .map(|p| Vec2::new((p.x - 1000.0) / 12.5, (p.z - 5.0) / 25.0).clamp(Vec2::ZERO, Vec2::ONE))
+        .collect();
+    let atlas = Atlas {
+        width: 4,
+        height: 2,
+        texels: (0..8).map(|i| [i * 30, 255 - i * 30, 7, 255]).collect(),
+    };
+    let png = encode_png(&atlas);
+    (mesh, Texture { uvs, png })
+}
+
+/// The largest distance a quantized position may move: half a step of the
+/// mesh's largest half extent over 32767 along each axis, plus f32
+/// rounding at the mesh's coordinates.
+fn position_tolerance(mesh: &Mesh) -> f32 {
+    let (lo, hi) = mesh.positions.iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), p| (lo.min(*p), hi.max(*p)),
+    );
+    let half = ((hi - lo) / 2.0).max_element();
+    (half / 32767.0 / 2.0) * 3f32.sqrt() + 1e-3 * f32::EPSILON * hi.abs().max_element() + 1e-4
+}
+
+/// Each triangle's corners rotated to start at its least index: the
+/// index codec may rotate a triangle, keeping its winding (and the
+/// triangles' order).
+fn rotated(indices: &[u32]) -> Vec<[u32; 3]> {
+    indices
+        .chunks_exact(3)
+        .map(|t| {
+            let k = (0..3).min_by_key(|&k| t[k]).unwrap();
+            [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+        })
+        .collect()
+}
+
+fn json_of(glb: &[u8]) -> serde_json::Value {
+    let container = gltf::binary::Glb::from_slice(glb).unwrap();
+    serde_json::from_slice(&container.json).unwrap()
+}
+
+#[test]
+fn a_compact_glb_reads_back_within_the_quantization_error() {
+    let (mesh, texture) = textured();
+    let glb = encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact);
+    let plain = encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Plain);
+    assert!(compact::is_compact(&glb));
+    assert!(!compact::is_compact(&plain));
+    assert!(
+        glb.len() * 2 < plain.len(),
+        "compact {} bytes, plain {}",
+        glb.len(),
+        plain.len()
+    );
+
+    let decoded = compact::decode(&glb).unwrap();
+    let tolerance = position_tolerance(&mesh);
+    assert_eq!(decoded.mesh.positions.len(), mesh.positions.len());
+    for (k, (p, q)) in mesh
+        .positions
+        .iter()
+        .zip(&decoded.mesh.positions)
+        .enumerate()
+    {
+        let q = *q + decoded.translation;
+        assert!(
+            p.distance(q) <= tolerance,
+            "vertex {k}: {p} read as {q}, tolerance {tolerance}"
+        );
+    }
+    assert_eq!(rotated(&decoded.mesh.indices), rotated(&mesh.indices));
+    assert_eq!(decoded.mesh.features, mesh.features);
+    for (n, m) in mesh.normals.iter().zip(&decoded.mesh.normals) {
+        assert!(n.distance(*m) <= 0.01, "{n} read as {m}");
+    }
+    for (c, d) in mesh.colors.iter().zip(&decoded.mesh.colors) {
+        for k in 0..4 {
+            assert!(
+                (c[k] - d[k]).abs() <= 0.5 / 255.0 + 1e-6,
+                "{c:?} read as {d:?}"
+            );
+        }
+    }
+    let read = decoded.texture.expect("the texture reads back");
+    assert_eq!(read.png, texture.png);
+    for (u, v) in texture.uvs.iter().zip(&read.uvs) {
+        assert!(u.distance(*v) <= 1.0 / 65535.0, "{u} read as {v}");
+    }
+}
+
+#[test]
+fn the_plain_form_of_a_compact_glb_is_an_f32_glb_of_the_same_mesh() {
+    let (mesh, texture) = textured();
+    let glb = encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact);
+    let plain = compact::plain(&glb).unwrap().into_owned();
+    // Deterministic: a content-addressed server derives the same bytes.
+    assert_eq!(compact::plain(&glb).unwrap().as_ref(), &plain[..]);
+    let json = json_of(&plain);
+    assert!(json.get("extensionsRequired").is_none(), "{json}");
+    assert_eq!(
+        json["extensionsUsed"],
+        serde_json::json!(["EXT_mesh_features"])
+    );
+    for accessor in json["accessors"].as_array().unwrap() {
+        assert!(
+            [5125, 5126].contains(&accessor["componentType"].as_u64().unwrap()),
+            "{accessor}"
+        );
+    }
+    // A plain GLB's plain form is itself.
+    let again = compact::plain(&plain).unwrap();
+    assert!(matches!(again, std::borrow::Cow::Borrowed(_)));
+
+    // Both forms read back as the same mesh through the glTF reader.
+    let dir = tempfile::tempdir().unwrap();
+    let (a, b) = (dir.path().join("compact.glb"), dir.path().join("plain.glb"));
+    std::fs::write(&a, &glb).unwrap();
+    std::fs::write(&b, &plain).unwrap();
+    let (ma, ta) = hdlod::io::read_textured_mesh(&a).unwrap();
+    let (mb, tb) = hdlod::io::read_textured_mesh(&b).unwrap();
+    assert_eq!(ma.indices, mb.indices);
+    assert_eq!(ma.features, mb.features);
+    assert_eq!(ta.unwrap().png, tb.unwrap().png);
+    let tolerance = position_tolerance(&mesh);
+    for (p, q) in ma.positions.iter().zip(&mb.positions) {
+        assert!(p.distance(*q) <= 1e-3 * tolerance + 1e-4, "{p} {q}");
+    }
+    for (p, q) in mesh.positions.iter().zip(&ma.positions) {
+        assert!(p.distance(*q) <= tolerance, "{p} {q}");
+    }
+}
+
+#[test]
+fn a_compact_glb_declares_both_extensions_and_a_fallback_buffer() {
+    let glb = encoded_mesh_to_glb(&two_objects(), None, Encoding::Compact);
+    let json = json_of(&glb);
+    for key in ["extensionsUsed", "extensionsRequired"] {
+        let list = json[key].as_array().unwrap();
+        for name in ["EXT_meshopt_compression", "KHR_mesh_quantization"] {
+            assert!(list.iter().any(|v| v == name), "{key}: {list:?}");
+        }
+    }
+    let buffers = json["buffers"].as_array().unwrap();
+    assert_eq!(buffers.len(), 2, "{buffers:?}");
+    assert_eq!(
+        buffers[1]["extensions"]["EXT_meshopt_compression"]["fallback"],
+        true
+    );
+    assert!(buffers[1].get("uri").is_none());
+    let bin = gltf::binary::Glb::from_slice(&glb).unwrap().bin.unwrap();
+    let views = json["bufferViews"].as_array().unwrap();
+    for view in views {
+        let ext = &view["extensions"]["EXT_meshopt_compression"];
+        assert_eq!(view["buffer"], 1, "{view}");
+        assert_eq!(ext["buffer"], 0, "{view}");
+        let first = bin[ext["byteOffset"].as_u64().unwrap() as usize];
+        match ext["mode"].as_str().unwrap() {
+            // The vertex codec's version 0, the one the extension defines.
+            "ATTRIBUTES" => assert_eq!(first, 0xa0, "{view}"),
+            "TRIANGLES" => assert_eq!(first & 0xf0, 0xe0, "{view}"),
+            other => panic!("mode {other}"),
+        }
+    }
+}
+
+#[test]
+fn both_forms_have_zero_validator_errors() {
+    let dir = tempfile::tempdir().unwrap();
+    let (mesh, texture) = textured();
+    let mut files: Vec<PathBuf> = Vec::new();
+    for (name, glb) in [
+        (
+            "compact.glb",
+            encoded_mesh_to_glb(&mesh, None, Encoding::Compact),
+        ),
+        (
+            "compact-textured.glb",
+            encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact),
+        ),
+        (
+            "compact-box.glb",
+            encoded_mesh_to_glb(&common::unit_box(), None, Encoding::Compact),
+        ),
+    ] {
+        let plain = compact::plain(&glb).unwrap().into_owned();
+        let path = dir.path().join(name);
+        std::fs::write(&path, &glb).unwrap();
+        files.push(path);
+        let path = dir.path().join(format!("plain-{name}"));
+        std::fs::write(&path, &plain).unwrap();
+        files.push(path);
+    }
+    let path = dir.path().join("today.glb");
+    std::fs::write(&path, mesh_to_glb(&mesh)).unwrap();
+    files.push(path);
+    let reports = assert_no_gltf_errors(&files);
+    for (file, report) in files.iter().zip(&reports) {
+        assert_eq!(
+            report["issues"]["numWarnings"],
+            0,
+            "{}: {}",
+            file.display(),
+            report["issues"]
+        );
+        assert!(
+            report["info"]["drawCallCount"].as_u64().unwrap() >= 1,
+            "{report}"
+        );
+    }
+}
