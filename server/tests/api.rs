@@ -495,3 +495,166 @@ fn every_reference_of_the_openapi_document_resolves_within_it() {
     // No schema resource of its own inside: one base for every reference.
     assert!(!doc.to_string().contains("\"$id\""));
 }
+
+/// The GLBs of a batch answer: the index's length, the index, the files.
+fn unpack_batch(body: &[u8]) -> Vec<(String, Vec<u8>)> {
+    let n = u32::from_le_bytes(body[..4].try_into().unwrap()) as usize;
+    let index: Value = serde_json::from_slice(&body[4..4 + n]).unwrap();
+    index["files"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|f| {
+            let offset = f["offset"].as_u64().unwrap() as usize;
+            let length = f["length"].as_u64().unwrap() as usize;
+            assert_eq!(offset % 8, 0, "{f}");
+            (
+                f["hash"].as_str().unwrap().to_owned(),
+                body[offset..offset + length].to_vec(),
+            )
+        })
+        .collect()
+}
+
+#[test]
+fn geometry_comes_compact_plain_on_request_and_in_batches() {
+    let server = Server::sample(6);
+    let http = client();
+    let cut = server.post_json("/api/v1/scenes/sample-1/cut", &cut_body(json!(9e6)));
+    let mut hashes: Vec<String> = cut["clusters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|c| {
+            let url = c["geometry"].as_str().unwrap();
+            url.rsplit('/')
+                .next()
+                .unwrap()
+                .trim_end_matches(".glb")
+                .to_owned()
+        })
+        .collect();
+    hashes.sort();
+    hashes.dedup();
+    assert!(hashes.len() >= 3, "{hashes:?}");
+    let single = |hash: &str, query: &str| -> (reqwest::header::HeaderMap, Vec<u8>) {
+        let r = http
+            .get(server.url(&format!(
+                "/api/v1/scenes/sample-1/geometry/{hash}.glb{query}"
+            )))
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), StatusCode::OK, "{hash}{query}");
+        (r.headers().clone(), r.bytes().unwrap().to_vec())
+    };
+
+    // The stored, compact form by default; the plain form derived from it.
+    let (_, stored) = single(&hashes[0], "");
+    assert!(hdlod::io::compact::is_compact(&stored));
+    assert_eq!(single(&hashes[0], "?encoding=compact").1, stored);
+    let (headers, plain) = single(&hashes[0], "?encoding=plain");
+    assert!(!hdlod::io::compact::is_compact(&plain));
+    assert_eq!(headers["etag"], format!("\"{}-plain\"", hashes[0]).as_str());
+    assert_eq!(plain, hdlod::io::compact::plain(&stored).unwrap().as_ref());
+    let response = http
+        .get(server.url(&format!(
+            "/api/v1/scenes/sample-1/geometry/{}.glb?encoding=plain",
+            hashes[0]
+        )))
+        .header("if-none-match", format!("\"{}-plain\"", hashes[0]))
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::NOT_MODIFIED);
+
+    // A batch holds the same bytes as the single requests, in order.
+    let list = hashes.join(",");
+    for query in ["", "&encoding=plain"] {
+        let r = http
+            .get(server.url(&format!("/api/v1/scenes/sample-1/geometry?h={list}{query}")))
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), StatusCode::OK);
+        let headers = r.headers().clone();
+        assert_eq!(
+            headers["content-type"],
+            "application/vnd.hdlod.geometry-batch"
+        );
+        assert!(
+            headers["cache-control"]
+                .to_str()
+                .unwrap()
+                .contains("immutable")
+        );
+        let files = unpack_batch(&r.bytes().unwrap());
+        assert_eq!(files.len(), hashes.len());
+        for ((hash, bytes), want) in files.iter().zip(&hashes) {
+            assert_eq!(hash, want);
+            let single_query = if query.is_empty() {
+                ""
+            } else {
+                "?encoding=plain"
+            };
+            assert_eq!(bytes, &single(hash, single_query).1, "{hash}{query}");
+        }
+        let again = http
+            .get(server.url(&format!("/api/v1/scenes/sample-1/geometry?h={list}{query}")))
+            .header("if-none-match", headers["etag"].clone())
+            .send()
+            .unwrap();
+        assert_eq!(again.status(), StatusCode::NOT_MODIFIED);
+    }
+
+    // Bad requests: JSON naming the parameter at fault.
+    let unknown = "0".repeat(64);
+    let many = vec![hashes[0].as_str(); 101].join(",");
+    for (query, status, field) in [
+        (String::new(), StatusCode::BAD_REQUEST, "h"),
+        ("?h=".to_owned(), StatusCode::BAD_REQUEST, "h"),
+        ("?h=xyz".to_owned(), StatusCode::BAD_REQUEST, "h"),
+        (
+            format!("?h={0},{0}", hashes[0]),
+            StatusCode::BAD_REQUEST,
+            "h",
+        ),
+        (format!("?h={many}"), StatusCode::BAD_REQUEST, "h"),
+        (
+            format!("?h={},{unknown}", hashes[0]),
+            StatusCode::NOT_FOUND,
+            "hash",
+        ),
+        (
+            format!("?h={}&encoding=zip", hashes[0]),
+            StatusCode::BAD_REQUEST,
+            "encoding",
+        ),
+        (
+            format!("?h={}&x=1", hashes[0]),
+            StatusCode::BAD_REQUEST,
+            "x",
+        ),
+    ] {
+        let r = http
+            .get(server.url(&format!("/api/v1/scenes/sample-1/geometry{query}")))
+            .send()
+            .unwrap();
+        assert_eq!(r.status(), status, "{query}");
+        assert!(
+            r.headers()["content-type"]
+                .to_str()
+                .unwrap()
+                .starts_with("application/json")
+        );
+        let body: Value = r.json().unwrap();
+        assert_eq!(body["error"]["field"], field, "{query}: {body}");
+    }
+    let r = http
+        .get(server.url(&format!(
+            "/api/v1/scenes/sample-1/geometry/{}.glb?encoding=zip",
+            hashes[0]
+        )))
+        .send()
+        .unwrap();
+    assert_eq!(r.status(), StatusCode::BAD_REQUEST);
+    let body: Value = r.json().unwrap();
+    assert_eq!(body["error"]["field"], "encoding");
+}

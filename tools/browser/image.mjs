@@ -9,7 +9,7 @@
 // pixels of the scene (off the background in either picture), the share
 // of them that differ by more than 16/255 and by more than 48/255 in some
 // channel, the PSNR over them, and the triangles, clusters and GLB bytes
-// (textures included, and of those) of each.
+// (textures included, and of those) of each, with the cut's cluster ids.
 import { mkdirSync, writeFileSync } from "node:fs";
 import { join } from "node:path";
 import { launch } from "./launch.mjs";
@@ -73,7 +73,7 @@ try {
     const s = await settle(page);
     const png = await canvasShot(page);
     writeFileSync(join(outDir, `${name}.png`), png);
-    return { png, triangles: s.triangles, clusters: s.clusters, leaves: s.leafClusters, bytes: s.cutBytes, textureBytes: s.cutTextureBytes };
+    return { png, ids: s.ids, triangles: s.triangles, clusters: s.clusters, leaves: s.leafClusters, bytes: s.cutBytes, textureBytes: s.cutTextureBytes };
   };
   for (const [screen, factor] of SCREENS) {
     for (const [time, fraction] of TIMES) {
@@ -88,7 +88,7 @@ try {
       out.cells.push({
         time,
         screen,
-        cut: { triangles: cut.triangles, clusters: cut.clusters, bytes: cut.bytes, textureBytes: cut.textureBytes },
+        cut: { ids: cut.ids, triangles: cut.triangles, clusters: cut.clusters, bytes: cut.bytes, textureBytes: cut.textureBytes },
         full: { triangles: full.triangles, clusters: full.clusters, leaves: full.leaves, bytes: full.bytes, textureBytes: full.textureBytes },
         scenePixels: d.scenePixels,
         share16: d.scenePixels > 0 ? d.over16 / d.scenePixels : 0,

@@ -255,32 +255,8 @@ pub async fn cut_get(
     cut_answer(&state, &s, &protocol::parse_query(&pairs)?)
 }
 
-pub async fn geometry(
-    State(state): State<Arc<AppState>>,
-    Segments((name, file)): Segments<(String, String)>,
-    headers: HeaderMap,
-) -> Answer<Response> {
-    let s = find(&state, &name)?;
-    let hash = file
-        .strip_suffix(".glb")
-        .filter(|h| hdlod::tree::is_hash(h))
-        .ok_or_else(|| ApiError::not_found("hash", format!("{} is not HASH.glb", quote(&file))))?;
-    let etag = HeaderValue::from_str(&format!("\"{hash}\"")).expect("hex in quotes");
-    if let Some(answer) = not_modified(&headers, &etag) {
-        return Ok(answer);
-    }
-    let path = s.dir.join("geometry").join(format!("{hash}.glb"));
-    let bytes = tokio::fs::read(&path).await.map_err(|_| {
-        ApiError::not_found(
-            "hash",
-            format!("no geometry {hash} in scene {}", quote(&name)),
-        )
-    })?;
-    Ok(immutable_glb(etag, bytes))
-}
-
 /// Content that never changes under its URL: cached for a year.
-fn immutable() -> HeaderValue {
+pub(super) fn immutable() -> HeaderValue {
     HeaderValue::from_static("public, max-age=31536000, immutable")
 }
 

@@ -8,6 +8,7 @@ mod connection;
 mod cors;
 pub mod error;
 mod extract;
+mod geometry;
 mod handlers;
 pub mod listener;
 pub mod memory;
@@ -212,10 +213,8 @@ pub fn router(state: Arc<AppState>, cors: &Cors) -> Router {
             "/api/v1/scenes/{scene}/cut",
             get(handlers::cut_get).post(handlers::cut_post),
         )
-        .route(
-            "/api/v1/scenes/{scene}/geometry/{file}",
-            get(handlers::geometry),
-        )
+        .route("/api/v1/scenes/{scene}/geometry", get(geometry::batch))
+        .route("/api/v1/scenes/{scene}/geometry/{file}", get(geometry::one))
         .route("/api/v1/scenes/{scene}/stream", get(stream::stream))
         .route("/api/v1/scenes/{scene}/objects", get(objects::objects))
         .route("/api/v1/scenes/{scene}/objects/{id}", get(objects::object))

@@ -13,7 +13,7 @@ const JS: &str = "text/javascript; charset=utf-8";
 const CSS: &str = "text/css; charset=utf-8";
 
 /// Name, content type, bytes of every file under `/viewer/`.
-const FILES: [(&str, &str, &str); 13] = [
+const FILES: [(&str, &str, &str); 14] = [
     ("index.html", HTML, include_str!("../../viewer/index.html")),
     ("viewer.css", CSS, include_str!("../../viewer/viewer.css")),
     ("main.js", JS, include_str!("../../viewer/main.js")),
@@ -35,6 +35,13 @@ const FILES: [(&str, &str, &str); 13] = [
     ),
     ("colours.js", JS, include_str!("../../viewer/colours.js")),
     ("gantt.js", JS, include_str!("../../viewer/gantt.js")),
+    // meshoptimizer's decoder as npm ships it (`meshopt_decoder.mjs` of
+    // the `meshoptimizer` package, MIT), for the compact GLBs.
+    (
+        "meshopt_decoder.js",
+        JS,
+        include_str!("../../viewer/meshopt_decoder.js"),
+    ),
 ];
 
 fn file(name: &str) -> Option<Response> {

@@ -4,7 +4,11 @@
 //! cut at the pixel budget and full detail (every present leaf), and
 //! compares the pictures over the scene's pixels: the share that differ by
 //! more than 16/255 and 48/255 in some channel, and the PSNR. The pictures
-//! are kept in `--out`. Needs `node` and the npm tools of `tools/`
+//! are kept in `--out`. The cut's bytes are those the viewer fetched (the
+//! GLBs as the tree stores them, compact in trees built now) and, from the
+//! tree's files, those of the same GLBs in the plain form
+//! (`?encoding=plain`); the header gives both for the whole tree. Needs
+//! `node` and the npm tools of `tools/`
 //! (`npm ci --prefix tools`, as `scripts/test` runs) and Debian's chromium.
 
 use std::path::PathBuf;
@@ -57,6 +61,9 @@ struct Cell {
     full: Render,
     #[serde(rename = "scenePixels")]
     scene_pixels: u64,
+    /// The cut's GLB bytes in the plain form, set here from the tree.
+    #[serde(rename = "plainBytes", default)]
+    plain_bytes: u64,
     share16: f64,
     share48: f64,
     /// None when the pictures are equal.
@@ -70,6 +77,9 @@ struct Render {
     clusters: u64,
     #[serde(default, skip_serializing_if = "Option::is_none")]
     leaves: Option<u64>,
+    /// The clusters drawn (the cut's only).
+    #[serde(default, skip_serializing)]
+    ids: Vec<u32>,
     /// GLB bytes of the distinct geometry drawn, textures included.
     bytes: u64,
     /// Of those, the textures' PNG bytes.
@@ -97,8 +107,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
         .context("cannot listen on loopback")?;
     let base = format!("http://{}", listener.local_addr()?);
+    let served = state.clone();
     runtime.spawn(async move {
-        let _ = axum::serve(listener, api::router(state, &Cors::default())).await;
+        let _ = axum::serve(listener, api::router(served, &Cors::default())).await;
     });
     eprintln!(
         "rendering the 12 cells of {scene:?} twice at {}x{} (pictures in {})",
@@ -122,7 +133,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             String::from_utf8_lossy(&run.stderr)
         );
     }
-    let report: Report = serde_json::from_slice(&run.stdout).with_context(|| {
+    let mut report: Report = serde_json::from_slice(&run.stdout).with_context(|| {
         format!(
             "the driver's report is not JSON: {}",
             String::from_utf8_lossy(&run.stdout)
@@ -131,27 +142,48 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     if let Some(e) = report.errors.first() {
         bail!("the page failed: {e} ({} errors)", report.errors.len());
     }
+    let sizes = GeometrySizes::of(&args.tree)?;
+    let loaded = state.scenes();
+    let tree = &loaded[&scene].tree;
+    for c in &mut report.cells {
+        let mut hashes: Vec<&str> = c
+            .cut
+            .ids
+            .iter()
+            .filter_map(|&id| tree.clusters.get(id as usize)?.geometry.as_deref())
+            .collect();
+        hashes.sort_unstable();
+        hashes.dedup();
+        c.plain_bytes = hashes.iter().map(|h| sizes.plain(h)).sum();
+    }
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
         return Ok(());
     }
     println!(
-        "Scene `{scene}`, {}x{}, pixel error {}; full detail: every present leaf.\n",
+        "Scene `{scene}`, {}x{}, pixel error {}; full detail: every present leaf.",
         report.width, report.height, report.pixel_error
     );
     println!(
-        "| time | screen | cut triangles | full triangles | cut bytes (textures) | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) |"
+        "Geometry: {} GLB files, {} bytes as stored, {} bytes in the plain form.\n",
+        sizes.files(),
+        sizes.stored_total(),
+        sizes.plain_total()
     );
-    println!("|---|---|---|---|---|---|---|---|---|");
+    println!(
+        "| time | screen | cut triangles | full triangles | cut bytes (textures) | plain bytes | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) |"
+    );
+    println!("|---|---|---|---|---|---|---|---|---|---|");
     for c in &report.cells {
         println!(
-            "| {} | {} | {} | {} | {} ({}) | {} | {:.2}% | {:.2}% | {} |",
+            "| {} | {} | {} | {} | {} ({}) | {} | {} | {:.2}% | {:.2}% | {} |",
             c.time,
             c.screen,
             c.cut.triangles,
             c.full.triangles,
             c.cut.bytes,
             c.cut.texture_bytes,
+            c.plain_bytes,
             c.scene_pixels,
             100.0 * c.share16,
             100.0 * c.share48,
@@ -159,4 +191,46 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         );
     }
     Ok(())
+}
+
+/// Each GLB of a tree with its size as stored and in the plain form.
+struct GeometrySizes(std::collections::HashMap<String, (u64, u64)>);
+
+impl GeometrySizes {
+    fn of(tree: &std::path::Path) -> anyhow::Result<GeometrySizes> {
+        let dir = tree.join(hdlod::tree::format::GEOMETRY_DIR);
+        let mut sizes = std::collections::HashMap::new();
+        for entry in std::fs::read_dir(&dir).with_context(|| dir.display().to_string())? {
+            let path = entry?.path();
+            let Some(hash) = path
+                .file_name()
+                .and_then(|n| n.to_str())
+                .and_then(|n| n.strip_suffix(".glb"))
+            else {
+                continue;
+            };
+            let bytes = std::fs::read(&path).with_context(|| path.display().to_string())?;
+            let plain = hdlod::io::compact::plain(&bytes)
+                .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))?
+                .len();
+            sizes.insert(hash.to_owned(), (bytes.len() as u64, plain as u64));
+        }
+        Ok(GeometrySizes(sizes))
+    }
+
+    fn plain(&self, hash: &str) -> u64 {
+        self.0.get(hash).map_or(0, |s| s.1)
+    }
+
+    fn files(&self) -> usize {
+        self.0.len()
+    }
+
+    fn stored_total(&self) -> u64 {
+        self.0.values().map(|s| s.0).sum()
+    }
+
+    fn plain_total(&self) -> u64 {
+        self.0.values().map(|s| s.1).sum()
+    }
 }
