@@ -1,15 +1,29 @@
 // A minimal GLB reader for what the server's tree writer emits
-// (hdlod/src/io/glb.rs): one mesh of triangle primitives with POSITION,
-// NORMAL and COLOR_0 (optional), the scene object of each vertex as
-// `_FEATURE_ID_0` (EXT_mesh_features; optional), indices, and the baked
-// colour of a reduced cluster (optional): TEXCOORD_0 and the material's
-// baseColorTexture, a PNG in the binary chunk, which COLOR_0 multiplies. Written here rather than
-// bundling a glTF library: the viewer has no build step and this subset is
-// about a hundred lines. A node's `translation` is the local origin its mesh's
-// positions are stored from (the writer keeps them small for f32); it is
-// added back here. Other node transforms are not used: cluster GLBs hold
-// their mesh in the cluster's frame, and the cut's `transform` places
-// dynamic ones.
+// (hdlod/src/io/glb.rs, hdlod/src/io/compact.rs): one mesh of triangle
+// primitives with POSITION, NORMAL and COLOR_0 (optional), the scene object
+// of each vertex as `_FEATURE_ID_0` (EXT_mesh_features; optional), indices,
+// and the baked colour of a reduced cluster (optional): TEXCOORD_0 and the
+// material's baseColorTexture, a PNG in the binary chunk, which COLOR_0
+// multiplies. The tree's compact form quantizes the attributes
+// (KHR_mesh_quantization: normalized integers, read as floats here) and
+// compresses the views (EXT_meshopt_compression, decoded by meshoptimizer's
+// own decoder, `meshopt_decoder.js`); the plain form has neither. Written
+// here rather than bundling a glTF library: the viewer has no build step
+// and this subset is about two hundred lines. A node's `translation` and
+// uniform `scale` place its mesh (the writer keeps positions small, or
+// quantized to the mesh's extent); they are applied here. Other node
+// transforms are not used: cluster GLBs hold their mesh in the cluster's
+// frame, and the cut's `transform` places dynamic ones.
+
+import { MeshoptDecoder } from "./meshopt_decoder.js";
+
+// The extensions a file may require: the compact form's two and the
+// feature ids'.
+const KNOWN = new Set(["EXT_meshopt_compression", "KHR_mesh_quantization", "EXT_mesh_features", "EXT_structural_metadata"]);
+
+// Resolves once the meshopt decoder (WebAssembly) can decode: parseGlb
+// must not run before.
+export const glbReady = MeshoptDecoder.ready;
 
 const MAGIC = 0x46546c67; // "glTF"
 const JSON_CHUNK = 0x4e4f534a;
@@ -26,27 +40,53 @@ const TYPES = {
 
 export class GlbError extends Error {}
 
-function readAccessor(gltf, bin, index, what) {
+// The bytes of buffer view `index`: a slice of the binary chunk, or the
+// view decompressed (EXT_meshopt_compression) once per parse.
+function viewBytes(gltf, bin, decoded, index, what) {
+  const view = gltf.bufferViews?.[index];
+  if (!view) throw new GlbError(`${what}: no buffer view ${index}`);
+  const meshopt = view.extensions?.EXT_meshopt_compression;
+  if (!meshopt) {
+    if ((view.byteOffset || 0) + view.byteLength > bin.byteLength) throw new GlbError(`${what}: buffer view ${index} runs past the binary chunk`);
+    return { bytes: new Uint8Array(bin.buffer, bin.byteOffset + (view.byteOffset || 0), view.byteLength), stride: view.byteStride };
+  }
+  if (!decoded.has(index)) {
+    const start = meshopt.byteOffset || 0;
+    if ((meshopt.buffer || 0) !== 0 || start + meshopt.byteLength > bin.byteLength) throw new GlbError(`${what}: compressed view ${index} is not in the binary chunk`);
+    const source = new Uint8Array(bin.buffer, bin.byteOffset + start, meshopt.byteLength);
+    const target = new Uint8Array(meshopt.count * meshopt.byteStride);
+    try {
+      MeshoptDecoder.decodeGltfBuffer(target, meshopt.count, meshopt.byteStride, source, meshopt.mode, meshopt.filter);
+    } catch (e) {
+      throw new GlbError(`${what}: compressed view ${index}: ${e.message}`);
+    }
+    decoded.set(index, target);
+  }
+  return { bytes: decoded.get(index), stride: view.byteStride };
+}
+
+function readAccessor(gltf, bin, decoded, index, what) {
   const accessor = gltf.accessors?.[index];
   if (!accessor) throw new GlbError(`${what}: no accessor ${index}`);
-  const view = gltf.bufferViews?.[accessor.bufferView];
-  if (!view) throw new GlbError(`${what}: accessor ${index} has no buffer view`);
+  if (accessor.bufferView === undefined) throw new GlbError(`${what}: accessor ${index} has no buffer view`);
+  const view = viewBytes(gltf, bin, decoded, accessor.bufferView, what);
   const [Type, max] = TYPES[accessor.componentType] || [];
   const n = COMPONENTS[accessor.type];
   if (!Type || !n) throw new GlbError(`${what}: unsupported accessor type ${accessor.type}/${accessor.componentType}`);
-  const offset = bin.byteOffset + (view.byteOffset || 0) + (accessor.byteOffset || 0);
+  const data = view.bytes;
+  const offset = data.byteOffset + (accessor.byteOffset || 0);
   const size = Type.BYTES_PER_ELEMENT;
-  const stride = view.byteStride || n * size;
+  const stride = view.stride || n * size;
   const count = accessor.count;
-  if ((view.byteOffset || 0) + (accessor.byteOffset || 0) + (count - 1) * stride + n * size > bin.byteLength) {
-    throw new GlbError(`${what}: accessor ${index} runs past the binary chunk`);
+  if ((accessor.byteOffset || 0) + (count - 1) * stride + n * size > data.byteLength) {
+    throw new GlbError(`${what}: accessor ${index} runs past its buffer view`);
   }
   let out;
   if (stride === n * size && offset % size === 0) {
-    out = new Type(bin.buffer, offset, count * n);
+    out = new Type(data.buffer, offset, count * n);
   } else {
     out = new Type(count * n);
-    const dv = new DataView(bin.buffer);
+    const dv = new DataView(data.buffer);
     const get = {
       1: (o) => (Type === Int8Array ? dv.getInt8(o) : dv.getUint8(o)),
       2: (o) => (Type === Int16Array ? dv.getInt16(o, true) : dv.getUint16(o, true)),
@@ -63,26 +103,24 @@ function readAccessor(gltf, bin, index, what) {
 
 // Feature ids as floats (exact up to 2^24, the writer's limit): FLOAT as our
 // writer stores them, or unsigned integers as other writers may.
-function readFeatureIds(gltf, bin, index, what) {
+function readFeatureIds(gltf, bin, decoded, index, what) {
   const type = gltf.accessors?.[index]?.componentType;
   if (![5121, 5123, 5125, 5126].includes(type)) throw new GlbError(`${what}: component type ${type} is not FLOAT or unsigned`);
-  const { data, components } = readAccessor(gltf, bin, index, what);
+  const { data, components } = readAccessor(gltf, bin, decoded, index, what);
   if (components !== 1) throw new GlbError(`${what}: not SCALAR`);
   return data instanceof Float32Array ? data : Float32Array.from(data);
 }
 
 // The PNG (or other image) bytes of a primitive's base colour texture when
 // they are in the binary chunk: {bytes, type}, or null.
-function readImage(gltf, bin, prim, what) {
+function readImage(gltf, bin, decoded, prim, what) {
   const info = gltf.materials?.[prim.material]?.pbrMetallicRoughness?.baseColorTexture;
   if (!info) return null;
   const image = gltf.images?.[gltf.textures?.[info.index]?.source];
   if (!image) throw new GlbError(`${what}: base colour texture ${info.index} has no image`);
-  const view = gltf.bufferViews?.[image.bufferView];
-  if (!view) return null;
-  const start = view.byteOffset || 0;
-  if (start + view.byteLength > bin.byteLength) throw new GlbError(`${what}: its image runs past the binary chunk`);
-  return { bytes: new Uint8Array(bin.buffer, bin.byteOffset + start, view.byteLength), type: image.mimeType || "image/png", texCoord: info.texCoord || 0 };
+  if (image.bufferView === undefined) return null;
+  const { bytes } = viewBytes(gltf, bin, decoded, image.bufferView, `${what} image`);
+  return { bytes, type: image.mimeType || "image/png", texCoord: info.texCoord || 0 };
 }
 
 // -> {positions, normals|null, colors|null (RGBA), features|null (one per
@@ -105,10 +143,17 @@ export function parseGlb(buffer) {
   }
   if (!gltf) throw new GlbError("no JSON chunk");
   if (!bin) throw new GlbError("no binary chunk");
-  // Each mesh's local origin: the translation of the node that holds it.
+  for (const name of gltf.extensionsRequired || []) {
+    if (!KNOWN.has(name)) throw new GlbError(`requires ${name}, which this reader does not know`);
+  }
+  const decoded = new Map();
+  // Each mesh's local frame: the translation and uniform scale of the node
+  // that holds it.
   const origins = new Map();
   for (const node of gltf.nodes || []) {
-    if (node.mesh !== undefined && node.translation) origins.set(node.mesh, node.translation);
+    if (node.mesh !== undefined && (node.translation || node.scale)) {
+      origins.set(node.mesh, { t: node.translation || [0, 0, 0], s: node.scale ? node.scale[0] : 1 });
+    }
   }
   const parts = [];
   for (const [m, mesh] of (gltf.meshes || []).entries()) {
@@ -117,16 +162,16 @@ export function parseGlb(buffer) {
       const what = `mesh ${m} primitive ${p}`;
       const a = prim.attributes || {};
       if (a.POSITION === undefined) throw new GlbError(`${what}: no POSITION`);
-      const pos = readAccessor(gltf, bin, a.POSITION, `${what} POSITION`);
-      const nor = a.NORMAL !== undefined ? readAccessor(gltf, bin, a.NORMAL, `${what} NORMAL`) : null;
-      const col = a.COLOR_0 !== undefined ? readAccessor(gltf, bin, a.COLOR_0, `${what} COLOR_0`) : null;
-      const fid = a._FEATURE_ID_0 !== undefined ? readFeatureIds(gltf, bin, a._FEATURE_ID_0, `${what} _FEATURE_ID_0`) : null;
-      const image = readImage(gltf, bin, prim, what);
+      const pos = readAccessor(gltf, bin, decoded, a.POSITION, `${what} POSITION`);
+      const nor = a.NORMAL !== undefined ? readAccessor(gltf, bin, decoded, a.NORMAL, `${what} NORMAL`) : null;
+      const col = a.COLOR_0 !== undefined ? readAccessor(gltf, bin, decoded, a.COLOR_0, `${what} COLOR_0`) : null;
+      const fid = a._FEATURE_ID_0 !== undefined ? readFeatureIds(gltf, bin, decoded, a._FEATURE_ID_0, `${what} _FEATURE_ID_0`) : null;
+      const image = readImage(gltf, bin, decoded, prim, what);
       const uvName = image && `TEXCOORD_${image.texCoord}`;
-      const uv = image && a[uvName] !== undefined ? readAccessor(gltf, bin, a[uvName], `${what} ${uvName}`) : null;
+      const uv = image && a[uvName] !== undefined ? readAccessor(gltf, bin, decoded, a[uvName], `${what} ${uvName}`) : null;
       if (uv && (uv.components !== 2 || uv.count !== pos.count)) throw new GlbError(`${what}: ${uvName} is not one VEC2 per vertex`);
       const idx = prim.indices !== undefined
-        ? readAccessor(gltf, bin, prim.indices, `${what} indices`).data
+        ? readAccessor(gltf, bin, decoded, prim.indices, `${what} indices`).data
         : Uint32Array.from({ length: pos.count }, (_, i) => i);
       if (fid && fid.length !== pos.count) throw new GlbError(`${what}: ${fid.length} feature ids for ${pos.count} vertices`);
       parts.push({ pos, nor, col, fid, idx, uv, image: uv ? image : null, origin: origins.get(m) });
@@ -153,8 +198,9 @@ export function parseGlb(buffer) {
   for (const p of parts) {
     positions.set(p.pos.data, v * 3);
     if (p.origin) {
+      const { t, s } = p.origin;
       for (let k = v * 3; k < (v + p.pos.count) * 3; k += 3) {
-        for (let c = 0; c < 3; c++) positions[k + c] += p.origin[c];
+        for (let c = 0; c < 3; c++) positions[k + c] = positions[k + c] * s + t[c];
       }
     }
     if (normals) normals.set(p.nor.data, v * 3);

@@ -717,6 +717,8 @@ function testHook() {
         missing: viewer.missing.size,
         loadsPeak: cache ? cache.peak : 0,
         loadRetries: cache ? cache.retries : 0,
+        // Geometry requests made: a batch of GLBs counts once.
+        glbRequests: cache ? cache.requests : 0,
         latencyMs: viewer.latency,
         frameMs: viewer.frameMs,
         seq: viewer.seq,
@@ -990,7 +992,9 @@ async function start() {
   document.title = `${viewer.scene.name} - hdlod viewer`;
   camera = new Camera(viewer.scene.up);
   camera.frame(viewer.scene.bounds);
-  cache = new GeometryCache(renderer);
+  // `encoding=plain` asks for the plain GLBs (docs/api.md, "Geometry"):
+  // the tests compare the pictures of both forms.
+  cache = new GeometryCache(renderer, params.get("encoding") === "plain" ? "plain" : null);
   const t = parseTime(params.get("time"));
   setTime(t === null ? 0 : t);
   const p = Number(params.get("pixel_error"));

@@ -7,7 +7,7 @@
 // by at most one round trip. The connection comes back by itself after the
 // server restarts; its first answer then has `reset` set.
 
-import { parseGlb } from "./glb.js";
+import { glbReady, parseGlb } from "./glb.js";
 
 export class CutConnection {
   // handlers: message(msg, request, millis) -> Promise, status(text|null)
@@ -88,6 +88,13 @@ export class CutConnection {
 const MAX_LOADS = 8;
 const RETRY_MS = [250, 1000, 4000];
 
+// The GLBs asked for in one turn of the page (one cut's additions) go in
+// batches of at most BATCH (the server's bound) through the batch endpoint
+// (`.../geometry?h=HASH,...`, docs/api.md): a cut of 2,000 new clusters is
+// 20 requests, not 2,000. Each batch lists its hashes sorted, so the same
+// set is the same URL, cached like a single GLB.
+const BATCH = 100;
+
 class Permanent extends Error {}
 
 async function fetchBuffer(url) {
@@ -100,6 +107,27 @@ async function fetchBuffer(url) {
   return r.arrayBuffer();
 }
 
+// A batch body: a little-endian u32 length, a JSON index of that length
+// ({files: [{hash, offset, length}]}), the GLBs -> Map hash -> ArrayBuffer.
+function unpackBatch(url, body) {
+  const dv = new DataView(body);
+  const n = body.byteLength >= 4 ? dv.getUint32(0, true) : -1;
+  if (n < 0 || 4 + n > body.byteLength) throw new Permanent(`${url}: not a geometry batch`);
+  const index = JSON.parse(new TextDecoder().decode(new Uint8Array(body, 4, n)));
+  const files = new Map();
+  for (const f of index.files || []) {
+    if (f.offset + f.length > body.byteLength) throw new Permanent(`${url}: ${f.hash} runs past the body`);
+    files.set(f.hash, body.slice(f.offset, f.offset + f.length));
+  }
+  return files;
+}
+
+// `/api/v1/scenes/S/geometry/HASH.glb` -> [".../geometry", HASH], or null.
+function splitGeometryUrl(url) {
+  const m = /^(.*\/geometry)\/([0-9a-f]{64})\.glb$/.exec(url);
+  return m ? [m[1], m[2]] : null;
+}
+
 // The GPU memory the cache keeps beyond what the drawn cut uses: past it,
 // the geometry and textures the cut dropped longest ago are freed.
 const GPU_BUDGET = 512 * 1024 * 1024;
@@ -108,8 +136,10 @@ const GPU_BUDGET = 512 * 1024 * 1024;
 // uploaded once and kept while the GPU memory allows (evict()). A cluster's
 // baked colour texture, a PNG in its GLB, is decoded by the browser.
 export class GeometryCache {
-  constructor(renderer) {
+  // encoding: null for the stored (compact) GLBs, or "plain".
+  constructor(renderer, encoding = null) {
     this.renderer = renderer;
+    this.encoding = encoding;
     this.entries = new Map();
     // url -> what upload() made, in the order last used.
     this.uploaded = new Map();
@@ -123,18 +153,23 @@ export class GeometryCache {
     this.active = 0;
     this.peak = 0;
     this.retries = 0;
+    // Geometry requests made (a batch counts once).
+    this.requests = 0;
     this.queue = [];
+    // {url, resolve, reject} waiting for the next batch.
+    this.wanted = [];
   }
 
   get(url) {
     let entry = this.entries.get(url);
     if (!entry) {
       this.loading++;
-      entry = this.fetchRetrying(url)
+      entry = this.fetchBatched(url)
         .then(async (buffer) => {
           let mesh;
           let image = null;
           try {
+            await glbReady;
             mesh = parseGlb(buffer);
             if (mesh.image) {
               image = await createImageBitmap(new Blob([mesh.image.bytes], { type: mesh.image.type }), {
@@ -188,10 +223,66 @@ export class GeometryCache {
     }
   }
 
+  // The GLB at `url`, fetched in the next batch of its scene.
+  fetchBatched(url) {
+    if (!splitGeometryUrl(url)) return this.fetchRetrying(url);
+    return new Promise((resolve, reject) => {
+      this.wanted.push({ url, resolve, reject });
+      // Every get() of this turn joins the same batches.
+      if (this.wanted.length === 1) setTimeout(() => this.sendBatches(), 0);
+    });
+  }
+
+  sendBatches() {
+    const wanted = this.wanted;
+    this.wanted = [];
+    const byBase = new Map();
+    for (const w of wanted) {
+      const [base, hash] = splitGeometryUrl(w.url);
+      if (!byBase.has(base)) byBase.set(base, []);
+      byBase.get(base).push({ ...w, hash });
+    }
+    for (const [base, items] of byBase) {
+      items.sort((a, b) => (a.hash < b.hash ? -1 : a.hash > b.hash ? 1 : 0));
+      // Even batches: 101 GLBs are two of 51 and 50, not 100 and 1.
+      const count = Math.ceil(items.length / BATCH);
+      const size = Math.ceil(items.length / count);
+      for (let i = 0; i < items.length; i += size) this.loadBatch(base, items.slice(i, i + size));
+    }
+  }
+
+  async loadBatch(base, items) {
+    const encoding = this.encoding ? `&encoding=${this.encoding}` : "";
+    const url = `${base}?h=${items.map((w) => w.hash).join(",")}${encoding}`;
+    let files;
+    try {
+      files = unpackBatch(url, await this.fetchRetrying(url));
+    } catch (e) {
+      // A batch the server refuses for good (a hash it no longer has,
+      // after a rebuild) goes again one GLB at a time, so that only the
+      // missing ones fail.
+      if (e instanceof Permanent && items.length > 1) {
+        const query = this.encoding ? `?encoding=${this.encoding}` : "";
+        for (const w of items) this.fetchRetrying(`${w.url}${query}`).then(w.resolve, w.reject);
+      } else {
+        for (const w of items) w.reject(e);
+      }
+      return;
+    }
+    for (const w of items) {
+      const file = files.get(w.hash);
+      if (file) w.resolve(file);
+      else w.reject(new Permanent(`${url}: no ${w.hash} in the answer`));
+    }
+  }
+
   async fetchRetrying(url) {
     for (let attempt = 0; ; attempt++) {
       try {
-        return await this.limited(() => fetchBuffer(url));
+        return await this.limited(() => {
+          this.requests++;
+          return fetchBuffer(url);
+        });
       } catch (e) {
         if (e instanceof Permanent || attempt >= RETRY_MS.length) throw e;
         this.retries++;

@@ -49,6 +49,26 @@ async function padCoverage() {
   }
 }
 
+async function encodings(t) {
+  const res = {};
+  const shots = {};
+  for (const encoding of ["compact", "plain"]) {
+    const p = await browser.newPage({ viewport: { width: WIDTH, height: HEIGHT } });
+    try {
+      p.on("pageerror", (e) => out.errors.push(`page error (${encoding}): ${e.message}`));
+      const query = encoding === "plain" ? "&encoding=plain" : "";
+      await p.goto(`${base}/?scene=${encodeURIComponent(scene)}&time=${t}&pixel_error=0.5${query}`);
+      const st = await settlePage(p);
+      shots[encoding] = await canvasPng(p);
+      res[encoding] = { glbFiles: st.glbFiles, glbBytes: st.glbBytes, glbRequests: st.glbRequests, clusters: st.clusters, ids: st.ids };
+      if (encoding === "plain") res.pixels = await comparePng(p, outDir, "encodings", shots.compact, shots.plain, { x: 0, y: 0, width: WIDTH, height: HEIGHT });
+    } finally {
+      await p.close();
+    }
+  }
+  return res;
+}
+
 const browser = await launch();
 try {
   const page = await browser.newPage({ viewport: { width: WIDTH, height: HEIGHT } });
@@ -356,6 +376,7 @@ try {
 
   const last = await page.evaluate(() => window.hdlodViewer.state());
   out.finalGlbFiles = last.glbFiles;
+  out.finalGlbRequests = last.glbRequests;
   await page.waitForTimeout(600);
   out.address = await page.evaluate(() => location.search);
   out.finalGlbBytes = last.glbBytes;
@@ -368,6 +389,11 @@ try {
   // (its leaf) and at 1 px (its parent, a quad), with and without the
   // ground: the pad must not lose pixels to the ground behind it.
   out.pad = await padCoverage();
+
+  // The same view from the compact GLBs (what the tree stores, decoded by
+  // meshoptimizer's decoder) and from the plain ones (`encoding=plain`):
+  // the same picture.
+  out.encodings = await encodings(last.span * 0.9);
 
   // Readable messages: an unknown scene, then a server that is not there.
   faults = true;
