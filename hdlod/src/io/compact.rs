@@ -12,8 +12,8 @@
 //! axis; normals normalized `BYTE`, colours normalized `UNSIGNED_BYTE`,
 //! texture coordinates normalized `UNSIGNED_SHORT`. Feature ids stay `FLOAT`
 //! (exact, and a run of equal ids costs the vertex codec almost nothing),
-//! indices `UNSIGNED_SHORT` below 65,536 vertices. Each vertex stream is
-//! padded to a multiple of 4 bytes, as both extensions ask.
+//! indices `UNSIGNED_SHORT` below 65,536 vertices. The attributes are
+//! interleaved in one view, each 4-byte aligned, as both extensions ask.
 //!
 //! Compression: the compressed streams are the GLB's binary chunk (buffer
 //! 0); the views point into buffer 1, a fallback buffer without data, so
@@ -41,9 +41,17 @@ const QUANTIZATION: &str = "KHR_mesh_quantization";
 const SHORT: f32 = 32767.0;
 
 impl GlbBuilder {
-    /// [`GlbBuilder::add_mesh`] quantized and compressed; the scale of the
-    /// positions, the node's.
-    pub(super) fn add_compact_mesh(&mut self, mesh: &Mesh) -> (MeshAccessors, f32) {
+    /// [`GlbBuilder::add_mesh`] quantized and compressed, with the texture
+    /// coordinates `uvs` (in `[0, 1]`, as the baker's are) when given; the
+    /// scale of the positions, the node's. The attributes are interleaved
+    /// in one view: one compressed stream and one extension object per
+    /// file, where a view per attribute would cost more JSON than the
+    /// compressed data of a small cluster.
+    pub(super) fn add_compact_mesh(
+        &mut self,
+        mesh: &Mesh,
+        uvs: Option<&[Vec2]>,
+    ) -> (MeshAccessors, f32) {
         let n = mesh.positions.len();
         let extent = mesh
             .positions
@@ -54,141 +62,114 @@ impl GlbBuilder {
         } else {
             1.0
         };
-        let positions: Vec<[i16; 4]> = mesh
-            .positions
-            .iter()
-            .map(|p| {
-                let q = (*p / scale * SHORT)
-                    .round()
-                    .clamp(Vec3::splat(-SHORT), Vec3::splat(SHORT));
-                [q.x as i16, q.y as i16, q.z as i16, 0]
+        // The layout: each attribute's offset in the vertex, 4-byte aligned.
+        let mut stride = 8;
+        let mut field = |present: bool| {
+            present.then(|| {
+                stride += 4;
+                stride - 4
             })
-            .collect();
-        let (lo, hi) = positions
-            .iter()
-            .fold(([i16::MAX; 3], [i16::MIN; 3]), |(lo, hi), p| {
-                (
-                    std::array::from_fn(|k| lo[k].min(p[k])),
-                    std::array::from_fn(|k| hi[k].max(p[k])),
-                )
-            });
-        let positions = self.compressed_accessor(
-            bytemuck::cast_slice(&positions),
-            8,
+        };
+        let normals = field(!mesh.normals.is_empty());
+        let colors = field(!mesh.colors.is_empty());
+        let texcoords = field(uvs.is_some());
+        let features = field(!mesh.features.is_empty());
+        let mut raw = vec![0u8; n * stride];
+        let (mut lo, mut hi) = ([i16::MAX; 3], [i16::MIN; 3]);
+        for (i, vertex) in raw.chunks_exact_mut(stride).enumerate() {
+            let q = (mesh.positions[i] / scale * SHORT)
+                .round()
+                .clamp(Vec3::splat(-SHORT), Vec3::splat(SHORT));
+            let q = [q.x as i16, q.y as i16, q.z as i16];
+            for k in 0..3 {
+                lo[k] = lo[k].min(q[k]);
+                hi[k] = hi[k].max(q[k]);
+                vertex[2 * k..2 * k + 2].copy_from_slice(&q[k].to_le_bytes());
+            }
+            if let Some(at) = normals {
+                let v = (mesh.normals[i] * 127.0)
+                    .round()
+                    .clamp(Vec3::splat(-127.0), Vec3::splat(127.0));
+                vertex[at..at + 3].copy_from_slice(&[
+                    v.x as i8 as u8,
+                    v.y as i8 as u8,
+                    v.z as i8 as u8,
+                ]);
+            }
+            if let Some(at) = colors {
+                let c = mesh.colors[i].map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8);
+                vertex[at..at + 4].copy_from_slice(&c);
+            }
+            if let (Some(at), Some(uvs)) = (texcoords, uvs) {
+                for (k, v) in uvs[i].to_array().into_iter().enumerate() {
+                    let q = (v.clamp(0.0, 1.0) * 65535.0).round() as u16;
+                    vertex[at + 2 * k..at + 2 * k + 2].copy_from_slice(&q.to_le_bytes());
+                }
+            }
+            if let Some(at) = features {
+                vertex[at..at + 4].copy_from_slice(&(mesh.features[i] as f32).to_le_bytes());
+            }
+        }
+        let encoded = encode_vertices(&raw, stride);
+        let view = self.compressed_view(
+            raw.len(),
+            &encoded,
+            Some(stride),
             n,
-            json::accessor::Type::Vec3,
-            json::accessor::ComponentType::I16,
+            "ATTRIBUTES",
+            json::buffer::Target::ArrayBuffer,
+        );
+        use json::accessor::{ComponentType as C, Type as T};
+        let positions = self.view_accessor(
+            view,
+            0,
+            n,
+            T::Vec3,
+            C::I16,
             Some((lo.map(f32::from).to_vec(), hi.map(f32::from).to_vec())),
         );
-        let normals = (!mesh.normals.is_empty()).then(|| {
-            let q: Vec<[i8; 4]> = mesh
-                .normals
-                .iter()
-                .map(|v| {
-                    let q = (*v * 127.0)
-                        .round()
-                        .clamp(Vec3::splat(-127.0), Vec3::splat(127.0));
-                    [q.x as i8, q.y as i8, q.z as i8, 0]
-                })
-                .collect();
-            self.compressed_accessor(
-                bytemuck::cast_slice(&q),
-                4,
-                n,
-                json::accessor::Type::Vec3,
-                json::accessor::ComponentType::I8,
-                None,
-            )
-        });
-        let colors = (!mesh.colors.is_empty()).then(|| {
-            let q: Vec<[u8; 4]> = mesh
-                .colors
-                .iter()
-                .map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
-                .collect();
-            self.compressed_accessor(
-                bytemuck::cast_slice(&q),
-                4,
-                n,
-                json::accessor::Type::Vec4,
-                json::accessor::ComponentType::U8,
-                None,
-            )
-        });
-        let features = (!mesh.features.is_empty()).then(|| {
+        let normals = normals.map(|at| self.view_accessor(view, at, n, T::Vec3, C::I8, None));
+        let colors = colors.map(|at| self.view_accessor(view, at, n, T::Vec4, C::U8, None));
+        let uvs = texcoords.map(|at| self.view_accessor(view, at, n, T::Vec2, C::U16, None));
+        let features = features.map(|at| {
             let mut distinct = mesh.features.clone();
             distinct.sort_unstable();
             distinct.dedup();
-            let float: Vec<f32> = mesh.features.iter().map(|&f| f as f32).collect();
-            let accessor = self.compressed_accessor(
-                bytemuck::cast_slice(&float),
-                4,
-                n,
-                json::accessor::Type::Scalar,
-                json::accessor::ComponentType::F32,
-                None,
-            );
-            (accessor, distinct.len())
+            (
+                self.view_accessor(view, at, n, T::Scalar, C::F32, None),
+                distinct.len(),
+            )
         });
         let indices = self.compressed_indices(&mesh.indices, n);
         let accessors = MeshAccessors {
             positions,
             normals,
             colors,
-            uvs: None,
+            uvs,
             features,
             indices,
         };
         (accessors, scale)
     }
 
-    /// Texture coordinates (in `[0, 1]`, as the baker's are) quantized and
-    /// compressed.
-    pub(super) fn add_compact_uvs(&mut self, uvs: &[Vec2]) -> json::Index<json::Accessor> {
-        let q: Vec<[u16; 2]> = uvs
-            .iter()
-            .map(|uv| {
-                uv.to_array()
-                    .map(|v| (v.clamp(0.0, 1.0) * 65535.0).round() as u16)
-            })
-            .collect();
-        self.compressed_accessor(
-            bytemuck::cast_slice(&q),
-            4,
-            uvs.len(),
-            json::accessor::Type::Vec2,
-            json::accessor::ComponentType::U16,
-            None,
-        )
-    }
-
-    /// A vertex accessor over `raw` (`count` elements of `stride` bytes),
-    /// its view compressed; integer components normalized.
-    fn compressed_accessor(
+    /// An accessor of `count` elements at `offset` in each vertex of the
+    /// interleaved `view`; integer components normalized.
+    fn view_accessor(
         &mut self,
-        raw: &[u8],
-        stride: usize,
+        view: json::Index<json::buffer::View>,
+        offset: usize,
         count: usize,
         kind: json::accessor::Type,
         component: json::accessor::ComponentType,
         min_max: Option<(Vec<f32>, Vec<f32>)>,
     ) -> json::Index<json::Accessor> {
-        let encoded = encode_vertices(raw, stride);
-        let view = self.compressed_view(
-            raw.len(),
-            &encoded,
-            Some(stride),
-            count,
-            "ATTRIBUTES",
-            json::buffer::Target::ArrayBuffer,
-        );
         let (min, max) = match min_max {
             Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
             None => (None, None),
         };
         self.root.push(json::Accessor {
             buffer_view: Some(view),
-            byte_offset: None,
+            byte_offset: (offset > 0).then(|| USize64::from(offset)),
             count: USize64::from(count),
             component_type: Valid(json::accessor::GenericComponentType(component)),
             extensions: None,
@@ -295,6 +276,20 @@ pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback:
     for (view, extension) in compressed {
         json["bufferViews"][*view]["extensions"] = serde_json::json!({ MESHOPT: extension });
     }
+    // The materials' default values, which the gltf crate writes out: in
+    // a small cluster's file they weigh as much as its triangles.
+    for material in json["materials"].as_array_mut().into_iter().flatten() {
+        let Some(m) = material.as_object_mut() else {
+            continue;
+        };
+        m.retain(|k, v| !is_default(k, v));
+        if let Some(pbr) = m
+            .get_mut("pbrMetallicRoughness")
+            .and_then(Value::as_object_mut)
+        {
+            pbr.retain(|k, v| !is_default(k, v));
+        }
+    }
     let buffers = json["buffers"]
         .as_array_mut()
         .expect("a compressed GLB has its binary chunk's buffer");
@@ -316,6 +311,18 @@ pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback:
     }
 }
 
+/// Whether a material's (or its `pbrMetallicRoughness`'s) `key` holds its
+/// default value.
+fn is_default(key: &str, value: &Value) -> bool {
+    match key {
+        "alphaMode" => value == "OPAQUE",
+        "emissiveFactor" => *value == serde_json::json!([0.0, 0.0, 0.0]),
+        "roughnessFactor" => *value == 1.0,
+        "baseColorFactor" => *value == serde_json::json!([1.0, 1.0, 1.0, 1.0]),
+        _ => false,
+    }
+}
+
 /// Encodes `raw`, elements of `stride` bytes, with the vertex codec at the
 /// version `EXT_meshopt_compression` decoders read.
 fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
@@ -323,8 +330,11 @@ fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
         meshopt::encode_vertex_buffer_level(elements, 2, Some(0)).expect("a vertex stream encodes")
     }
     match stride {
-        4 => with(bytemuck::cast_slice::<u8, [u8; 4]>(raw)),
         8 => with(bytemuck::cast_slice::<u8, [u8; 8]>(raw)),
+        12 => with(bytemuck::cast_slice::<u8, [u8; 12]>(raw)),
+        16 => with(bytemuck::cast_slice::<u8, [u8; 16]>(raw)),
+        20 => with(bytemuck::cast_slice::<u8, [u8; 20]>(raw)),
+        24 => with(bytemuck::cast_slice::<u8, [u8; 24]>(raw)),
         other => unreachable!("no vertex stream of {other} bytes is written"),
     }
 }
@@ -642,6 +652,8 @@ fn decode_vertices(data: &[u8], count: usize, size: usize) -> Option<meshopt::Re
         8 => meshopt::decode_vertex_buffer::<[u8; 8]>(data, count).map(|v| v.concat()),
         12 => meshopt::decode_vertex_buffer::<[u8; 12]>(data, count).map(|v| v.concat()),
         16 => meshopt::decode_vertex_buffer::<[u8; 16]>(data, count).map(|v| v.concat()),
+        20 => meshopt::decode_vertex_buffer::<[u8; 20]>(data, count).map(|v| v.concat()),
+        24 => meshopt::decode_vertex_buffer::<[u8; 24]>(data, count).map(|v| v.concat()),
         _ => return None,
     };
     Some(bytes)

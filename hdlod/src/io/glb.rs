@@ -107,13 +107,12 @@ pub(crate) fn glb_at(
     if !local.is_empty() {
         let (mut accessors, scale) = match encoding {
             Encoding::Plain => (glb.add_mesh(local), 1.0),
-            Encoding::Compact => glb.add_compact_mesh(local),
+            Encoding::Compact => glb.add_compact_mesh(local, texture.map(|t| &t.uvs[..])),
         };
         let texture = texture.map(|t| {
-            accessors.uvs = Some(match encoding {
-                Encoding::Plain => glb.add_uvs(&t.uvs),
-                Encoding::Compact => glb.add_compact_uvs(&t.uvs),
-            });
+            if encoding == Encoding::Plain {
+                accessors.uvs = Some(glb.add_uvs(&t.uvs));
+            }
             glb.add_texture(&t.png)
         });
         let material = glb.double_sided_material(texture);
