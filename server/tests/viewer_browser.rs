@@ -220,7 +220,7 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     assert!(f(&compact["glbFiles"]) > 10.0, "{e}");
     assert_eq!(compact["glbFiles"], plain["glbFiles"], "{e}");
     assert!(
-        f(&compact["glbBytes"]) * 2.0 < f(&plain["glbBytes"]),
+        f(&compact["glbBytes"]) < 0.6 * f(&plain["glbBytes"]),
         "{compact} {plain}"
     );
     let pixels = &e["pixels"];
