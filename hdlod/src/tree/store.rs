@@ -61,6 +61,23 @@ impl TreeWriter {
         })
     }
 
+    /// Stores the geometry file `hash` of the tree in `from` without
+    /// reading it: a hard link where the file system allows (trees are
+    /// immutable, so sharing the file is safe), else a copy.
+    pub fn reuse_geometry(&self, from: &Path, hash: &str) -> Result<()> {
+        let name = format!("{hash}.glb");
+        let source = from.join(GEOMETRY_DIR).join(&name);
+        let path = self.tmp.join(GEOMETRY_DIR).join(&name);
+        if fs::hard_link(&source, &path).is_err() {
+            fs::copy(&source, &path).map_err(|e| Error::io(&source, e))?;
+        }
+        self.stored
+            .lock()
+            .expect("no panic while holding")
+            .insert(hash.to_string());
+        Ok(())
+    }
+
     /// Stores GLB bytes under the blake3 hex of their content and returns
     /// that hash; identical bytes are stored once.
     pub fn put_geometry(&self, glb: &[u8]) -> Result<String> {
