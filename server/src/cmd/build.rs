@@ -78,7 +78,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         out: args.out.display().to_string(),
         seconds: started.elapsed().as_secs_f64(),
         objects: scene.objects.len(),
-        clusters: tree.clusters.len(),
+        clusters: tree.cluster_count(),
         levels: stats.levels,
         absent_objects: stats.absent_objects.len(),
         phases,
