@@ -131,6 +131,7 @@ impl AppState {
                 );
             }
         }
+        memory::loaded();
         Ok(Arc::new(AppState {
             scenes: RwLock::new(Arc::new(scenes)),
             sources,
@@ -183,6 +184,8 @@ impl AppState {
             }
         }
         *self.scenes.write().expect("no panic while holding") = Arc::new(next);
+        drop(old);
+        memory::loaded();
         self.metrics.reloaded();
         errors
     }
