@@ -334,6 +334,23 @@ fn eps_bounds_the_distance(b: &Built) {
 }
 
 /// What the builder writes is what the schemas describe.
+/// The tiny site's tree as served (mapped from `clusters.bin`) is the
+/// tree `clusters.json` describes, cluster for cluster, with the same
+/// object tables, counts and baseline.
+#[test]
+fn the_index_describes_the_tree_of_the_json() {
+    let b = built();
+    let json = hdlod::tree::store::load_json(&b.dir).unwrap();
+    assert!(b.tree.index().is_some() && json.index().is_none());
+    assert_eq!(b.tree.cluster_count(), json.cluster_count());
+    for (a, c) in b.tree.clusters().zip(json.clusters()) {
+        assert_eq!(a, c);
+    }
+    assert_eq!(b.tree, json);
+    assert_eq!(b.tree.summary(), json.summary());
+    assert_eq!(b.tree.baseline(), json.baseline());
+}
+
 #[test]
 fn written_files_match_the_schemas() {
     let b = built();
