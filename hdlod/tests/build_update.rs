@@ -7,7 +7,7 @@ use std::path::Path;
 
 use hdlod::build::{BuildConfig, How, Silent, StepFunction, build_or_update_to, build_to};
 use hdlod::scene::{Scene, format};
-use hdlod::tree::{Tree, load};
+use hdlod::tree::{Cluster, Tree, load};
 
 fn tiny() -> Scene {
     let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
@@ -41,8 +41,12 @@ fn rescheduled(scene: &Scene, by: f64) -> Scene {
     scene
 }
 
+fn records(tree: &Tree) -> Vec<Cluster> {
+    tree.clusters().map(|c| c.into_owned()).collect()
+}
+
 fn geometry(tree: &Tree) -> Vec<Option<String>> {
-    tree.clusters.iter().map(|c| c.geometry.clone()).collect()
+    records(tree).into_iter().map(|c| c.geometry).collect()
 }
 
 #[test]
@@ -64,8 +68,8 @@ fn an_update_recomputes_what_the_build_computes() {
             dissolved: 0,
         }
     );
-    assert_eq!(same.clusters, built.clusters);
-    assert_eq!(load(&dir).unwrap().clusters, built.clusters);
+    assert_eq!(records(&same), records(&built));
+    assert_eq!(records(&load(&dir).unwrap()), records(&built));
 
     // An hour later: the leaves follow the new dates, the geometry stays.
     let later = rescheduled(&scene, 3600.0);
@@ -74,14 +78,13 @@ fn an_update_recomputes_what_the_build_computes() {
         panic!("{how:?}")
     };
     let updated = load(&dir).expect("the updated tree loads and validates");
-    assert_eq!(updated.clusters.len(), built.clusters.len() - dissolved);
+    assert_eq!(updated.cluster_count(), built.cluster_count() - dissolved);
     let span = later.time.seconds;
     let mut changed = 0;
     let leaves = |t: &Tree| {
-        t.clusters
-            .iter()
+        records(t)
+            .into_iter()
             .filter(|c| c.is_leaf())
-            .cloned()
             .collect::<Vec<_>>()
     };
     let (now, before) = (leaves(&updated), leaves(&built));
@@ -122,10 +125,11 @@ fn groups_that_no_longer_fit_the_schedule_are_dissolved() {
         "a day's shift breaks some group of the tiny site"
     );
     let tree = load(&dir).expect("the updated tree loads and validates");
-    assert_eq!(tree.clusters.len(), built.clusters.len() - dissolved);
-    let leaves = |t: &Tree| t.clusters.iter().filter(|c| c.is_leaf()).count();
+    assert_eq!(tree.cluster_count(), built.cluster_count() - dissolved);
+    let leaves = |t: &Tree| records(t).iter().filter(|c| c.is_leaf()).count();
     assert_eq!(leaves(&tree), leaves(&built));
-    for c in &tree.clusters {
+    let clusters = records(&tree);
+    for c in &clusters {
         if c.class == hdlod::tree::ClusterClass::Root {
             continue;
         }
@@ -138,10 +142,7 @@ fn groups_that_no_longer_fit_the_schedule_are_dissolved() {
             budget.gamma
         );
         for &k in &c.children {
-            assert!(
-                tree.clusters[k as usize].eps <= c.eps,
-                "eps grows up the tree"
-            );
+            assert!(clusters[k as usize].eps <= c.eps, "eps grows up the tree");
         }
     }
 }

@@ -167,20 +167,20 @@ pub fn build(
     stats
         .phases
         .push(("root".into(), clock.elapsed().as_secs_f64()));
-    let tree = Tree {
-        scene: scene.name.clone(),
-        time: scene.time,
-        bounds: clusters[root as usize].bounds,
-        up: scene.up,
-        georeference: scene.georeference,
+    let bounds = clusters[root as usize].bounds;
+    let objects = ObjectTables::of(scene, &clusters);
+    let mut tree = Tree::new(
+        scene.name.clone(),
+        scene.time,
+        bounds,
+        scene.up,
         root,
-        config: serde_json::to_value(config).expect("the config serialises"),
-        stats: serde_json::to_value(&stats).expect("the statistics serialise"),
-        objects: Some(ObjectTables::of(scene, &clusters)),
         clusters,
-        presence: Default::default(),
-        nodes: Default::default(),
-    };
+    );
+    tree.georeference = scene.georeference;
+    tree.config = serde_json::to_value(config).expect("the config serialises");
+    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+    tree.objects = Some(objects);
     Ok((tree, stats))
 }
 
@@ -261,9 +261,11 @@ pub fn build_or_update_to(
                             progress.phase("write", 1);
                             let writer = TreeWriter::create(out)?;
                             let mut files = std::collections::BTreeSet::new();
-                            for hash in tree.clusters.iter().filter_map(|c| c.geometry.as_ref()) {
-                                if files.insert(hash.as_str()) {
-                                    writer.reuse_geometry(out, hash)?;
+                            for id in 0..tree.cluster_count() as u32 {
+                                if let Some(hash) = tree.geometry_of(id)
+                                    && files.insert(hash.to_string())
+                                {
+                                    writer.reuse_geometry(out, &hash)?;
                                 }
                             }
                             let geometry_files = files.len();

@@ -136,13 +136,13 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
     // its new children against its own, higher, threshold.
     let mut leaf_steps: Vec<StepFunction> = Vec::new();
     let mut vis_ids: HashMap<Vec<(u64, u64)>, u32> = HashMap::new();
-    let n = old.clusters.len();
+    let n = old.cluster_count();
     let mut steps: Vec<StepFunction> = Vec::with_capacity(n);
     let mut below: Vec<Vec<u32>> = Vec::with_capacity(n);
     let mut clusters: Vec<Cluster> = Vec::with_capacity(n);
     let mut dissolved: Vec<Option<Vec<u32>>> = vec![None; n];
-    for c in &old.clusters {
-        let mut c = c.clone();
+    for c in old.clusters() {
+        let mut c = c.into_owned();
         c.children = c
             .children
             .iter()
@@ -252,6 +252,7 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
         .map(|(o, _)| o.id.clone())
         .collect();
     stats.phases.clear();
+    let objects = ObjectTables::of(scene, &clusters);
     let mut tree = Tree::new(
         scene.name.clone(),
         scene.time,
@@ -263,7 +264,7 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
     tree.georeference = scene.georeference;
     tree.config = old.config.clone();
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
-    tree.objects = Some(ObjectTables::of(scene, &tree.clusters));
+    tree.objects = Some(objects);
     Update::Updated {
         tree: Box::new(tree),
         stats,
@@ -279,10 +280,8 @@ fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<HashMap<u
     let clustered = (0..pieces.len())
         .filter(|&i| matches!(pieces[i].class, Class::Static | Class::PseudoDynamic));
     let dynamic = (0..pieces.len()).filter(|&i| pieces[i].class == Class::Dynamic);
-    let leaves = old
-        .clusters
-        .iter()
-        .filter(|c| c.is_leaf() && c.class != ClusterClass::Root);
+    let leaves = (0..old.cluster_count() as u32)
+        .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
     let mut out = HashMap::new();
     let mut expected = clustered.chain(dynamic);
     for leaf in leaves {
@@ -293,11 +292,11 @@ fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<HashMap<u
             Class::PseudoDynamic => ClusterClass::PseudoDynamic,
             _ => ClusterClass::Dynamic,
         };
-        let id = &scene.objects[piece.object].id;
-        if leaf.class != class || leaf.objects.as_slice() != std::slice::from_ref(id) {
+        let id = scene.objects[piece.object].id.as_str();
+        if old.class_of(leaf) != class || old.objects_of(leaf) != [id] {
             return None;
         }
-        out.insert(leaf.id, i);
+        out.insert(leaf, i);
     }
     expected.next().is_none().then_some(out)
 }

@@ -105,7 +105,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             "schedule-update",
             None,
             Some(Reused {
-                clusters: tree.clusters.len(),
+                clusters: tree.cluster_count(),
                 geometry_files,
                 dissolved_groups: dissolved,
             }),
@@ -119,7 +119,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         reused,
         seconds: started.elapsed().as_secs_f64(),
         objects: scene.objects.len(),
-        clusters: tree.clusters.len(),
+        clusters: tree.cluster_count(),
         levels: stats.levels,
         absent_objects: stats.absent_objects.len(),
         phases,
