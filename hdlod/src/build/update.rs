@@ -1,7 +1,7 @@
 //! Schedule-only updates: a tree built from an earlier version of a scene
 //! whose geometry and placements are unchanged, only its schedule moved,
 //! is brought up to date without touching geometry (docs/method.md
-//! section 3, "Updates").
+//! section 3, "Schedule updates").
 //!
 //! The clusters keep their groups, geometry, boxes and `eps_c`; the leaves
 //! take the new visibility of their objects, and every cluster above is
@@ -119,6 +119,7 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
     let Some(leaf_pieces) = match_leaves(old, scene, &pieces) else {
         return Update::Rebuild(
             "an object changed class (static, pseudo-dynamic, dynamic or absent), \
+             or a moving object's rests before or after its motion changed, \
              so the leaves differ"
                 .into(),
         );
