@@ -50,8 +50,9 @@ fn build(config: &BuildConfig) -> Built {
 fn the_leaves_of_an_object_partition_its_visibility() {
     let b = built();
     let span = b.tree.time.seconds;
+    let clusters: Vec<_> = b.tree.clusters().collect();
     let mut leaves: HashMap<&str, Vec<StepFunction>> = HashMap::new();
-    for c in &b.tree.clusters {
+    for c in &clusters {
         assert!(
             c.objects.is_empty() || c.is_leaf(),
             "cluster {} lists objects but has children",
@@ -97,9 +98,9 @@ fn the_leaves_of_an_object_partition_its_visibility() {
 #[test]
 fn parents_contain_children_and_errors_grow_upwards() {
     let t = &built().tree;
-    for c in &t.clusters {
+    for c in t.clusters() {
         for &ch in &c.children {
-            let child = &t.clusters[ch as usize];
+            let child = &t.cluster(ch);
             if c.class != ClusterClass::Root {
                 assert_eq!(child.class, c.class, "cluster {} mixes classes", c.id);
                 // Dynamic chains share one frame; the others are in the world.
@@ -128,7 +129,7 @@ fn fractional_visibility_is_the_size_weighted_mean() {
     let span = t.time.seconds;
     let k = BuildConfig::default().max_steps;
     let mut exact = 0;
-    for c in t.clusters.iter().filter(|c| !c.is_leaf()) {
+    for c in t.clusters().filter(|c| !c.is_leaf()) {
         let v = StepFunction::from_tree(&c.visibility);
         assert!(
             v.points().iter().all(|p| (0.0..=1.0).contains(&p.1)),
@@ -139,7 +140,7 @@ fn fractional_visibility_is_the_size_weighted_mean() {
             .children
             .iter()
             .map(|&i| {
-                let ch = &t.clusters[i as usize];
+                let ch = &t.cluster(i);
                 (ch.w.max(1e-9), StepFunction::from_tree(&ch.visibility))
             })
             .collect();
@@ -172,8 +173,7 @@ fn temporal_error_is_measured_against_the_objects() {
         b.scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
     for c in b
         .tree
-        .clusters
-        .iter()
+        .clusters()
         .filter(|c| c.class == ClusterClass::PseudoDynamic)
     {
         let v = StepFunction::from_tree(&c.visibility);
@@ -182,7 +182,7 @@ fn temporal_error_is_measured_against_the_objects() {
         let worst = leaves_below(&b.tree, c.id)
             .iter()
             .map(|&l| {
-                let leaf = &b.tree.clusters[l as usize];
+                let leaf = &b.tree.cluster(l);
                 let object = objects[leaf.objects[0].as_str()];
                 let own = StepFunction::of_visibility(&object.visibility, span);
                 let part = StepFunction::from_tree(&leaf.visibility);
@@ -207,7 +207,7 @@ fn temporal_error_is_measured_against_the_objects() {
 }
 
 fn leaves_below(t: &Tree, id: u32) -> Vec<u32> {
-    let c = &t.clusters[id as usize];
+    let c = &t.cluster(id);
     if c.is_leaf() {
         return vec![id];
     }
@@ -246,8 +246,7 @@ fn an_appearance_bound_is_a_geometric_bound_that_keeps_colours() {
         let (mut colours, mut triangles) = (0usize, 0usize);
         for c in b
             .tree
-            .clusters
-            .iter()
+            .clusters()
             .filter(|c| !c.is_leaf() && c.geometry.is_some())
         {
             let m = read_mesh(
@@ -278,7 +277,7 @@ fn eps_bounds_the_distance(b: &Built) {
     let objects: HashMap<&str, &hdlod::scene::Object> =
         b.scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
     let mut checked = 0;
-    for c in b.tree.clusters.iter().filter(|c| {
+    for c in b.tree.clusters().filter(|c| {
         !c.is_leaf() && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic)
     }) {
         if c.id % 5 != 0 {
@@ -295,7 +294,7 @@ fn eps_bounds_the_distance(b: &Built) {
         let parts: Vec<Part> = leaves_below(&b.tree, c.id)
             .iter()
             .map(|&l| {
-                let leaf = &b.tree.clusters[l as usize];
+                let leaf = &b.tree.cluster(l);
                 let o = objects[leaf.objects[0].as_str()];
                 let shown = leaf
                     .visibility
@@ -335,6 +334,23 @@ fn eps_bounds_the_distance(b: &Built) {
 }
 
 /// What the builder writes is what the schemas describe.
+/// The tiny site's tree as served (mapped from `clusters.bin`) is the
+/// tree `clusters.json` describes, cluster for cluster, with the same
+/// object tables, counts and baseline.
+#[test]
+fn the_index_describes_the_tree_of_the_json() {
+    let b = built();
+    let json = hdlod::tree::store::load_json(&b.dir).unwrap();
+    assert!(b.tree.index().is_some() && json.index().is_none());
+    assert_eq!(b.tree.cluster_count(), json.cluster_count());
+    for (a, c) in b.tree.clusters().zip(json.clusters()) {
+        assert_eq!(a, c);
+    }
+    assert_eq!(b.tree, json);
+    assert_eq!(b.tree.summary(), json.summary());
+    assert_eq!(b.tree.baseline(), json.baseline());
+}
+
 #[test]
 fn written_files_match_the_schemas() {
     let b = built();
@@ -356,8 +372,8 @@ fn single_child_parents_reduce_their_child() {
     let t = &built().tree;
     let config = BuildConfig::default();
     let mut found = [0usize; 2];
-    for c in t.clusters.iter().filter(|c| c.children.len() == 1) {
-        let child = &t.clusters[c.children[0] as usize];
+    for c in t.clusters().filter(|c| c.children.len() == 1) {
+        let child = &t.cluster(c.children[0]);
         assert!(
             c.triangles as f64 <= child.triangles as f64 * config.min_reduction,
             "cluster {} keeps {} of {} triangles",
@@ -390,7 +406,7 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
         .map(|(i, o)| (o.id.as_str(), i as u32))
         .collect();
     let mut files = Vec::new();
-    for c in &b.tree.clusters {
+    for c in b.tree.clusters() {
         let Some(hash) = &c.geometry else { continue };
         let file = b.dir.join("geometry").join(format!("{hash}.glb"));
         let mesh = read_mesh(&file).unwrap();
@@ -403,10 +419,7 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
                 .dynamic_object(c.id)
                 .expect("a dynamic cluster's object");
             let leaves = leaves_below(&b.tree, c.id);
-            assert_eq!(
-                index[b.tree.clusters[leaves[0] as usize].objects[0].as_str()],
-                object
-            );
+            assert_eq!(index[b.tree.cluster(leaves[0]).objects[0].as_str()], object);
             continue;
         }
         assert_eq!(
@@ -425,7 +438,7 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
         }
         let below: std::collections::HashSet<u32> = leaves_below(&b.tree, c.id)
             .iter()
-            .flat_map(|&l| &b.tree.clusters[l as usize].objects)
+            .flat_map(|&l| b.tree.cluster(l).objects.clone())
             .map(|o| index[o.as_str()])
             .collect();
         let mut distinct = mesh.features.clone();
@@ -467,7 +480,7 @@ fn quantization(c: &hdlod::tree::Cluster) -> f64 {
 #[test]
 fn an_objects_triangles_lie_within_eps_of_the_object() {
     let b = built();
-    let clusters: Vec<u32> = b.tree.clusters.iter().map(|c| c.id).collect();
+    let clusters: Vec<u32> = b.tree.clusters().map(|c| c.id).collect();
     let distances =
         hdlod::tree::fidelity::feature_distances(&b.dir, &b.tree, &b.scene, &clusters, 1e-4)
             .unwrap();
@@ -510,7 +523,7 @@ fn baked_colour_changes_colour_only() {
         bake: true,
         ..BuildConfig::default()
     });
-    assert_eq!(plain.tree.clusters.len(), baked.tree.clusters.len());
+    assert_eq!(plain.tree.cluster_count(), baked.tree.cluster_count());
     let path = |b: &Built, hash: &str| b.dir.join("geometry").join(format!("{hash}.glb"));
     // Each triangle's corners in a fixed order: the index codec of the
     // compact GLB may rotate a triangle's corners.
@@ -529,7 +542,7 @@ fn baked_colour_changes_colour_only() {
     };
     let mut textured = 0;
     let mut files = Vec::new();
-    for (a, b) in plain.tree.clusters.iter().zip(&baked.tree.clusters) {
+    for (a, b) in plain.tree.clusters().zip(baked.tree.clusters()) {
         assert_eq!(
             (a.eps, a.gamma, a.triangles, a.w, a.level, &a.children),
             (b.eps, b.gamma, b.triangles, b.w, b.level, &b.children),

@@ -302,7 +302,7 @@ fn boxes_transforms_and_content_are_the_cuts() {
                 }
                 seen += 1;
                 let id = visit.tile.extras.unwrap().cluster;
-                let c = &tree.clusters[id as usize];
+                let c = &tree.cluster(id);
                 let v = c.visibility.at(t);
                 assert!(v > 0.0, "cluster {id} is absent at {t} but has a tile");
                 let (pose, cut_box) = match &c.motion {
@@ -349,11 +349,7 @@ fn boxes_transforms_and_content_are_the_cuts() {
                     assert!(child.geometric_error < visit.tile.geometric_error);
                 }
             }
-            let present = tree
-                .clusters
-                .iter()
-                .filter(|c| c.visibility.at(t) > 0.0)
-                .count();
+            let present = tree.clusters().filter(|c| c.visibility.at(t) > 0.0).count();
             assert_eq!(
                 seen, present,
                 "{up:?} t = {t}: one tile per present cluster"
@@ -436,13 +432,13 @@ fn a_3d_tiles_traversal_draws_the_cut() {
                     // With the cut's own errors, the tileset is the cut.
                     let delta = |tile: &Tile| {
                         let x = tile.extras.unwrap();
-                        tree.clusters[x.cluster as usize].delta(x.visibility)
+                        tree.cluster(x.cluster).delta(x.visibility)
                     };
                     let drawn = client.draw(&world_view, &delta);
                     let ids: Vec<u32> = drawn.iter().map(|d| d.0).collect();
                     assert_eq!(ids, expected, "{up:?} t = {t}, {spec:?}");
                     for (id, path) in &drawn {
-                        let hash = tree.clusters[*id as usize].geometry.as_ref().unwrap();
+                        let hash = tree.geometry_of(*id).unwrap();
                         assert_eq!(path, &format!("geometry/{hash}.glb"));
                     }
                     // With the written errors (raised to shrink downwards) a
@@ -450,12 +446,10 @@ fn a_3d_tiles_traversal_draws_the_cut() {
                     let tiles: u64 = client
                         .draw(&world_view, &|tile: &Tile| tile.geometric_error)
                         .iter()
-                        .map(|d| tree.clusters[d.0 as usize].triangles)
+                        .map(|d| tree.cluster(d.0).triangles)
                         .sum();
-                    let cut_triangles: u64 = expected
-                        .iter()
-                        .map(|&i| tree.clusters[i as usize].triangles)
-                        .sum();
+                    let cut_triangles: u64 =
+                        expected.iter().map(|&i| tree.cluster(i).triangles).sum();
                     total_cut += cut_triangles;
                     total_tiles += tiles;
                 }

@@ -96,8 +96,7 @@ fn every_scene_object_in_scene_order() {
         assert_eq!(row.presence, o.visibility);
         let leaves: Vec<u32> = b
             .tree
-            .clusters
-            .iter()
+            .clusters()
             .filter(|c| c.objects.contains(&o.id))
             .map(|c| c.id)
             .collect();
@@ -220,7 +219,7 @@ fn a_broken_table_names_the_field() {
     for (edit, field) in cases {
         let mut r = record();
         edit(&mut r);
-        let e = ObjectTables::from_record(r, &b.tree.clusters, &file)
+        let e = ObjectTables::from_record(r, &b.tree, &file)
             .expect_err(field)
             .to_string();
         assert!(

@@ -44,6 +44,8 @@ enum Command {
     Build(cmd::build::Args),
     /// The cut of a tree for a time and camera.
     Cut(cmd::cut::Args),
+    /// Write a tree's serving index (clusters.bin) from its clusters.json.
+    Index(cmd::index::Args),
     /// Write the time slice of a tree at one date as 3D Tiles 1.1.
     ExportTiles(cmd::export_tiles::Args),
     /// Serve trees over HTTP and WebSocket.
@@ -87,6 +89,7 @@ fn main() -> ExitCode {
         Command::Build(a) => cmd::build::run(a),
         Command::Demo(a) => cmd::demo::run(a),
         Command::Cut(a) => cmd::cut::run(a),
+        Command::Index(a) => cmd::index::run(a),
         Command::ExportTiles(a) => cmd::export_tiles::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),

@@ -460,6 +460,68 @@ fn reloads_without_dropping_requests(hangup: bool) {
     );
 }
 
+/// `hdlod_reloads_total` of the server's metrics.
+fn reloads(server: &Server) -> u64 {
+    let text = client()
+        .get(server.url("/metrics"))
+        .send()
+        .unwrap()
+        .text()
+        .unwrap();
+    text.lines()
+        .find_map(|l| l.strip_prefix("hdlod_reloads_total "))
+        .and_then(|n| n.trim().parse().ok())
+        .expect("a reload count")
+}
+
+/// Waits (up to 10 s) until the file watch has reloaded the trees `count`
+/// times.
+fn await_reloads(server: &Server, count: u64) {
+    let deadline = Instant::now() + Duration::from_secs(10);
+    while reloads(server) < count {
+        assert!(Instant::now() < deadline, "no reload after the change");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// The index of a served tree replaced by a damaged one (renamed into
+/// place): the reload fails and the previous tree stays served; once the
+/// index is written again (`hdlod index`), the reload serves it.
+#[test]
+fn a_corrupt_index_keeps_the_previous_tree_served() {
+    let server = Server::sample(3);
+    let cut = server.url("/api/v1/scenes/sample-1/cut");
+    let answer = |http: &Client| -> Value {
+        let mut v: Value = http
+            .post(&cut)
+            .json(&cut_body(json!(4e6)))
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        v["stats"]["micros"] = Value::Null;
+        v
+    };
+    let http = client();
+    let before = answer(&http);
+    assert!(!before["clusters"].as_array().unwrap().is_empty());
+    let index = server.tree.join("clusters.bin");
+    let mut bytes = std::fs::read(&index).unwrap();
+    let middle = bytes.len() / 2;
+    bytes[middle] ^= 0xff;
+    let reloaded = reloads(&server);
+    let damaged = server.tree.join(".clusters.bin.damaged");
+    std::fs::write(&damaged, &bytes).unwrap();
+    std::fs::rename(&damaged, &index).unwrap();
+    await_reloads(&server, reloaded + 1);
+    assert_eq!(answer(&http), before);
+
+    let out = common::hdlod(&["index".as_ref(), server.tree.as_os_str()]);
+    common::assert_success(&out);
+    await_reloads(&server, reloaded + 2);
+    assert_eq!(answer(&http), before);
+}
+
 #[test]
 fn every_reference_of_the_openapi_document_resolves_within_it() {
     fn walk(doc: &Value, at: &Value, path: &str, refs: &mut usize) {

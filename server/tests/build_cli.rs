@@ -22,6 +22,32 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     common::assert_matches_schema(&summary, "build-summary.schema.json");
     assert_eq!(summary["objects"], 628);
+    assert_eq!(summary["mode"], "full");
+
+    // The same scene again: its schedule is updated, no geometry made.
+    let again = |extra: &[&str]| {
+        let mut args = vec![
+            "build".as_ref(),
+            fixture.as_os_str(),
+            "--out".as_ref(),
+            tree.as_os_str(),
+            "--json".as_ref(),
+        ];
+        args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+        let out = hdlod(&args);
+        assert_success(&out);
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        common::assert_matches_schema(&summary, "build-summary.schema.json");
+        summary
+    };
+    let updated = again(&[]);
+    assert_eq!(updated["mode"], "schedule-update");
+    assert_eq!(updated["reused"]["clusters"], summary["clusters"]);
+    assert_eq!(updated["reused"]["dissolved_groups"], 0);
+    assert!(updated["reused"]["geometry_files"].as_u64().unwrap() > 100);
+    let full = again(&["--full"]);
+    assert_eq!(full["mode"], "full");
+    assert!(full.get("not_updated").is_none());
 
     let out = hdlod(&["inspect".as_ref(), tree.as_os_str(), "--json".as_ref()]);
     assert_success(&out);

@@ -19,6 +19,7 @@ mod level;
 mod outputs;
 mod parent;
 mod steps;
+mod update;
 
 use std::path::Path;
 use std::time::Instant;
@@ -34,6 +35,7 @@ pub use config::{BuildConfig, Thresholds, level_count, thresholds};
 pub use hilbert::hilbert_key;
 pub use outputs::{BuildStats, GeometrySink, LevelStats, Progress, Silent};
 pub use steps::StepFunction;
+pub use update::{Update, geometry_key, update_schedule};
 
 /// Builds the HDLOD tree of `scene`. Geometry goes to `sink` as it is made.
 pub fn build(
@@ -67,7 +69,10 @@ pub fn build(
         ));
     }
     let span = scene.time.seconds;
-    let mut stats = BuildStats::default();
+    let mut stats = BuildStats {
+        geometry_key: geometry_key(scene, config),
+        ..BuildStats::default()
+    };
     let mut clusters: Vec<Cluster> = Vec::new();
     let mut ctx = Context {
         config,
@@ -162,20 +167,20 @@ pub fn build(
     stats
         .phases
         .push(("root".into(), clock.elapsed().as_secs_f64()));
-    let tree = Tree {
-        scene: scene.name.clone(),
-        time: scene.time,
-        bounds: clusters[root as usize].bounds,
-        up: scene.up,
-        georeference: scene.georeference,
+    let bounds = clusters[root as usize].bounds;
+    let objects = ObjectTables::of(scene, &clusters);
+    let mut tree = Tree::new(
+        scene.name.clone(),
+        scene.time,
+        bounds,
+        scene.up,
         root,
-        config: serde_json::to_value(config).expect("the config serialises"),
-        stats: serde_json::to_value(&stats).expect("the statistics serialise"),
-        objects: Some(ObjectTables::of(scene, &clusters)),
         clusters,
-        presence: Default::default(),
-        nodes: Default::default(),
-    };
+    );
+    tree.georeference = scene.georeference;
+    tree.config = serde_json::to_value(config).expect("the config serialises");
+    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+    tree.objects = Some(objects);
     Ok((tree, stats))
 }
 
@@ -193,6 +198,94 @@ pub fn build_to(
     writer.finish(&tree)?;
     progress.advance(1);
     Ok((tree, stats))
+}
+
+/// How [`build_or_update_to`] made its tree.
+#[derive(Debug, Clone, PartialEq)]
+pub enum How {
+    /// Built in full. `why`: why the tree that was there was not updated
+    /// instead (none when there was no tree or a full build was asked).
+    Full { why: Option<String> },
+    /// The tree that was there, brought to the scene's new schedule
+    /// ([`update_schedule`]): no geometry made, every geometry file kept;
+    /// `dissolved` groups no longer fitted it.
+    ScheduleUpdate {
+        geometry_files: usize,
+        dissolved: usize,
+    },
+}
+
+/// Like [`build_to`], but when `out` holds a tree built from a scene with
+/// the same geometry and configuration ([`geometry_key`]), only the
+/// schedule changed, that tree is updated instead of rebuilt, unless
+/// `full`. Atomic either way: a failure leaves `out` as it was.
+pub fn build_or_update_to(
+    scene: &Scene,
+    config: &BuildConfig,
+    out: &Path,
+    full: bool,
+    progress: &dyn Progress,
+) -> Result<(Tree, BuildStats, How)> {
+    let manifest = out.join(crate::tree::format::MANIFEST_FILE);
+    let why = if full || !manifest.exists() {
+        None
+    } else {
+        let clock = Instant::now();
+        progress.phase("load tree", 1);
+        match crate::tree::load(out) {
+            Err(e) => Some(format!("the tree there does not load: {e}")),
+            Ok(old) => {
+                let load = clock.elapsed().as_secs_f64();
+                let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
+                if key != Some(geometry_key(scene, config).as_str()) {
+                    Some(
+                        "the scene's geometry or placements, or the build configuration, \
+                         changed since it was built"
+                            .into(),
+                    )
+                } else {
+                    progress.phase("update", 1);
+                    let clock = Instant::now();
+                    match update_schedule(&old, scene, config) {
+                        Update::Rebuild(why) => Some(why),
+                        Update::Updated {
+                            tree,
+                            mut stats,
+                            dissolved,
+                        } => {
+                            stats.phases.push(("load tree".into(), load));
+                            stats
+                                .phases
+                                .push(("update".into(), clock.elapsed().as_secs_f64()));
+                            let clock = Instant::now();
+                            progress.phase("write", 1);
+                            let writer = TreeWriter::create(out)?;
+                            let mut files = std::collections::BTreeSet::new();
+                            for id in 0..tree.cluster_count() as u32 {
+                                if let Some(hash) = tree.geometry_of(id)
+                                    && files.insert(hash.to_string())
+                                {
+                                    writer.reuse_geometry(out, &hash)?;
+                                }
+                            }
+                            let geometry_files = files.len();
+                            writer.finish(&tree)?;
+                            stats
+                                .phases
+                                .push(("write".into(), clock.elapsed().as_secs_f64()));
+                            let how = How::ScheduleUpdate {
+                                geometry_files,
+                                dissolved,
+                            };
+                            return Ok((*tree, stats, how));
+                        }
+                    }
+                }
+            }
+        }
+    };
+    let (tree, stats) = build_to(scene, config, out, progress)?;
+    Ok((tree, stats, How::Full { why }))
 }
 
 /// The virtual root over `roots`: no geometry, `w` and `v` aggregated like

@@ -46,7 +46,7 @@ impl Progress for Silent {
 
 /// Per level of one class: clusters made and their triangles, and the
 /// triangles of their children (to show the reduction).
-#[derive(Debug, Clone, Default, PartialEq, serde::Serialize)]
+#[derive(Debug, Clone, Default, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct LevelStats {
     pub level: u32,
     pub clusters: u64,
@@ -56,8 +56,13 @@ pub struct LevelStats {
     pub max_gamma: f64,
 }
 
-#[derive(Debug, Clone, Default, serde::Serialize)]
+#[derive(Debug, Clone, Default, serde::Serialize, serde::Deserialize)]
 pub struct BuildStats {
+    /// The scene's [`super::geometry_key`]: a later build of a scene with
+    /// the same key may update this tree instead of rebuilding it. Empty
+    /// in trees written before it was recorded.
+    #[serde(default)]
+    pub geometry_key: String,
     pub levels: u32,
     pub scene_w: f64,
     /// Objects never visible, left out of the tree.

@@ -81,7 +81,11 @@ impl Motion {
         if i == self.keys.len() {
             return self.keys[i - 1];
         }
-        let (a, b) = (self.keys[i - 1], self.keys[i]);
+        Motion::between(self.keys[i - 1], self.keys[i], t)
+    }
+
+    /// The keyframe at `t` between keyframes `a` and `b` (`a.t <= t < b.t`).
+    pub(crate) fn between(a: Keyframe, b: Keyframe, t: f64) -> Keyframe {
         let s = ((t - a.t) / (b.t - a.t)) as f32;
         Keyframe {
             t,

@@ -244,7 +244,7 @@ impl Slice<'_> {
     /// The tile of cluster `id` under a parent whose world pose is `parent`,
     /// or `None` when the cluster is absent at `t`.
     fn tile(&self, id: u32, parent: &DMat4) -> Result<Option<Tile>> {
-        let c = &self.tree.clusters[id as usize];
+        let c = self.tree.cluster(id);
         let v = c.visibility.at(self.t);
         if v <= 0.0 {
             return Ok(None);

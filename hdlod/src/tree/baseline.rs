@@ -29,14 +29,14 @@ impl Baseline {
     pub fn of(tree: &Tree) -> Baseline {
         // (time, [triangles, objects, draws]) deltas at each change of a leaf.
         let mut events: Vec<(f64, [i64; 3])> = Vec::new();
-        for c in tree
-            .clusters
-            .iter()
-            .filter(|c| c.is_leaf() && c.geometry.is_some())
-        {
-            let (tri, obj) = (c.triangles as i64, c.objects.len() as i64);
+        for id in 0..tree.cluster_count() as u32 {
+            let c = tree.facts(id);
+            if !c.leaf || !c.geometry {
+                continue;
+            }
+            let (tri, obj) = (c.triangles as i64, c.objects as i64);
             let mut present = false;
-            for &(t, v) in c.visibility.steps() {
+            for (t, v) in c.steps {
                 let now = v >= 0.5;
                 if now != present {
                     let sign = if now { 1 } else { -1 };

@@ -114,11 +114,7 @@ pub fn cut_into(
         let (bounds, transform) = if c.motion != u32::MAX {
             // The levels of a chain come one after another and share it.
             if sampled.0 != c.motion {
-                let motion = tree.clusters[c.motion as usize]
-                    .motion
-                    .as_ref()
-                    .expect("a motion source has a motion");
-                sampled = (c.motion, motion.at(t));
+                sampled = (c.motion, tree.pose_at(c.motion, t));
             }
             (
                 c.bounds().transformed(&sampled.1.as_dmat4()),
@@ -132,7 +128,7 @@ pub fn cut_into(
         }
         let delta = c.delta(v);
         let leaf = c.child_count == 0;
-        let refine = !leaf && (!c.has_geometry || delta >= r * view.distance(&bounds));
+        let refine = !leaf && (c.has_geometry == 0 || delta >= r * view.distance(&bounds));
         if refine && i == 0 {
             let candidates = tree.presence().candidates(t);
             stack.extend(
@@ -143,9 +139,9 @@ pub fn cut_into(
             );
         } else if refine {
             stack.extend((c.first_child..c.first_child + c.child_count).rev());
-        } else if v >= drawn && c.has_geometry {
+        } else if v >= drawn && c.has_geometry != 0 {
             out.stats.clusters += 1;
-            out.stats.triangles += tree.clusters[c.id as usize].triangles;
+            out.stats.triangles += tree.triangles_of(c.id);
             out.items.push(CutItem {
                 id: c.id,
                 transform,

@@ -47,7 +47,7 @@ pub fn feature_distances(
     let mut references: HashMap<(u32, bool), TriangleSet> = HashMap::new();
     let mut out = Vec::new();
     for &id in clusters {
-        let cluster = tree.clusters.get(id as usize).ok_or_else(|| {
+        let cluster = tree.get_cluster(id).ok_or_else(|| {
             Error::argument("clusters", format!("cluster {id} is not in the tree"))
         })?;
         let Some(hash) = &cluster.geometry else {

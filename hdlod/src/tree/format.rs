@@ -12,6 +12,8 @@ pub const CLUSTERS_FILE: &str = "clusters.json";
 /// [`super::objects`]).
 pub const OBJECTS_FILE: &str = "objects.json";
 pub const GEOMETRY_DIR: &str = "geometry";
+/// The binary serving index of the clusters, optional (`super::index`).
+pub const INDEX_FILE: &str = "clusters.bin";
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ManifestRecord {

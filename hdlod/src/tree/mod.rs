@@ -11,15 +11,17 @@ pub mod camera;
 pub mod cut;
 pub mod fidelity;
 pub mod format;
+pub mod index;
 mod nodes;
 pub mod objects;
 pub mod presence;
 pub mod store;
 
+use std::borrow::Cow;
 use std::collections::BTreeMap;
 use std::path::Path;
 
-use glam::{DMat4, DVec3, Quat, Vec3};
+use glam::{DMat4, DVec3, Mat4, Quat, Vec3};
 use serde::Serialize;
 
 use crate::error::{Error, Result};
@@ -116,6 +118,11 @@ impl Steps {
         }
     }
 
+    /// Steps known to be valid (read from a checked index).
+    pub(crate) fn from_checked(steps: Vec<(f64, f32)>) -> Self {
+        Steps { steps }
+    }
+
     pub fn steps(&self) -> &[(f64, f32)] {
         &self.steps
     }
@@ -185,21 +192,70 @@ pub struct Tree {
     pub root: u32,
     pub config: serde_json::Value,
     pub stats: serde_json::Value,
-    pub clusters: Vec<Cluster>,
+    /// Read through [`Tree::cluster`] and [`Tree::clusters`].
+    clusters: Clusters,
     /// The object and task tables (`objects.json`), when the tree has them.
     /// The cut never reads them.
     pub objects: Option<ObjectTables>,
     /// The root's children by time, made on the first cut (the clusters
     /// must not change after it).
     pub(crate) presence: Derived<presence::Presence>,
-    /// The cut's compact copy of the clusters, made on the first cut.
+    /// The cut's compact copy of the clusters of a tree not mapped from
+    /// its index, made on the first cut.
     pub(crate) nodes: Derived<nodes::Nodes>,
+    summary: Derived<TreeSummary>,
+    baseline: Derived<Baseline>,
+}
+
+/// The clusters of a tree: built (or read from `clusters.json`) as
+/// records, or mapped from the serving index (`clusters.bin`) and decoded
+/// on demand.
+#[derive(Debug, Clone)]
+enum Clusters {
+    Built(Vec<Cluster>),
+    Mapped(index::Index),
+}
+
+impl PartialEq for Clusters {
+    fn eq(&self, other: &Self) -> bool {
+        match (self, other) {
+            (Clusters::Built(a), Clusters::Built(b)) => a == b,
+            _ => {
+                self.len() == other.len()
+                    && (0..self.len() as u32).all(|id| self.get(id) == other.get(id))
+            }
+        }
+    }
+}
+
+impl Clusters {
+    fn len(&self) -> usize {
+        match self {
+            Clusters::Built(v) => v.len(),
+            Clusters::Mapped(index) => index.len(),
+        }
+    }
+
+    fn get(&self, id: u32) -> Option<Cow<'_, Cluster>> {
+        match self {
+            Clusters::Built(v) => v.get(id as usize).map(Cow::Borrowed),
+            Clusters::Mapped(index) => {
+                ((id as usize) < index.len()).then(|| Cow::Owned(index.cluster(id)))
+            }
+        }
+    }
 }
 
 /// Data derived from a tree's clusters on first use: not part of what the
 /// tree is, so any two compare equal.
-#[derive(Debug, Clone, Default)]
+#[derive(Debug, Clone)]
 pub(crate) struct Derived<T>(std::sync::OnceLock<T>);
+
+impl<T> Default for Derived<T> {
+    fn default() -> Self {
+        Derived(std::sync::OnceLock::new())
+    }
+}
 
 impl<T> PartialEq for Derived<T> {
     fn eq(&self, _: &Self) -> bool {
@@ -229,10 +285,162 @@ impl Tree {
             root,
             config: serde_json::json!({}),
             stats: serde_json::json!({}),
-            clusters,
+            clusters: Clusters::Built(clusters),
             objects: None,
             presence: Derived::default(),
             nodes: Derived::default(),
+            summary: Derived::default(),
+            baseline: Derived::default(),
+        }
+    }
+
+    /// The tree mapped from its index, with the manifest's fields of
+    /// `like` (read from the JSON manifest).
+    pub(crate) fn mapped(like: Tree, index: index::Index) -> Tree {
+        Tree {
+            clusters: Clusters::Mapped(index),
+            ..like
+        }
+    }
+
+    pub fn cluster_count(&self) -> usize {
+        self.clusters.len()
+    }
+
+    /// Cluster `id`, borrowed from a built tree or decoded from the index.
+    /// Panics when there is none, as indexing does.
+    pub fn cluster(&self, id: u32) -> Cow<'_, Cluster> {
+        self.get_cluster(id)
+            .unwrap_or_else(|| panic!("no cluster {id} in a tree of {}", self.cluster_count()))
+    }
+
+    pub fn get_cluster(&self, id: u32) -> Option<Cow<'_, Cluster>> {
+        self.clusters.get(id)
+    }
+
+    /// Every cluster in id order.
+    pub fn clusters(&self) -> impl ExactSizeIterator<Item = Cow<'_, Cluster>> + '_ {
+        (0..self.cluster_count() as u32).map(|id| self.cluster(id))
+    }
+
+    /// The clusters as records to edit (decoded first from the index of a
+    /// mapped tree); what was derived from them is made again on use.
+    pub fn clusters_mut(&mut self) -> &mut Vec<Cluster> {
+        if let Clusters::Mapped(_) = self.clusters {
+            self.clusters = Clusters::Built(self.clusters().map(Cow::into_owned).collect());
+        }
+        self.presence = Derived::default();
+        self.nodes = Derived::default();
+        self.summary = Derived::default();
+        self.baseline = Derived::default();
+        match &mut self.clusters {
+            Clusters::Built(v) => v,
+            Clusters::Mapped(_) => unreachable!("decoded above"),
+        }
+    }
+
+    /// The index the clusters are mapped from, if they are.
+    pub fn index(&self) -> Option<&index::Index> {
+        match &self.clusters {
+            Clusters::Mapped(index) => Some(index),
+            Clusters::Built(_) => None,
+        }
+    }
+
+    /// Cluster `id`'s class, without decoding it.
+    pub fn class_of(&self, id: u32) -> ClusterClass {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].class,
+            Clusters::Mapped(index) => index.class(id),
+        }
+    }
+
+    pub fn level_of(&self, id: u32) -> u32 {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].level,
+            Clusters::Mapped(index) => index.level(id),
+        }
+    }
+
+    pub fn triangles_of(&self, id: u32) -> u64 {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].triangles,
+            Clusters::Mapped(index) => index.triangles(id),
+        }
+    }
+
+    pub fn children_of(&self, id: u32) -> &[u32] {
+        match &self.clusters {
+            Clusters::Built(v) => &v[id as usize].children,
+            Clusters::Mapped(index) => index.children(id),
+        }
+    }
+
+    /// The blake3 hex of cluster `id`'s GLB; `None` on the root.
+    pub fn geometry_of(&self, id: u32) -> Option<Cow<'_, str>> {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].geometry.as_deref().map(Cow::Borrowed),
+            Clusters::Mapped(index) => index.geometry(id).map(Cow::Owned),
+        }
+    }
+
+    /// The first object a leaf names.
+    fn first_object(&self, id: u32) -> Option<&str> {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].objects.first().map(String::as_str),
+            Clusters::Mapped(index) => index.objects(id).next(),
+        }
+    }
+
+    /// The objects cluster `id` names, without decoding it.
+    pub fn objects_of(&self, id: u32) -> Vec<&str> {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].objects.iter().map(String::as_str).collect(),
+            Clusters::Mapped(index) => index.objects(id).collect(),
+        }
+    }
+
+    /// What the summary and the baseline read of cluster `id`, without
+    /// decoding it.
+    pub(crate) fn facts(&self, id: u32) -> Facts<'_> {
+        match &self.clusters {
+            Clusters::Built(v) => {
+                let c = &v[id as usize];
+                Facts {
+                    class: c.class,
+                    level: c.level,
+                    triangles: c.triangles,
+                    eps: c.eps,
+                    gamma: c.gamma,
+                    leaf: c.is_leaf(),
+                    geometry: c.geometry.is_some(),
+                    objects: c.objects.len(),
+                    steps: StepsOf::Built(c.visibility.steps().iter()),
+                }
+            }
+            Clusters::Mapped(index) => Facts {
+                class: index.class(id),
+                level: index.level(id),
+                triangles: index.triangles(id),
+                eps: index.eps(id),
+                gamma: index.gamma(id),
+                leaf: index.children(id).is_empty(),
+                geometry: index.has_geometry(id),
+                objects: index.object_count(id),
+                steps: StepsOf::Mapped(index.visibility(id).iter()),
+            },
+        }
+    }
+
+    /// The pose at `t` of dynamic cluster `id`.
+    pub(crate) fn pose_at(&self, id: u32, t: f64) -> Mat4 {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize]
+                .motion
+                .as_ref()
+                .expect("a motion source has a motion")
+                .at(t),
+            Clusters::Mapped(index) => index.sample(id, t).matrix(),
         }
     }
 
@@ -258,18 +466,67 @@ impl Tree {
     /// leaf's (each level of a chain has one child). `None` for the other
     /// clusters.
     pub fn dynamic_object_id(&self, cluster: u32) -> Option<&str> {
-        let mut c = self.clusters.get(cluster as usize)?;
-        if c.class != ClusterClass::Dynamic {
+        if (cluster as usize) >= self.cluster_count()
+            || self.class_of(cluster) != ClusterClass::Dynamic
+        {
             return None;
         }
-        while let [child] = c.children[..] {
-            c = &self.clusters[child as usize];
+        let mut c = cluster;
+        while let [child] = self.children_of(c)[..] {
+            c = child;
         }
-        c.objects.first().map(String::as_str)
+        self.first_object(c)
     }
 
-    pub(crate) fn nodes(&self) -> &nodes::Nodes {
-        self.nodes.0.get_or_init(|| nodes::Nodes::new(self))
+    pub(crate) fn nodes(&self) -> nodes::NodesRef<'_> {
+        match &self.clusters {
+            Clusters::Mapped(index) => nodes::NodesRef {
+                nodes: index.nodes(),
+                node_of: index.node_of(),
+                steps: index.steps(),
+            },
+            Clusters::Built(_) => self
+                .nodes
+                .0
+                .get_or_init(|| nodes::Nodes::new(self))
+                .as_ref(),
+        }
+    }
+
+    /// What every present original object costs over time
+    /// ([`Baseline::of`]), made once.
+    pub fn baseline(&self) -> &Baseline {
+        self.baseline.0.get_or_init(|| Baseline::of(self))
+    }
+}
+
+/// What is read of a cluster for the tree's counts and baseline.
+pub(crate) struct Facts<'a> {
+    pub class: ClusterClass,
+    pub level: u32,
+    pub triangles: u64,
+    pub eps: f64,
+    pub gamma: f64,
+    pub leaf: bool,
+    pub geometry: bool,
+    pub objects: usize,
+    pub steps: StepsOf<'a>,
+}
+
+/// A cluster's visibility steps `(t, v)`, from either form.
+pub(crate) enum StepsOf<'a> {
+    Built(std::slice::Iter<'a, (f64, f32)>),
+    Mapped(std::slice::Iter<'a, nodes::Step>),
+}
+
+impl Iterator for StepsOf<'_> {
+    type Item = (f64, f32);
+
+    fn next(&mut self) -> Option<(f64, f32)> {
+        match self {
+            StepsOf::Built(steps) => steps.next().copied(),
+            StepsOf::Mapped(steps) => steps.next().map(|s| (s.t, s.v)),
+        }
     }
 }
 
@@ -299,16 +556,22 @@ pub fn is_hash(text: &str) -> bool {
 }
 
 impl Tree {
-    pub fn root(&self) -> &Cluster {
-        &self.clusters[self.root as usize]
+    pub fn root(&self) -> Cow<'_, Cluster> {
+        self.cluster(self.root)
     }
 
+    /// The tree's counts, made once.
     pub fn summary(&self) -> TreeSummary {
+        self.summary.0.get_or_init(|| self.count()).clone()
+    }
+
+    fn count(&self) -> TreeSummary {
         let mut classes: BTreeMap<&'static str, usize> =
             ClusterClass::ALL.iter().map(|c| (c.name(), 0)).collect();
         let mut levels: BTreeMap<u32, LevelSummary> = BTreeMap::new();
         let (mut leaves, mut leaf_triangles) = (0, 0);
-        for c in &self.clusters {
+        for id in 0..self.cluster_count() as u32 {
+            let c = self.facts(id);
             *classes.entry(c.class.name()).or_default() += 1;
             let l = levels.entry(c.level).or_insert(LevelSummary {
                 level: c.level,
@@ -321,13 +584,13 @@ impl Tree {
             l.triangles += c.triangles;
             l.max_eps = l.max_eps.max(c.eps);
             l.max_gamma = l.max_gamma.max(c.gamma);
-            if c.is_leaf() && c.class != ClusterClass::Root {
+            if c.leaf && c.class != ClusterClass::Root {
                 leaves += 1;
                 leaf_triangles += c.triangles;
             }
         }
         TreeSummary {
-            clusters: self.clusters.len(),
+            clusters: self.cluster_count(),
             leaves,
             leaf_triangles,
             classes,
@@ -339,7 +602,7 @@ impl Tree {
     /// geometry files (the store does that). `file` names the cluster table
     /// in errors.
     pub fn validate(&self, file: &Path) -> Result<()> {
-        let n = self.clusters.len();
+        let n = self.cluster_count();
         let bad = |i: usize, field: &str, msg: String| {
             Error::invalid(file, format!("clusters[{i}].{field}"), msg)
         };
@@ -366,7 +629,11 @@ impl Tree {
         if !self.bounds.min.is_finite() || !self.bounds.max.is_finite() {
             return Err(Error::invalid(file, "manifest.bounds", "non-finite bounds"));
         }
-        for (i, c) in self.clusters.iter().enumerate() {
+        // A mapped tree's index was checked, every invariant, when opened.
+        let Clusters::Built(clusters) = &self.clusters else {
+            return Ok(());
+        };
+        for (i, c) in clusters.iter().enumerate() {
             if c.id as usize != i {
                 return Err(bad(
                     i,
@@ -396,8 +663,7 @@ impl Tree {
                     return Err(bad(i, "parent", "the root has no parent".into()));
                 }
                 Some(p) => {
-                    let ok = self
-                        .clusters
+                    let ok = clusters
                         .get(p as usize)
                         .is_some_and(|pc| pc.children.contains(&c.id));
                     if !ok {
@@ -411,7 +677,7 @@ impl Tree {
                 None => {}
             }
             for &ch in &c.children {
-                if self.clusters.get(ch as usize).and_then(|cc| cc.parent) != Some(c.id) {
+                if clusters.get(ch as usize).and_then(|cc| cc.parent) != Some(c.id) {
                     return Err(bad(
                         i,
                         "children",
@@ -467,7 +733,7 @@ impl Tree {
             if reached > n {
                 break;
             }
-            stack.extend_from_slice(&self.clusters[i as usize].children);
+            stack.extend_from_slice(&clusters[i as usize].children);
         }
         if reached != n {
             return Err(Error::invalid(
@@ -501,8 +767,7 @@ impl Tree {
             stats: self.stats.clone(),
         };
         let clusters = self
-            .clusters
-            .iter()
+            .clusters()
             .map(|c| format::ClusterRecord {
                 id: c.id,
                 parent: c.parent,
@@ -544,19 +809,10 @@ impl Tree {
         clusters: format::ClustersRecord,
         dir: &Path,
     ) -> Result<Tree> {
-        let mfile = dir.join(format::MANIFEST_FILE);
         let cfile = dir.join(format::CLUSTERS_FILE);
-        if manifest.format != format::FORMAT {
-            return Err(Error::invalid(
-                &mfile,
-                "format",
-                format!("{:?} is not {:?}", manifest.format, format::FORMAT),
-            ));
-        }
-        let start = parse_date(&manifest.time.start)
-            .map_err(|m| Error::invalid(&mfile, "time.start", m.to_string()))?;
         let aabb =
             |b: format::BoundsRecord| Aabb::new(DVec3::from_array(b.min), DVec3::from_array(b.max));
+        let mut tree = Tree::from_manifest(manifest, dir)?;
         let mut out = Vec::with_capacity(clusters.clusters.len());
         for (i, r) in clusters.clusters.into_iter().enumerate() {
             let bad = |field: &str, msg: String| {
@@ -606,24 +862,48 @@ impl Tree {
                 objects: r.objects,
             });
         }
-        let tree = Tree {
-            scene: manifest.scene,
-            time: TimeSpan {
+        tree.clusters = Clusters::Built(out);
+        tree.validate(&cfile)?;
+        Ok(tree)
+    }
+
+    /// A tree of the manifest's fields and no clusters yet.
+    pub(crate) fn from_manifest(manifest: format::ManifestRecord, dir: &Path) -> Result<Tree> {
+        let mfile = dir.join(format::MANIFEST_FILE);
+        if manifest.format != format::FORMAT {
+            return Err(Error::invalid(
+                &mfile,
+                "format",
+                format!("{:?} is not {:?}", manifest.format, format::FORMAT),
+            ));
+        }
+        let start = parse_date(&manifest.time.start)
+            .map_err(|m| Error::invalid(&mfile, "time.start", m.to_string()))?;
+        let aabb =
+            |b: format::BoundsRecord| Aabb::new(DVec3::from_array(b.min), DVec3::from_array(b.max));
+        let mut tree = Tree::new(
+            manifest.scene,
+            TimeSpan {
                 start,
                 seconds: manifest.time.seconds,
             },
-            bounds: aabb(manifest.bounds),
-            up: manifest.up,
-            georeference: manifest.georeference,
-            root: manifest.root,
-            config: manifest.config,
-            stats: manifest.stats,
-            clusters: out,
-            objects: None,
-            presence: Derived::default(),
-            nodes: Derived::default(),
-        };
-        tree.validate(&cfile)?;
+            aabb(manifest.bounds),
+            manifest.up,
+            manifest.root,
+            Vec::new(),
+        );
+        tree.georeference = manifest.georeference;
+        tree.config = manifest.config;
+        tree.stats = manifest.stats;
         Ok(tree)
+    }
+
+    /// Maps a mapped tree's index afresh, so that the pages read while
+    /// loading are not kept resident (what was derived from them stays).
+    pub(crate) fn remap(&mut self) -> Result<()> {
+        if let Clusters::Mapped(index) = &self.clusters {
+            self.clusters = Clusters::Mapped(index.remap()?);
+        }
+        Ok(())
     }
 }

@@ -4,19 +4,24 @@
 //! [`Cluster`](super::Cluster) spreads what the cut needs over four cache
 //! lines and three heap blocks (children, steps, the record itself);
 //! a server answers thousands of cuts a second, each visiting thousands of
-//! clusters, and spent most of that time waiting on memory.
+//! clusters, and spent most of that time waiting on memory. The records are
+//! plain old data: the serving index (`index.rs`) stores them as they are,
+//! and a mapped tree's cut reads them in place.
 
+use bytemuck::{Pod, Zeroable};
 use glam::DVec3;
 
-use super::{Aabb, Tree, delta, step_at};
+use super::index::NONE;
+use super::{Aabb, Tree, delta};
 
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
 pub(crate) struct Node {
     pub min: DVec3,
     pub max: DVec3,
     pub eps: f64,
     pub w: f64,
-    /// The cluster's id in `Tree::clusters`.
+    /// The cluster's id in the tree.
     pub id: u32,
     /// Index of the first child's node; the children are consecutive.
     pub first_child: u32,
@@ -24,11 +29,22 @@ pub(crate) struct Node {
     /// The visibility steps: `steps[first_step..first_step + step_count]`.
     pub first_step: u32,
     pub step_count: u32,
-    pub has_geometry: bool,
+    /// 1 when the cluster has geometry (all but the root).
+    pub has_geometry: u32,
     /// For a dynamic cluster, the id of the cluster whose motion it uses:
     /// the top of its LOD chain, whose levels all share one motion, so that
     /// the cut samples it once per chain. `u32::MAX` for the others.
     pub motion: u32,
+    _pad: u32,
+}
+
+/// One visibility step: `v` from `t` on.
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub(crate) struct Step {
+    pub t: f64,
+    pub v: f32,
+    _pad: u32,
 }
 
 impl Node {
@@ -50,20 +66,29 @@ pub(crate) struct Nodes {
     pub nodes: Vec<Node>,
     /// Cluster id -> node index.
     pub node_of: Vec<u32>,
-    steps: Vec<(f64, f32)>,
+    /// Node index -> cluster id: a cluster's children are a slice of it.
+    pub order: Vec<u32>,
+    pub steps: Vec<Step>,
+}
+
+/// The cut's records, owned (a tree built or read from JSON) or mapped.
+#[derive(Debug, Clone, Copy)]
+pub(crate) struct NodesRef<'a> {
+    pub nodes: &'a [Node],
+    pub node_of: &'a [u32],
+    pub steps: &'a [Step],
 }
 
 impl Nodes {
     pub fn new(tree: &Tree) -> Nodes {
-        let n = tree.clusters.len();
+        let n = tree.cluster_count();
         let mut order: Vec<u32> = Vec::with_capacity(n);
         let mut node_of = vec![u32::MAX; n];
         order.push(tree.root);
         node_of[tree.root as usize] = 0;
         let mut next = 0;
         while next < order.len() {
-            let c = &tree.clusters[order[next] as usize];
-            for &child in &c.children {
+            for &child in &tree.cluster(order[next]).children {
                 node_of[child as usize] = order.len() as u32;
                 order.push(child);
             }
@@ -73,9 +98,14 @@ impl Nodes {
         let nodes = order
             .iter()
             .map(|&id| {
-                let c = &tree.clusters[id as usize];
+                let c = tree.cluster(id);
                 let first_step = steps.len() as u32;
-                steps.extend_from_slice(c.visibility.steps());
+                steps.extend(
+                    c.visibility
+                        .steps()
+                        .iter()
+                        .map(|&(t, v)| Step { t, v, _pad: 0 }),
+                );
                 Node {
                     min: c.bounds.min,
                     max: c.bounds.max,
@@ -86,37 +116,50 @@ impl Nodes {
                     child_count: c.children.len() as u32,
                     first_step,
                     step_count: c.visibility.steps().len() as u32,
-                    has_geometry: c.geometry.is_some(),
+                    has_geometry: u32::from(c.geometry.is_some()),
                     motion: motion_source(tree, id),
+                    _pad: 0,
                 }
             })
             .collect();
         Nodes {
             nodes,
             node_of,
+            order,
             steps,
         }
     }
 
+    pub fn as_ref(&self) -> NodesRef<'_> {
+        NodesRef {
+            nodes: &self.nodes,
+            node_of: &self.node_of,
+            steps: &self.steps,
+        }
+    }
+}
+
+impl NodesRef<'_> {
     /// `v_c(t)`, as `Steps::at`.
     #[inline]
     pub fn visibility(&self, node: &Node, t: f64) -> f32 {
-        step_at(
-            &self.steps[node.first_step as usize..(node.first_step + node.step_count) as usize],
-            t,
-        )
+        let steps =
+            &self.steps[node.first_step as usize..(node.first_step + node.step_count) as usize];
+        let i = steps.partition_point(|s| s.t <= t);
+        if i == 0 { 0.0 } else { steps[i - 1].v }
     }
 }
 
 /// The highest ancestor of `id` (itself included) with the same motion as
-/// `id`, or `u32::MAX` when `id` has none.
+/// `id`, or [`NONE`] when `id` has none.
 fn motion_source(tree: &Tree, id: u32) -> u32 {
-    let Some(motion) = &tree.clusters[id as usize].motion else {
-        return u32::MAX;
+    let c = tree.cluster(id);
+    let Some(motion) = &c.motion else {
+        return NONE;
     };
     let mut source = id;
-    while let Some(parent) = tree.clusters[source as usize].parent
-        && tree.clusters[parent as usize].motion.as_ref() == Some(motion)
+    while let Some(parent) = tree.cluster(source).parent
+        && tree.cluster(parent).motion.as_ref() == Some(motion)
     {
         source = parent;
     }

@@ -13,7 +13,7 @@ use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
-use super::Cluster;
+use super::{Cluster, Tree};
 use crate::error::{Error, Result};
 use crate::scene::appearance::{Look, Profile, ProfileFile};
 use crate::scene::status::{Actual, Dates, Deviation, Progress, Span, TaskDates};
@@ -370,7 +370,8 @@ impl ObjectTables {
 
     /// Checks the tables against themselves and the tree's clusters; `file`
     /// names the table in errors.
-    pub fn validate(&self, clusters: &[Cluster], file: &Path) -> Result<()> {
+    pub fn validate(&self, tree: &Tree, file: &Path) -> Result<()> {
+        let clusters = tree.cluster_count();
         let n = self.objects.len();
         let m = self.tasks.len();
         let bad = |at: String, message: String| Error::invalid(file, at, message);
@@ -408,16 +409,16 @@ impl ObjectTables {
                     format!("must be increasing task indices below {m}"),
                 ));
             }
-            if !increasing(&o.clusters, clusters.len()) {
+            if !increasing(&o.clusters, clusters) {
                 return Err(bad(
                     at("clusters"),
-                    format!("must be increasing cluster ids below {}", clusters.len()),
+                    format!("must be increasing cluster ids below {clusters}"),
                 ));
             }
             if let Some(&c) = o
                 .clusters
                 .iter()
-                .find(|&&c| !clusters[c as usize].objects.contains(&o.id))
+                .find(|&&c| !tree.objects_of(c).contains(&o.id.as_str()))
             {
                 return Err(bad(
                     at("clusters"),
@@ -428,11 +429,10 @@ impl ObjectTables {
         }
         // Every object a cluster names lists it (each listing was checked
         // above, so equal counts mean equal sets).
-        let listed: usize = clusters.iter().map(|c| c.objects.len()).sum();
+        let listed: usize = (0..clusters as u32).map(|c| tree.objects_of(c).len()).sum();
         if listed != named {
-            let stray = clusters
-                .iter()
-                .flat_map(|c| c.objects.iter().map(move |id| (c.id, id)))
+            let stray = (0..clusters as u32)
+                .flat_map(|c| tree.objects_of(c).into_iter().map(move |id| (c, id)))
                 .find(|&(c, id)| {
                     self.object_index(id)
                         .is_none_or(|i| !self.objects[i as usize].clusters.contains(&c))
@@ -590,7 +590,7 @@ impl ObjectTables {
     /// The tables of a record, checked against the tree's clusters; `file`
     /// names the table in errors. The tasks' dates are for the file's
     /// readers: the times are the seconds.
-    pub fn from_record(record: ObjectsRecord, clusters: &[Cluster], file: &Path) -> Result<Self> {
+    pub fn from_record(record: ObjectsRecord, tree: &Tree, file: &Path) -> Result<Self> {
         if record.format != FORMAT {
             return Err(Error::invalid(
                 file,
@@ -671,7 +671,7 @@ impl ObjectTables {
             .map(|p| Profile::from_file(p, file, "appearance."))
             .transpose()?;
         let tables = ObjectTables::new(objects, tasks, record.dates, appearance);
-        tables.validate(clusters, file)?;
+        tables.validate(tree, file)?;
         Ok(tables)
     }
 }

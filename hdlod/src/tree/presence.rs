@@ -29,15 +29,15 @@ pub struct Presence {
 
 impl Presence {
     pub(super) fn new(tree: &Tree) -> Presence {
-        let children = &tree.clusters[tree.root as usize].children;
+        let children = tree.children_of(tree.root);
+        let visibility: Vec<Steps> = children
+            .iter()
+            .map(|&c| Steps::from_checked(tree.facts(c).steps.collect()))
+            .collect();
         let times = || {
-            children.iter().flat_map(|&c| {
-                tree.clusters[c as usize]
-                    .visibility
-                    .steps()
-                    .iter()
-                    .map(|s| s.0)
-            })
+            visibility
+                .iter()
+                .flat_map(|v| v.steps().iter().map(|s| s.0))
         };
         let start = times().fold(f64::INFINITY, f64::min);
         let end = times().fold(f64::NEG_INFINITY, f64::max);
@@ -46,7 +46,7 @@ impl Presence {
             return Presence {
                 start: 0.0,
                 width: 1.0,
-                buckets: vec![children.clone()],
+                buckets: vec![children.to_vec()],
             };
         }
         let mut out = Presence {
@@ -54,8 +54,8 @@ impl Presence {
             width: (end - start) / BUCKETS as f64,
             buckets: vec![Vec::new(); BUCKETS],
         };
-        for &c in children {
-            for (a, b) in present(&tree.clusters[c as usize].visibility) {
+        for (&c, v) in children.iter().zip(&visibility) {
+            for (a, b) in present(v) {
                 // b's own bucket too when b is its edge: a superset is fine.
                 let first = out.bucket(a);
                 let last = if b.is_finite() {

@@ -16,7 +16,8 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::Tree;
-use super::format::{self, CLUSTERS_FILE, GEOMETRY_DIR, MANIFEST_FILE, OBJECTS_FILE};
+use super::format::{self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE};
+use super::index::{self, Index};
 use super::objects::{ObjectTables, ObjectsRecord};
 use crate::error::{Error, Result};
 
@@ -61,6 +62,23 @@ impl TreeWriter {
         })
     }
 
+    /// Stores the geometry file `hash` of the tree in `from` without
+    /// reading it: a hard link where the file system allows (trees are
+    /// immutable, so sharing the file is safe), else a copy.
+    pub fn reuse_geometry(&self, from: &Path, hash: &str) -> Result<()> {
+        let name = format!("{hash}.glb");
+        let source = from.join(GEOMETRY_DIR).join(&name);
+        let path = self.tmp.join(GEOMETRY_DIR).join(&name);
+        if fs::hard_link(&source, &path).is_err() {
+            fs::copy(&source, &path).map_err(|e| Error::io(&source, e))?;
+        }
+        self.stored
+            .lock()
+            .expect("no panic while holding")
+            .insert(hash.to_string());
+        Ok(())
+    }
+
     /// Stores GLB bytes under the blake3 hex of their content and returns
     /// that hash; identical bytes are stored once.
     pub fn put_geometry(&self, glb: &[u8]) -> Result<String> {
@@ -89,11 +107,11 @@ impl TreeWriter {
         let clusters_path = self.target.join(CLUSTERS_FILE);
         tree.validate(&clusters_path)?;
         if let Some(tables) = &tree.objects {
-            tables.validate(&tree.clusters, &self.target.join(OBJECTS_FILE))?;
+            tables.validate(tree, &self.target.join(OBJECTS_FILE))?;
         }
         {
             let stored = self.stored.lock().expect("no panic while holding");
-            for c in &tree.clusters {
+            for c in tree.clusters() {
                 if let Some(h) = &c.geometry
                     && !stored.contains(h)
                 {
@@ -107,7 +125,8 @@ impl TreeWriter {
         }
         let (manifest, clusters) = tree.to_records();
         write_json(&self.tmp.join(MANIFEST_FILE), &manifest, true)?;
-        write_json(&self.tmp.join(CLUSTERS_FILE), &clusters, false)?;
+        let json_len = write_json(&self.tmp.join(CLUSTERS_FILE), &clusters, false)?;
+        write_bytes(&self.tmp.join(INDEX_FILE), &index::encode(tree, json_len))?;
         if let Some(tables) = &tree.objects {
             write_json(
                 &self.tmp.join(OBJECTS_FILE),
@@ -143,7 +162,8 @@ impl Drop for TreeWriter {
     }
 }
 
-fn write_json<T: serde::Serialize>(path: &Path, value: &T, pretty: bool) -> Result<()> {
+/// Writes `value` as JSON and returns the file's length.
+fn write_json<T: serde::Serialize>(path: &Path, value: &T, pretty: bool) -> Result<u64> {
     let file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
     let mut w = BufWriter::new(file);
     let written = if pretty {
@@ -155,9 +175,17 @@ fn write_json<T: serde::Serialize>(path: &Path, value: &T, pretty: bool) -> Resu
     w.write_all(b"\n")
         .and_then(|()| w.flush())
         .map_err(|e| Error::io(path, e))?;
-    w.into_inner()
-        .map_err(|e| Error::io(path, e.into_error()))?
-        .sync_all()
+    let file = w
+        .into_inner()
+        .map_err(|e| Error::io(path, e.into_error()))?;
+    file.sync_all().map_err(|e| Error::io(path, e))?;
+    Ok(file.metadata().map_err(|e| Error::io(path, e))?.len())
+}
+
+fn write_bytes(path: &Path, bytes: &[u8]) -> Result<()> {
+    let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    file.write_all(bytes)
+        .and_then(|()| file.sync_all())
         .map_err(|e| Error::io(path, e))
 }
 
@@ -172,15 +200,57 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
     })
 }
 
-/// Loads and validates a tree directory: the manifest, the cluster table,
-/// the object and task tables when there are any, and the presence of every
-/// geometry file (one directory listing, no reads); makes the root's
-/// presence index and the cut's compact copy.
+/// Loads and validates a tree directory: the manifest, the clusters (mapped
+/// from `clusters.bin` when the tree has one, else read from
+/// `clusters.json`), the object and task tables when there are any, and the
+/// presence of every geometry file (one directory listing, no reads); makes
+/// what the cut and the server derive from the clusters.
 pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
-    let dir = dir.as_ref();
+    load_from(dir.as_ref(), true)
+}
+
+/// [`load`] from `clusters.json`, whether or not the tree has an index.
+pub fn load_json(dir: impl AsRef<Path>) -> Result<Tree> {
+    load_from(dir.as_ref(), false)
+}
+
+fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
-    let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
-    let mut tree = Tree::from_records(manifest, clusters, dir)?;
+    let index_path = dir.join(INDEX_FILE);
+    let mut tree = if use_index && index_path.exists() {
+        let index = Index::open(&index_path)?;
+        let json = dir.join(CLUSTERS_FILE);
+        let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
+        if json_len != index.json_len() {
+            return Err(Error::invalid(
+                &index_path,
+                "header",
+                format!(
+                    "was made from a clusters.json of {} bytes, this one has {json_len}: write \
+                     it again with `hdlod index TREE`",
+                    index.json_len()
+                ),
+            ));
+        }
+        if index.root() != manifest.root {
+            return Err(Error::invalid(
+                &index_path,
+                "header.root",
+                format!(
+                    "root {} is not the manifest's root {}",
+                    index.root(),
+                    manifest.root
+                ),
+            ));
+        }
+        let tree = Tree::from_manifest(manifest, dir)?;
+        let tree = Tree::mapped(tree, index);
+        tree.validate(&index_path)?;
+        tree
+    } else {
+        let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
+        Tree::from_records(manifest, clusters, dir)?
+    };
     tree.objects = load_objects(dir, &tree)?;
 
     let geometry = dir.join(GEOMETRY_DIR);
@@ -191,13 +261,13 @@ pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
             present.insert(hash.to_owned());
         }
     }
-    for c in &tree.clusters {
-        if let Some(h) = &c.geometry
-            && !present.contains(h.as_str())
+    for id in 0..tree.cluster_count() as u32 {
+        if let Some(h) = tree.geometry_of(id)
+            && !present.contains(h.as_ref())
         {
             return Err(Error::invalid(
                 dir.join(CLUSTERS_FILE),
-                format!("clusters[{}].geometry", c.id),
+                format!("clusters[{id}].geometry"),
                 format!("{} is missing", geometry.join(format!("{h}.glb")).display()),
             ));
         }
@@ -205,7 +275,31 @@ pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
     // Made now so that no cut, the first one included, pays for them.
     tree.presence();
     tree.nodes();
+    tree.summary();
+    tree.baseline();
+    // What the load read of a mapped index need not stay resident: the
+    // cuts fault in the pages they visit.
+    tree.remap()?;
     Ok(tree)
+}
+
+/// Writes `clusters.bin` for the tree in `dir` from its `clusters.json`
+/// (a tree written before the index, or whose index is damaged), checked
+/// as [`load_json`] checks it, by a rename: a reader sees the old index or
+/// the new one.
+pub fn write_index(dir: impl AsRef<Path>) -> Result<()> {
+    let dir = dir.as_ref();
+    let tree = load_json(dir)?;
+    let json = dir.join(CLUSTERS_FILE);
+    let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
+    let target = dir.join(INDEX_FILE);
+    let tmp = sibling(&target, "tmp");
+    let written = write_bytes(&tmp, &index::encode(&tree, json_len))
+        .and_then(|()| fs::rename(&tmp, &target).map_err(|e| Error::io(&target, e)));
+    if written.is_err() {
+        let _ = fs::remove_file(&tmp);
+    }
+    written
 }
 
 /// The object and task tables of the tree in `dir` (loaded, with its
@@ -217,5 +311,5 @@ pub fn load_objects(dir: &Path, tree: &Tree) -> Result<Option<ObjectTables>> {
         return Ok(None);
     }
     let record: ObjectsRecord = read_json(&path)?;
-    ObjectTables::from_record(record, &tree.clusters, &path).map(Some)
+    ObjectTables::from_record(record, tree, &path).map(Some)
 }

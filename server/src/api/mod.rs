@@ -30,7 +30,7 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
-use hdlod::tree::format::{CLUSTERS_FILE, MANIFEST_FILE, OBJECTS_FILE};
+use hdlod::tree::format::{CLUSTERS_FILE, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE};
 use hdlod::tree::{Baseline, Tree, TreeSummary};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, watch};
 use tower_http::compression::CompressionLayer;
@@ -81,10 +81,24 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
         );
     }
     let summary = tree.summary();
-    let baseline = Baseline::of(&tree);
+    let baseline = tree.baseline().clone();
     let fragments = Fragments::of(&tree);
     let mut hasher = blake3::Hasher::new();
-    for file in [MANIFEST_FILE, CLUSTERS_FILE, OBJECTS_FILE] {
+    // A mapped tree's clusters are named by its index's checksum: the
+    // cluster table is not read again.
+    let clusters = match tree.index() {
+        Some(index) => {
+            hasher
+                .update(INDEX_FILE.as_bytes())
+                .update(&index.checksum());
+            None
+        }
+        None => Some(CLUSTERS_FILE),
+    };
+    for file in [Some(MANIFEST_FILE), clusters, Some(OBJECTS_FILE)]
+        .into_iter()
+        .flatten()
+    {
         // A tree without object tables has no objects.json.
         if let Ok(bytes) = std::fs::read(dir.join(file)) {
             hasher.update(file.as_bytes()).update(&bytes);
@@ -118,6 +132,7 @@ impl AppState {
                 );
             }
         }
+        memory::loaded();
         Ok(Arc::new(AppState {
             scenes: RwLock::new(Arc::new(scenes)),
             sources,
@@ -170,6 +185,8 @@ impl AppState {
             }
         }
         *self.scenes.write().expect("no panic while holding") = Arc::new(next);
+        drop(old);
+        memory::loaded();
         self.metrics.reloaded();
         errors
     }

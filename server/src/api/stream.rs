@@ -127,7 +127,7 @@ impl Session {
         if reset {
             remove.append(&mut held.ids);
             held.stamp.clear();
-            held.stamp.resize(tree.clusters.len(), 0);
+            held.stamp.resize(tree.cluster_count(), 0);
             held.answer = 0;
             held.transforms.clear();
         }
@@ -155,7 +155,7 @@ impl Session {
                     out.push(b',');
                 }
                 first = false;
-                scene.fragments.write_cluster(item, &mut out);
+                scene.fragments.write_cluster(&scene.tree, item, &mut out);
             } else if let Some(m) = transform
                 && held.transforms.get(&item.id) != Some(&m)
             {

@@ -184,8 +184,7 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
             ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(file)))
         })?;
     let hash = tree
-        .clusters
-        .get(id as usize)
+        .get_cluster(id)
         .and_then(|c| c.geometry.clone())
         .ok_or_else(|| ApiError::not_found("cluster", format!("no cluster {id} with geometry")))?;
     if tree.objects.is_none() {

@@ -100,7 +100,7 @@ fn markdown(tree: &hdlod::tree::Tree, report: &paper::Report) -> String {
          | time | screen | triangles | clusters | baseline triangles | baseline draws | ratio | cut (us) |\n\
          |---|---|---|---|---|---|---|---|\n",
         tree.scene,
-        tree.clusters.len()
+        tree.cluster_count()
     );
     for r in &report.rows {
         out.push_str(&format!(

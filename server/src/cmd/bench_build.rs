@@ -83,7 +83,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             storeys,
             objects: scene.objects.len(),
             triangles,
-            clusters: tree.clusters.len(),
+            clusters: tree.cluster_count(),
             seconds,
             micros_per_object: seconds * 1e6 / scene.objects.len() as f64,
         };
@@ -152,7 +152,7 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
             wall_seconds: started.elapsed().as_secs_f64(),
             cpu_seconds: cpu_seconds() - cpu,
         };
-        clusters = tree.clusters.len();
+        clusters = tree.cluster_count();
         drop(tree);
         std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
         if !args.json {

@@ -111,8 +111,7 @@ struct FeaturesReport {
 pub fn features(args: FeaturesArgs) -> anyhow::Result<()> {
     let (tree, scene) = load(&args.tree, &args.scene)?;
     let mut ids: Vec<u32> = tree
-        .clusters
-        .iter()
+        .clusters()
         .filter(|c| c.geometry.is_some())
         .map(|c| c.id)
         .collect();

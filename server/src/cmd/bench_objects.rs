@@ -89,7 +89,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         .collect::<anyhow::Result<Vec<_>>>()?;
     let tables_ms = timed(args.repeats, || {
         let record = records.pop().expect("one record per run");
-        Ok(ObjectTables::from_record(record, &tree.clusters, &file)?)
+        Ok(ObjectTables::from_record(record, &tree, &file)?)
     })?[0];
     let search =
         |query: &'static str| timed(args.repeats, || Ok(tables.search_objects(query, 0, 50)));

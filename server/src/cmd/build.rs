@@ -1,10 +1,12 @@
-//! `hdlod build SCENE --out TREE [--config FILE] [--json]`.
+//! `hdlod build SCENE --out TREE [--config FILE] [--full] [--json]`: a
+//! full build, or, when TREE holds a tree of the same geometry and
+//! configuration, an update of its schedule.
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use hdlod::build::{BuildConfig, BuildStats, LevelStats, build_to};
+use hdlod::build::{BuildConfig, BuildStats, How, LevelStats, build_or_update_to};
 use hdlod::scene::format;
 use serde::Serialize;
 
@@ -14,9 +16,15 @@ use super::progress::Report;
 pub struct Args {
     /// The scene: a directory with scene.json (hdlod-scene/1), or the file.
     scene: PathBuf,
-    /// The tree directory to write (replaced atomically on success).
+    /// The tree directory to write (replaced atomically on success). When
+    /// it holds a tree built from this scene's geometry with the same
+    /// configuration, only the schedule changed, that tree is updated
+    /// without remaking any geometry.
     #[arg(long)]
     out: PathBuf,
+    /// Build in full even where the tree at --out could be updated.
+    #[arg(long)]
+    full: bool,
     /// Build configuration (JSON, the fields of `BuildConfig`; see
     /// docs/formats.md). Missing fields take their defaults.
     #[arg(long)]
@@ -31,6 +39,14 @@ pub struct Args {
 struct Summary<'a> {
     scene: &'a str,
     out: String,
+    /// `full` or `schedule-update`.
+    mode: &'static str,
+    /// Why the tree at `out` was not updated, when there was one.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    not_updated: Option<String>,
+    /// What an update kept of the old tree.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    reused: Option<Reused>,
     seconds: f64,
     objects: usize,
     clusters: usize,
@@ -38,6 +54,13 @@ struct Summary<'a> {
     absent_objects: usize,
     phases: Vec<Phase<'a>>,
     classes: Vec<ClassLevels<'a>>,
+}
+
+#[derive(Serialize)]
+struct Reused {
+    clusters: usize,
+    geometry_files: usize,
+    dissolved_groups: usize,
 }
 
 #[derive(Serialize)]
@@ -62,7 +85,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let scene = format::load(&args.scene)
         .with_context(|| format!("cannot load the scene {}", args.scene.display()))?;
     let load_seconds = started.elapsed().as_secs_f64();
-    let (tree, stats) = build_to(&scene, &config, &args.out, &report)
+    let (tree, stats, how) = build_or_update_to(&scene, &config, &args.out, args.full, &report)
         .with_context(|| format!("cannot build the tree {}", args.out.display()))?;
     report.finish();
     let mut phases = vec![Phase {
@@ -73,12 +96,30 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         name,
         seconds: *seconds,
     }));
+    let (mode, not_updated, reused) = match how {
+        How::Full { why } => ("full", why, None),
+        How::ScheduleUpdate {
+            geometry_files,
+            dissolved,
+        } => (
+            "schedule-update",
+            None,
+            Some(Reused {
+                clusters: tree.cluster_count(),
+                geometry_files,
+                dissolved_groups: dissolved,
+            }),
+        ),
+    };
     let summary = Summary {
         scene: &scene.name,
         out: args.out.display().to_string(),
+        mode,
+        not_updated,
+        reused,
         seconds: started.elapsed().as_secs_f64(),
         objects: scene.objects.len(),
-        clusters: tree.clusters.len(),
+        clusters: tree.cluster_count(),
         levels: stats.levels,
         absent_objects: stats.absent_objects.len(),
         phases,
@@ -120,10 +161,20 @@ fn read_config(path: &Path) -> anyhow::Result<BuildConfig> {
 }
 
 fn table(s: &Summary) -> String {
-    let mut out = format!(
-        "built {} -> {}: {} objects, {} clusters, {} levels, {:.2} s\n",
-        s.scene, s.out, s.objects, s.clusters, s.levels, s.seconds
-    );
+    let mut out = match &s.reused {
+        None => format!(
+            "built {} -> {}: {} objects, {} clusters, {} levels, {:.2} s\n",
+            s.scene, s.out, s.objects, s.clusters, s.levels, s.seconds
+        ),
+        Some(r) => format!(
+            "updated the schedule of {} -> {}: {} objects, {} clusters kept with {} geometry \
+             files ({} groups dissolved), {:.2} s\n",
+            s.scene, s.out, s.objects, r.clusters, r.geometry_files, r.dissolved_groups, s.seconds
+        ),
+    };
+    if let Some(why) = &s.not_updated {
+        out += &format!("built in full, not updated: {why}\n");
+    }
     if s.absent_objects > 0 {
         out += &format!(
             "{} objects are never visible and were left out\n",

@@ -50,7 +50,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         report.finish();
         eprintln!(
             "built {} clusters in {:.1} s",
-            tree.clusters.len(),
+            tree.cluster_count(),
             started.elapsed().as_secs_f64()
         );
     }

@@ -104,9 +104,8 @@ fn write(
                     .trim_end_matches(".glb")
                     .parse()
                     .context("content files are named by cluster")?;
-                let hash = tree.clusters[id as usize]
-                    .geometry
-                    .as_ref()
+                let hash = tree
+                    .geometry_of(id)
                     .context("a tile with content has geometry")?;
                 let (mesh, texture) = hdlod::io::read_textured_mesh(
                     &tree_dir.join(GEOMETRY_DIR).join(format!("{hash}.glb")),

@@ -13,6 +13,7 @@ pub mod export_tiles;
 pub mod fixture;
 #[cfg(feature = "ifc")]
 pub mod import;
+pub mod index;
 pub mod inspect;
 pub mod lod;
 pub mod progress;

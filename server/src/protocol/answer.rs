@@ -1,7 +1,9 @@
 //! Cut answers (`schemas/api/cut-response.schema.json`): the response as
-//! a value (`hdlod cut` prints it), and the same JSON written from the
-//! tree's [`Fragments`], each cluster's JSON made once per loaded tree
-//! (`POST`/`GET .../cut`; the stream writes its added clusters with them).
+//! a value (`hdlod cut` prints it), and the same JSON written straight
+//! into a buffer with the tree's [`Fragments`] (`POST`/`GET .../cut`; the
+//! stream writes its added clusters with them).
+
+use std::borrow::Cow;
 
 use hdlod::time::format_date;
 use hdlod::tree::{Baseline, Cut, CutStats, Tree};
@@ -44,10 +46,11 @@ pub struct StatsOut {
 
 /// `/api/v1/scenes/{scene}/geometry/{hash}.glb`, written out only when
 /// serialised.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, PartialEq)]
 pub struct GeometryUrl<'a> {
     pub scene: &'a str,
-    pub hash: &'a str,
+    /// Borrowed from a built tree, decoded from a mapped one.
+    pub hash: Cow<'a, str>,
 }
 
 impl std::fmt::Display for GeometryUrl<'_> {
@@ -97,18 +100,18 @@ pub fn scene_path(scene: &str) -> String {
 }
 
 fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a> {
-    let c = &tree.clusters[item.id as usize];
+    let id = item.id;
     ClusterOut {
-        id: c.id,
-        class: c.class.name(),
-        level: c.level,
+        id,
+        class: tree.class_of(id).name(),
+        level: tree.level_of(id),
         geometry: GeometryUrl {
             scene: &tree.scene,
-            hash: c.geometry.as_deref().unwrap_or_default(),
+            hash: tree.geometry_of(id).unwrap_or_default(),
         },
-        object: tree.dynamic_object(c.id),
+        object: tree.dynamic_object(id),
         transform: item.transform.map(|m| m.to_cols_array()),
-        triangles: c.triangles,
+        triangles: tree.triangles_of(id),
         error: item.error,
         visibility: item.visibility,
     }
@@ -129,55 +132,44 @@ fn response<'a>(
     }
 }
 
-/// Each cluster's JSON in a cut answer up to its transform, and from its
-/// triangle count to its error, made once per loaded tree: an answer is
-/// then mostly copies, with only the transform, error and visibility
-/// written per request (thousands of clusters per answer).
+/// What every cluster's JSON in a cut answer shares: the scene's
+/// geometry URL prefix, percent-encoded once per loaded tree. The rest is
+/// read from the tree per emitted cluster (a mapped tree's pages are then
+/// touched only by the clusters cuts emit).
 pub struct Fragments {
-    text: String,
-    /// Per cluster: where its head starts, its tail starts and ends.
-    spans: Vec<(u32, u32, u32)>,
+    geometry: String,
 }
 
 impl Fragments {
     pub fn of(tree: &Tree) -> Fragments {
-        let mut text = String::new();
-        let mut spans = Vec::with_capacity(tree.clusters.len());
-        let mut head = Vec::new();
-        for c in &tree.clusters {
-            let item = hdlod::tree::CutItem {
-                id: c.id,
-                transform: None,
-                visibility: 0.0,
-                error: 0.0,
-            };
-            let out = cluster_out(tree, &item);
-            head.clear();
-            serde_json::to_writer(&mut head, &out).expect("plain data serialises");
-            let json = std::str::from_utf8(&head).expect("JSON is UTF-8");
-            // The serialised cluster is `HEAD null,"triangles":N,"error":
-            // 0.0,"visibility":0.0}`: keep the parts around the numbers.
-            let (before, after) = json
-                .split_once("null,")
-                .expect("a cluster without transform serialises it as null");
-            let tail = &after[..after.find("0.0,").expect("the error is 0.0")];
-            let start = text.len() as u32;
-            text.push_str(before);
-            let middle = text.len() as u32;
-            text.push(',');
-            text.push_str(tail);
-            spans.push((start, middle, text.len() as u32));
+        Fragments {
+            geometry: format!("{}/geometry/", scene_path(&tree.scene)),
         }
-        Fragments { text, spans }
     }
 
     /// The JSON of `cluster_out(tree, item)`, byte for byte.
-    pub fn write_cluster(&self, item: &hdlod::tree::CutItem, out: &mut Vec<u8>) {
-        let (start, middle, end) = self.spans[item.id as usize];
-        let text = self.text.as_bytes();
-        out.extend_from_slice(&text[start as usize..middle as usize]);
+    pub fn write_cluster(&self, tree: &Tree, item: &hdlod::tree::CutItem, out: &mut Vec<u8>) {
+        let id = item.id;
+        out.extend_from_slice(b"{\"id\":");
+        write_number(out, &id);
+        out.extend_from_slice(b",\"class\":\"");
+        out.extend_from_slice(tree.class_of(id).name().as_bytes());
+        out.extend_from_slice(b"\",\"level\":");
+        write_number(out, &tree.level_of(id));
+        // Percent-encoded and hexadecimal: nothing to escape.
+        out.extend_from_slice(b",\"geometry\":\"");
+        out.extend_from_slice(self.geometry.as_bytes());
+        out.extend_from_slice(tree.geometry_of(id).unwrap_or_default().as_bytes());
+        out.extend_from_slice(b".glb\"");
+        if let Some(object) = tree.dynamic_object(id) {
+            out.extend_from_slice(b",\"object\":");
+            write_number(out, &object);
+        }
+        out.extend_from_slice(b",\"transform\":");
         write_transform(out, item.transform.map(|m| m.to_cols_array()).as_ref());
-        out.extend_from_slice(&text[middle as usize..end as usize]);
+        out.extend_from_slice(b",\"triangles\":");
+        write_number(out, &tree.triangles_of(id));
+        out.extend_from_slice(b",\"error\":");
         write_number(out, &item.error);
         out.extend_from_slice(b",\"visibility\":");
         write_number(out, &item.visibility);
@@ -213,7 +205,7 @@ fn write_response(
         if k > 0 {
             out.push(b',');
         }
-        fragments.write_cluster(item, out);
+        fragments.write_cluster(tree, item, out);
     }
     out.extend_from_slice(b"],\"stats\":");
     serde_json::to_writer(&mut *out, &stats_out(cut, micros, baseline, t))

@@ -1,0 +1,336 @@
+//! Schedule-only updates: a tree built from an earlier version of a scene
+//! whose geometry and placements are unchanged, only its schedule moved,
+//! is brought up to date without touching geometry (docs/method.md
+//! section 3, "Schedule updates").
+//!
+//! The clusters keep their groups, geometry, boxes and `eps_c`; the leaves
+//! take the new visibility of their objects, and every cluster above is
+//! recomputed from its children exactly as the build computes it
+//! (`v_c` the `w`-weighted mean simplified to K steps, `gamma_c` the
+//! largest L1 distance to a leaf visibility below). A group that no longer
+//! fits its level's temporal threshold `gamma(l)` is dissolved into its
+//! parent's group. Where an object changes class (static, pseudo-dynamic,
+//! dynamic, absent) the leaves themselves change, and the caller rebuilds
+//! in full.
+
+use std::collections::HashMap;
+
+use super::config::{BuildConfig, thresholds};
+use super::leaves::{Piece, split_at_rest};
+use super::outputs::BuildStats;
+use super::steps::StepFunction;
+use crate::scene::{Class, Scene};
+use crate::tree::{Cluster, ClusterClass, ObjectTables, Tree};
+
+/// What an update made of an old tree.
+pub enum Update {
+    /// The tree with the new schedule; every geometry file is the old
+    /// tree's. `dissolved`: the groups that no longer fit the schedule,
+    /// their children handed to their parents.
+    Updated {
+        tree: Box<Tree>,
+        stats: BuildStats,
+        dissolved: usize,
+    },
+    /// The groups would change: why, for the caller's report.
+    Rebuild(String),
+}
+
+/// A digest of everything in `scene` and `config` that the tree's groups
+/// and geometry depend on, except the schedule: meshes, objects in order
+/// (ids, meshes, placements, colours, motions) and the build
+/// configuration. Two scenes with the same key differ at most in their
+/// tasks, their objects' visibility and properties.
+pub fn geometry_key(scene: &Scene, config: &BuildConfig) -> String {
+    let mut hash = blake3::Hasher::new();
+    let floats = |hash: &mut blake3::Hasher, values: &[f32]| {
+        for v in values {
+            hash.update(&v.to_le_bytes());
+        }
+    };
+    hash.update(
+        serde_json::to_string(config)
+            .expect("the config serialises")
+            .as_bytes(),
+    );
+    hash.update(&(scene.meshes.len() as u64).to_le_bytes());
+    for mesh in &scene.meshes {
+        for (name, len) in [
+            ("positions", mesh.positions.len()),
+            ("normals", mesh.normals.len()),
+            ("colors", mesh.colors.len()),
+            ("features", mesh.features.len()),
+            ("indices", mesh.indices.len()),
+        ] {
+            hash.update(name.as_bytes());
+            hash.update(&(len as u64).to_le_bytes());
+        }
+        for p in mesh.positions.iter().chain(&mesh.normals) {
+            floats(&mut hash, &p.to_array());
+        }
+        for c in &mesh.colors {
+            floats(&mut hash, c);
+        }
+        for &i in mesh.features.iter().chain(&mesh.indices) {
+            hash.update(&i.to_le_bytes());
+        }
+    }
+    hash.update(&(scene.objects.len() as u64).to_le_bytes());
+    for o in &scene.objects {
+        hash.update(&(o.id.len() as u64).to_le_bytes());
+        hash.update(o.id.as_bytes());
+        hash.update(&(o.mesh as u64).to_le_bytes());
+        floats(&mut hash, &o.transform.to_cols_array());
+        floats(&mut hash, &o.color);
+        match &o.motion {
+            None => hash.update(&[0]),
+            Some(m) => {
+                hash.update(&(m.keyframes().len() as u64).to_le_bytes());
+                for k in m.keyframes() {
+                    hash.update(&k.t.to_le_bytes());
+                    floats(&mut hash, &k.matrix().to_cols_array());
+                }
+                &mut hash
+            }
+        };
+    }
+    hash.update(&[scene.up as u8]);
+    hash.finalize().to_hex().to_string()
+}
+
+/// The tree `old` brought to `scene`'s schedule, or why it cannot be.
+/// `old` must have been built from a scene with the same
+/// [`geometry_key`] (the caller compares the key stored in its
+/// statistics).
+pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Update {
+    let mut scene_owned;
+    let scene = match config.schedule {
+        Some(options) if options != scene.schedule_options => {
+            scene_owned = scene.clone();
+            scene_owned.schedule_options = options;
+            scene_owned.apply_schedule();
+            &scene_owned
+        }
+        _ => scene,
+    };
+    let span = scene.time.seconds;
+    let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
+    let pieces = split_at_rest(scene, &classes);
+    let Some(leaf_pieces) = match_leaves(old, scene, &pieces) else {
+        return Update::Rebuild(
+            "an object changed class (static, pseudo-dynamic, dynamic or absent), \
+             or a moving object's rests before or after its motion changed, \
+             so the leaves differ"
+                .into(),
+        );
+    };
+    let Ok(mut stats) = serde_json::from_value::<BuildStats>(old.stats.clone()) else {
+        return Update::Rebuild("the tree's statistics are not a build's".into());
+    };
+    let (levels, scene_w) = (stats.levels, stats.scene_w);
+
+    // Distinct leaf visibilities, as the build numbers them, and per
+    // cluster the ones below it. A group whose recomputed `gamma_c` breaks
+    // its level's threshold is dissolved: its children join its parent's
+    // group. Every cluster keeps the same objects below it, so its geometry
+    // and `eps_c` stay a bound, and the parent's `gamma_c` is measured over
+    // its new children against its own, higher, threshold.
+    let mut leaf_steps: Vec<StepFunction> = Vec::new();
+    let mut vis_ids: HashMap<Vec<(u64, u64)>, u32> = HashMap::new();
+    let n = old.cluster_count();
+    let mut steps: Vec<StepFunction> = Vec::with_capacity(n);
+    let mut below: Vec<Vec<u32>> = Vec::with_capacity(n);
+    let mut clusters: Vec<Cluster> = Vec::with_capacity(n);
+    let mut dissolved: Vec<Option<Vec<u32>>> = vec![None; n];
+    for c in old.clusters() {
+        let mut c = c.into_owned();
+        c.children = c
+            .children
+            .iter()
+            .flat_map(|&k| dissolved[k as usize].clone().unwrap_or_else(|| vec![k]))
+            .collect();
+        let (s, vis, gamma) = if c.class == ClusterClass::Root {
+            // As `virtual_root` aggregates: from the roots' stored steps.
+            let stored: Vec<(f64, StepFunction)> = c
+                .children
+                .iter()
+                .map(|&r| {
+                    let r = &clusters[r as usize];
+                    (r.w, StepFunction::from_tree(&r.visibility))
+                })
+                .collect();
+            let parts: Vec<(f64, &StepFunction)> = stored.iter().map(|(w, s)| (*w, s)).collect();
+            let s = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
+            (s, Vec::new(), 0.0)
+        } else if let Some(&piece) = leaf_pieces.get(&c.id) {
+            let s = StepFunction::of_visibility(&pieces[piece].visibility, span);
+            let key: Vec<(u64, u64)> = s
+                .points()
+                .iter()
+                .map(|&(t, v)| (t.to_bits(), v.to_bits()))
+                .collect();
+            let next = leaf_steps.len() as u32;
+            let vis = *vis_ids.entry(key).or_insert(next);
+            if vis == next {
+                leaf_steps.push(s.clone());
+            }
+            (s, vec![vis], 0.0)
+        } else if c.children.len() == 1 {
+            // A lone cluster's own parent, or a coarser version in a
+            // dynamic model's chain: the child's visibility and error.
+            let child = c.children[0] as usize;
+            (
+                steps[child].clone(),
+                below[child].clone(),
+                clusters[child].gamma,
+            )
+        } else {
+            let parts: Vec<(f64, &StepFunction)> = c
+                .children
+                .iter()
+                .map(|&k| (clusters[k as usize].w.max(1e-9), &steps[k as usize]))
+                .collect();
+            let s = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
+            let mut vis: Vec<u32> = c
+                .children
+                .iter()
+                .flat_map(|&k| below[k as usize].iter().copied())
+                .collect();
+            vis.sort_unstable();
+            vis.dedup();
+            let gamma = if span > 0.0 {
+                vis.iter()
+                    .map(|&v| s.l1_distance(&leaf_steps[v as usize], span) / span)
+                    .fold(0.0, f64::max)
+            } else {
+                0.0
+            };
+            if gamma > thresholds(config, scene_w, levels, c.level).gamma {
+                dissolved[c.id as usize] = Some(c.children.clone());
+            }
+            (s, vis, gamma)
+        };
+        c.visibility = s.to_tree();
+        c.gamma = gamma;
+        steps.push(s);
+        below.push(vis);
+        clusters.push(c);
+    }
+    let gone = dissolved.iter().filter(|d| d.is_some()).count();
+    let clusters = renumbered(clusters, &dissolved);
+    let root = clusters
+        .iter()
+        .position(|c| c.class == ClusterClass::Root)
+        .expect("a built tree has its virtual root") as u32;
+
+    for (levels, class) in [
+        (&mut stats.static_levels, ClusterClass::Static),
+        (
+            &mut stats.pseudo_dynamic_levels,
+            ClusterClass::PseudoDynamic,
+        ),
+    ] {
+        for level in levels {
+            let of_level = || {
+                clusters
+                    .iter()
+                    .filter(|c| c.class == class && c.level == level.level)
+            };
+            level.clusters = of_level().count() as u64;
+            level.triangles = of_level().map(|c| c.triangles).sum();
+            level.children_triangles = of_level()
+                .flat_map(|c| &c.children)
+                .map(|&k| clusters[k as usize].triangles)
+                .sum();
+            level.max_gamma = of_level().map(|c| c.gamma).fold(0.0, f64::max);
+        }
+    }
+    stats.absent_objects = scene
+        .objects
+        .iter()
+        .zip(&classes)
+        .filter(|(_, c)| **c == Class::Absent)
+        .map(|(o, _)| o.id.clone())
+        .collect();
+    stats.phases.clear();
+    let objects = ObjectTables::of(scene, &clusters);
+    let mut tree = Tree::new(
+        scene.name.clone(),
+        scene.time,
+        old.bounds,
+        scene.up,
+        root,
+        clusters,
+    );
+    tree.georeference = scene.georeference;
+    tree.config = old.config.clone();
+    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+    tree.objects = Some(objects);
+    Update::Updated {
+        tree: Box::new(tree),
+        stats,
+        dissolved: gone,
+    }
+}
+
+/// Each leaf cluster of `old` and the piece of `scene` it stands for, when
+/// the pieces are those the tree was built from: the same objects in the
+/// same classes, in the build's order (static and pseudo-dynamic leaves
+/// first, then the dynamic ones).
+fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<HashMap<u32, usize>> {
+    let clustered = (0..pieces.len())
+        .filter(|&i| matches!(pieces[i].class, Class::Static | Class::PseudoDynamic));
+    let dynamic = (0..pieces.len()).filter(|&i| pieces[i].class == Class::Dynamic);
+    let leaves = (0..old.cluster_count() as u32)
+        .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
+    let mut out = HashMap::new();
+    let mut expected = clustered.chain(dynamic);
+    for leaf in leaves {
+        let i = expected.next()?;
+        let piece = &pieces[i];
+        let class = match piece.class {
+            Class::Static => ClusterClass::Static,
+            Class::PseudoDynamic => ClusterClass::PseudoDynamic,
+            _ => ClusterClass::Dynamic,
+        };
+        let id = scene.objects[piece.object].id.as_str();
+        if old.class_of(leaf) != class || old.objects_of(leaf) != [id] {
+            return None;
+        }
+        out.insert(leaf, i);
+    }
+    expected.next().is_none().then_some(out)
+}
+
+/// The clusters without the dissolved ones, ids renumbered in the same
+/// order (children before parents, the root last) and parents set from the
+/// children lists.
+fn renumbered(clusters: Vec<Cluster>, dissolved: &[Option<Vec<u32>>]) -> Vec<Cluster> {
+    let mut id = vec![u32::MAX; clusters.len()];
+    let mut next = 0;
+    for (old, d) in dissolved.iter().enumerate() {
+        if d.is_none() {
+            id[old] = next;
+            next += 1;
+        }
+    }
+    let mut out: Vec<Cluster> = clusters
+        .into_iter()
+        .zip(dissolved)
+        .filter(|(_, d)| d.is_none())
+        .map(|(mut c, _)| {
+            c.id = id[c.id as usize];
+            c.parent = None;
+            for k in &mut c.children {
+                *k = id[*k as usize];
+            }
+            c
+        })
+        .collect();
+    for i in 0..out.len() {
+        for k in out[i].children.clone() {
+            out[k as usize].parent = Some(i as u32);
+        }
+    }
+    out
+}

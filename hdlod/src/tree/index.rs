@@ -1,0 +1,759 @@
+//! The binary serving index of a tree, `clusters.bin` (`hdlod-index/1`,
+//! docs/formats.md): the clusters as fixed-size little-endian records and
+//! flat arrays for their variable parts, memory-mapped. The cut reads its
+//! node records in place, so a server touches the pages its cuts need and
+//! nothing else, and starts without parsing the JSON cluster table.
+//!
+//! `clusters.json` stays the primary form; this file is derived from it in
+//! the same atomic write (or by `hdlod index TREE` for a tree written
+//! without it). The loader checks the header, the section table, a blake3
+//! checksum of the whole file and every invariant the JSON loader checks,
+//! on a mapping it then drops: the mapping served afterwards starts with
+//! no page resident.
+
+use std::collections::HashMap;
+use std::fs::File;
+use std::path::{Path, PathBuf};
+use std::sync::Arc;
+
+use bytemuck::{Pod, Zeroable};
+use glam::{Quat, Vec3};
+use memmap2::Mmap;
+
+use super::nodes::{Node, Nodes, Step};
+use super::{Cluster, ClusterClass, Steps, Tree};
+use crate::error::{Error, Result};
+use crate::scene::{Keyframe, Motion};
+
+/// The first eight bytes of the file.
+pub const MAGIC: [u8; 8] = *b"HDLODIDX";
+/// The layout's version; a reader refuses any other.
+pub const VERSION: u32 = 1;
+/// Bytes before the section table: magic, version, section count, cluster
+/// count, root, the length of the `clusters.json` it was made from,
+/// checksum.
+const HEADER: usize = 64;
+const SECTIONS: usize = 10;
+/// Where the sections start: the header and the table of
+/// `(offset, length)` pairs.
+const BODY: usize = HEADER + SECTIONS * 16;
+/// The value of a `u32` field that names nothing.
+pub(crate) const NONE: u32 = u32::MAX;
+
+/// The sections, in file order.
+const NODES: usize = 0;
+const NODE_OF: usize = 1;
+const ORDER: usize = 2;
+const STEPS: usize = 3;
+const CLUSTERS: usize = 4;
+const KEYFRAMES: usize = 5;
+const HASHES: usize = 6;
+const OBJECTS: usize = 7;
+const STRING_STARTS: usize = 8;
+const STRINGS: usize = 9;
+const SECTION_NAMES: [&str; SECTIONS] = [
+    "nodes",
+    "node_of",
+    "order",
+    "steps",
+    "clusters",
+    "keyframes",
+    "hashes",
+    "objects",
+    "string_starts",
+    "strings",
+];
+
+/// What a cluster has beside its node record, by id.
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+pub(crate) struct Record {
+    triangles: u64,
+    gamma: f64,
+    /// [`NONE`] on the root.
+    parent: u32,
+    level: u32,
+    /// `ClusterClass` as 0 root, 1 static, 2 pseudo-dynamic, 3 dynamic.
+    class: u32,
+    /// Index in the hashes, [`NONE`] on the root.
+    geometry: u32,
+    first_key: u32,
+    key_count: u32,
+    first_object: u32,
+    object_count: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+struct Key {
+    t: f64,
+    translation: [f32; 3],
+    rotation: [f32; 4],
+    scale: [f32; 3],
+}
+
+impl Key {
+    fn keyframe(&self) -> Keyframe {
+        Keyframe {
+            t: self.t,
+            translation: Vec3::from_array(self.translation),
+            rotation: Quat::from_array(self.rotation),
+            scale: Vec3::from_array(self.scale),
+        }
+    }
+}
+
+fn class_code(class: ClusterClass) -> u32 {
+    match class {
+        ClusterClass::Root => 0,
+        ClusterClass::Static => 1,
+        ClusterClass::PseudoDynamic => 2,
+        ClusterClass::Dynamic => 3,
+    }
+}
+
+fn class_of(code: u32) -> Option<ClusterClass> {
+    ClusterClass::ALL.get(code as usize).copied()
+}
+
+/// A blake3 hex hash as its 32 bytes.
+fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
+    if !super::is_hash(hex) {
+        return None;
+    }
+    let mut out = [0u8; 32];
+    for (i, byte) in out.iter_mut().enumerate() {
+        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).ok()?;
+    }
+    Some(out)
+}
+
+fn hex(bytes: &[u8; 32]) -> String {
+    const DIGITS: &[u8; 16] = b"0123456789abcdef";
+    let mut out = String::with_capacity(64);
+    for &b in bytes {
+        out.push(DIGITS[usize::from(b >> 4)] as char);
+        out.push(DIGITS[usize::from(b & 15)] as char);
+    }
+    out
+}
+
+/// The index of a valid tree, as the file's bytes; `json_len` is the
+/// length of the `clusters.json` written beside it.
+pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
+    let n = tree.cluster_count();
+    let nodes = Nodes::new(tree);
+    let mut records = Vec::with_capacity(n);
+    let mut keys: Vec<Key> = Vec::new();
+    let mut hashes: Vec<[u8; 32]> = Vec::new();
+    let mut hash_ids: HashMap<String, u32> = HashMap::new();
+    let mut objects: Vec<u32> = Vec::new();
+    let mut string_starts: Vec<u32> = vec![0];
+    let mut strings: Vec<u8> = Vec::new();
+    let mut string_ids: HashMap<String, u32> = HashMap::new();
+    for c in tree.clusters() {
+        let geometry = match &c.geometry {
+            None => NONE,
+            Some(h) => *hash_ids.entry(h.clone()).or_insert_with(|| {
+                hashes.push(hash_bytes(h).expect("a valid tree's hashes are hex"));
+                hashes.len() as u32 - 1
+            }),
+        };
+        let (first_key, key_count) = match &c.motion {
+            None => (0, 0),
+            Some(m) => {
+                let first = keys.len() as u32;
+                keys.extend(m.keyframes().iter().map(|k| Key {
+                    t: k.t,
+                    translation: k.translation.to_array(),
+                    rotation: k.rotation.to_array(),
+                    scale: k.scale.to_array(),
+                }));
+                (first, m.keyframes().len() as u32)
+            }
+        };
+        let first_object = objects.len() as u32;
+        for id in &c.objects {
+            let s = *string_ids.entry(id.clone()).or_insert_with(|| {
+                strings.extend_from_slice(id.as_bytes());
+                string_starts.push(strings.len() as u32);
+                string_starts.len() as u32 - 2
+            });
+            objects.push(s);
+        }
+        records.push(Record {
+            triangles: c.triangles,
+            gamma: c.gamma,
+            parent: c.parent.unwrap_or(NONE),
+            level: c.level,
+            class: class_code(c.class),
+            geometry,
+            first_key,
+            key_count,
+            first_object,
+            object_count: c.objects.len() as u32,
+        });
+    }
+    let sections: [&[u8]; SECTIONS] = [
+        bytemuck::cast_slice(&nodes.nodes),
+        bytemuck::cast_slice(&nodes.node_of),
+        bytemuck::cast_slice(&nodes.order),
+        bytemuck::cast_slice(&nodes.steps),
+        bytemuck::cast_slice(&records),
+        bytemuck::cast_slice(&keys),
+        bytemuck::cast_slice(&hashes),
+        bytemuck::cast_slice(&objects),
+        bytemuck::cast_slice(&string_starts),
+        &strings,
+    ];
+    let mut out = vec![0u8; BODY];
+    out[..8].copy_from_slice(&MAGIC);
+    out[8..12].copy_from_slice(&VERSION.to_le_bytes());
+    out[12..16].copy_from_slice(&(SECTIONS as u32).to_le_bytes());
+    out[16..20].copy_from_slice(&(n as u32).to_le_bytes());
+    out[20..24].copy_from_slice(&tree.root.to_le_bytes());
+    out[24..32].copy_from_slice(&json_len.to_le_bytes());
+    for (k, bytes) in sections.iter().enumerate() {
+        out.resize(out.len().next_multiple_of(8), 0);
+        let (at, offset) = (HEADER + 16 * k, out.len() as u64);
+        out[at..at + 8].copy_from_slice(&offset.to_le_bytes());
+        out[at + 8..at + 16].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+        out.extend_from_slice(bytes);
+    }
+    let sum = checksum(&out);
+    out[32..64].copy_from_slice(&sum);
+    out
+}
+
+/// The blake3 hash of the file but its checksum field.
+fn checksum(bytes: &[u8]) -> [u8; 32] {
+    *blake3::Hasher::new()
+        .update(&bytes[..32])
+        .update(&bytes[HEADER..])
+        .finalize()
+        .as_bytes()
+}
+
+/// A checked, memory-mapped `clusters.bin`.
+#[derive(Clone)]
+pub struct Index {
+    map: Arc<Mmap>,
+    path: PathBuf,
+    sections: [(usize, usize); SECTIONS],
+    root: u32,
+}
+
+impl std::fmt::Debug for Index {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("Index")
+            .field("path", &self.path)
+            .field("clusters", &self.len())
+            .finish()
+    }
+}
+
+/// The file mapped. Trees are replaced by renaming a new directory into
+/// place, never rewritten in place, so the mapped bytes do not change under
+/// the reader.
+fn map(path: &Path) -> Result<Mmap> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
+    // SAFETY: the mapping is read-only and the file is not modified while
+    // mapped (see above); a file truncated under us would fault, as any
+    // mapped file would.
+    unsafe { Mmap::map(&file) }.map_err(|e| Error::io(path, e))
+}
+
+impl Index {
+    /// Maps and checks `path`: header, version, sections, checksum, every
+    /// invariant of the tree.
+    pub fn open(path: &Path) -> Result<Index> {
+        let index = Index::parse(map(path)?, path)?;
+        index.check_checksum()?;
+        index.validate()?;
+        Ok(index)
+    }
+
+    /// The same file mapped afresh: none of its pages resident, so that
+    /// what the checks and the load read is not kept. Errors when the file
+    /// is no longer the one checked.
+    pub fn remap(&self) -> Result<Index> {
+        let fresh = Index::parse(map(&self.path)?, &self.path)?;
+        if fresh.checksum() != self.checksum() || fresh.sections != self.sections {
+            return Err(Error::invalid(
+                &self.path,
+                "header",
+                "the file changed while it was being loaded",
+            ));
+        }
+        Ok(fresh)
+    }
+
+    /// The length of the `clusters.json` the index was made from.
+    pub fn json_len(&self) -> u64 {
+        u64::from_le_bytes(self.map[24..32].try_into().expect("8 bytes"))
+    }
+
+    /// The header and the section table, checked against the file's size.
+    fn parse(map: Mmap, path: &Path) -> Result<Index> {
+        let bad = |at: &str, message: String| Error::invalid(path, at, message);
+        let len = map.len();
+        if len < 8 || map[..8] != MAGIC {
+            return Err(bad(
+                "header",
+                format!(
+                    "does not start with {:?}: not an hdlod cluster index",
+                    std::str::from_utf8(&MAGIC).expect("ASCII")
+                ),
+            ));
+        }
+        if len < BODY {
+            return Err(bad(
+                "header",
+                format!("is {len} bytes, shorter than its {BODY}-byte header (truncated)"),
+            ));
+        }
+        let u32_at = |at: usize| u32::from_le_bytes(map[at..at + 4].try_into().expect("4 bytes"));
+        let u64_at = |at: usize| u64::from_le_bytes(map[at..at + 8].try_into().expect("8 bytes"));
+        let version = u32_at(8);
+        if version != VERSION {
+            return Err(bad(
+                "header.version",
+                format!(
+                    "version {version}, this reader reads version {VERSION}: write the index \
+                     again with `hdlod index TREE`"
+                ),
+            ));
+        }
+        if u32_at(12) as usize != SECTIONS {
+            return Err(bad(
+                "header.sections",
+                format!("{} sections, version {VERSION} has {SECTIONS}", u32_at(12)),
+            ));
+        }
+        let (n, root) = (u32_at(16) as usize, u32_at(20));
+        let mut sections = [(0usize, 0usize); SECTIONS];
+        for (k, section) in sections.iter_mut().enumerate() {
+            let (offset, length) = (u64_at(HEADER + 16 * k), u64_at(HEADER + 16 * k + 8));
+            let name = SECTION_NAMES[k];
+            let end = offset.checked_add(length).filter(|&e| e <= len as u64);
+            let Some(end) = end else {
+                return Err(bad(
+                    &format!("sections.{name}"),
+                    format!(
+                        "bytes {offset} to {offset}+{length} lie beyond the file's {len} bytes \
+                         (truncated)"
+                    ),
+                ));
+            };
+            if offset % 8 != 0 || (offset as usize) < BODY {
+                return Err(bad(
+                    &format!("sections.{name}"),
+                    format!("offset {offset} is not a multiple of 8 after the header"),
+                ));
+            }
+            *section = (offset as usize, end as usize);
+        }
+        let sizes = [
+            size_of::<Node>(),
+            4,
+            4,
+            size_of::<Step>(),
+            size_of::<Record>(),
+            size_of::<Key>(),
+            32,
+            4,
+            4,
+            1,
+        ];
+        for (k, &(a, b)) in sections.iter().enumerate() {
+            if (b - a) % sizes[k] != 0 {
+                return Err(bad(
+                    &format!("sections.{}", SECTION_NAMES[k]),
+                    format!(
+                        "{} bytes is not a whole number of {}-byte records",
+                        b - a,
+                        sizes[k]
+                    ),
+                ));
+            }
+        }
+        let index = Index {
+            map: Arc::new(map),
+            path: path.to_owned(),
+            sections,
+            root,
+        };
+        for k in [NODES, NODE_OF, ORDER, CLUSTERS] {
+            let count = (sections[k].1 - sections[k].0) / sizes[k];
+            if count != n {
+                return Err(bad(
+                    &format!("sections.{}", SECTION_NAMES[k]),
+                    format!("{count} records for the header's {n} clusters"),
+                ));
+            }
+        }
+        Ok(index)
+    }
+
+    fn check_checksum(&self) -> Result<()> {
+        if checksum(&self.map) != self.checksum() {
+            return Err(Error::invalid(
+                &self.path,
+                "header.checksum",
+                "does not match the file's contents: the index is corrupt (write it again with \
+                 `hdlod index TREE`)",
+            ));
+        }
+        Ok(())
+    }
+
+    /// The stored checksum of the file but that field: it names the
+    /// index's contents.
+    pub fn checksum(&self) -> [u8; 32] {
+        self.map[32..64].try_into().expect("32 bytes")
+    }
+
+    fn section<T: Pod>(&self, k: usize) -> &[T] {
+        let (a, b) = self.sections[k];
+        bytemuck::cast_slice(&self.map[a..b])
+    }
+
+    pub fn len(&self) -> usize {
+        self.section::<Record>(CLUSTERS).len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    pub fn root(&self) -> u32 {
+        self.root
+    }
+
+    pub(crate) fn nodes(&self) -> &[Node] {
+        self.section(NODES)
+    }
+
+    pub(crate) fn node_of(&self) -> &[u32] {
+        self.section(NODE_OF)
+    }
+
+    pub(crate) fn steps(&self) -> &[Step] {
+        self.section(STEPS)
+    }
+
+    pub(crate) fn record(&self, id: u32) -> &Record {
+        &self.section::<Record>(CLUSTERS)[id as usize]
+    }
+
+    fn node(&self, id: u32) -> &Node {
+        &self.nodes()[self.node_of()[id as usize] as usize]
+    }
+
+    pub fn class(&self, id: u32) -> ClusterClass {
+        class_of(self.record(id).class).expect("checked at open")
+    }
+
+    pub fn level(&self, id: u32) -> u32 {
+        self.record(id).level
+    }
+
+    pub fn triangles(&self, id: u32) -> u64 {
+        self.record(id).triangles
+    }
+
+    pub fn eps(&self, id: u32) -> f64 {
+        self.node(id).eps
+    }
+
+    pub fn gamma(&self, id: u32) -> f64 {
+        self.record(id).gamma
+    }
+
+    pub fn has_geometry(&self, id: u32) -> bool {
+        self.record(id).geometry != NONE
+    }
+
+    pub fn object_count(&self, id: u32) -> usize {
+        self.record(id).object_count as usize
+    }
+
+    pub fn children(&self, id: u32) -> &[u32] {
+        let node = self.node(id);
+        let first = node.first_child as usize;
+        &self.section::<u32>(ORDER)[first..first + node.child_count as usize]
+    }
+
+    /// The blake3 hex of the cluster's GLB.
+    pub fn geometry(&self, id: u32) -> Option<String> {
+        let g = self.record(id).geometry;
+        (g != NONE).then(|| hex(&self.section::<[u8; 32]>(HASHES)[g as usize]))
+    }
+
+    /// The object ids of a leaf.
+    pub fn objects(&self, id: u32) -> impl ExactSizeIterator<Item = &str> + '_ {
+        let r = self.record(id);
+        let first = r.first_object as usize;
+        self.section::<u32>(OBJECTS)[first..first + r.object_count as usize]
+            .iter()
+            .map(|&s| self.string(s))
+    }
+
+    fn string(&self, s: u32) -> &str {
+        let starts = self.section::<u32>(STRING_STARTS);
+        let bytes = &self.section::<u8>(STRINGS)
+            [starts[s as usize] as usize..starts[s as usize + 1] as usize];
+        std::str::from_utf8(bytes).expect("checked at open")
+    }
+
+    fn keys(&self, id: u32) -> &[Key] {
+        let r = self.record(id);
+        let first = r.first_key as usize;
+        &self.section::<Key>(KEYFRAMES)[first..first + r.key_count as usize]
+    }
+
+    /// The interpolated keyframe of dynamic cluster `id` at `t`, as
+    /// `Motion::sample` gives it, from the mapped keyframes.
+    pub(crate) fn sample(&self, id: u32, t: f64) -> Keyframe {
+        let keys = self.keys(id);
+        let i = keys.partition_point(|k| k.t <= t);
+        if i == 0 {
+            return keys[0].keyframe();
+        }
+        if i == keys.len() {
+            return keys[i - 1].keyframe();
+        }
+        Motion::between(keys[i - 1].keyframe(), keys[i].keyframe(), t)
+    }
+
+    /// The visibility steps of cluster `id`.
+    pub(crate) fn visibility(&self, id: u32) -> &[Step] {
+        let node = self.node(id);
+        let first = node.first_step as usize;
+        &self.steps()[first..first + node.step_count as usize]
+    }
+
+    /// Cluster `id` decoded.
+    pub fn cluster(&self, id: u32) -> Cluster {
+        let node = self.node(id);
+        let r = self.record(id);
+        let motion = (r.key_count > 0).then(|| {
+            Motion::new(self.keys(id).iter().map(Key::keyframe).collect()).expect("checked at open")
+        });
+        Cluster {
+            id,
+            parent: (r.parent != NONE).then_some(r.parent),
+            children: self.children(id).to_vec(),
+            level: r.level,
+            class: self.class(id),
+            bounds: node.bounds(),
+            w: node.w,
+            eps: node.eps,
+            gamma: r.gamma,
+            visibility: Steps::from_checked(
+                self.visibility(id).iter().map(|s| (s.t, s.v)).collect(),
+            ),
+            motion,
+            geometry: self.geometry(id),
+            triangles: r.triangles,
+            objects: self.objects(id).map(str::to_owned).collect(),
+        }
+    }
+
+    /// Every invariant `Tree::validate` checks, and that the records agree
+    /// with each other (the breadth-first order, the children's ranges, the
+    /// offsets into the flat arrays), without decoding the clusters.
+    fn validate(&self) -> Result<()> {
+        let n = self.len();
+        let path = &self.path;
+        let bad = |at: String, message: String| Error::invalid(path, at, message);
+        if n == 0 {
+            return Err(bad("header".into(), "the tree has no clusters".into()));
+        }
+        if self.root as usize >= n {
+            return Err(bad(
+                "header.root".into(),
+                format!("root {} is not a cluster id", self.root),
+            ));
+        }
+        let (nodes, node_of, order) = (self.nodes(), self.node_of(), self.section::<u32>(ORDER));
+        let records = self.section::<Record>(CLUSTERS);
+        let (steps, keys) = (self.steps(), self.section::<Key>(KEYFRAMES));
+        let (hashes, objects) = (
+            self.section::<[u8; 32]>(HASHES).len(),
+            self.section::<u32>(OBJECTS),
+        );
+        let starts = self.section::<u32>(STRING_STARTS);
+        let strings = self.section::<u8>(STRINGS);
+        // The strings: increasing offsets within the bytes, each UTF-8.
+        if starts.first() != Some(&0)
+            || starts.windows(2).any(|w| w[0] > w[1])
+            || starts.last().map(|&e| e as usize) != Some(strings.len())
+        {
+            return Err(bad(
+                "string_starts".into(),
+                "offsets must increase from 0 to the strings' length".into(),
+            ));
+        }
+        if let Some(s) = starts
+            .windows(2)
+            .position(|w| std::str::from_utf8(&strings[w[0] as usize..w[1] as usize]).is_err())
+        {
+            return Err(bad(format!("strings[{s}]"), "is not UTF-8".into()));
+        }
+        let range = |first: u32, count: u32, len: usize| {
+            (first as usize)
+                .checked_add(count as usize)
+                .is_some_and(|end| end <= len)
+        };
+        // Breadth-first order: node 0 is the root, and the children of the
+        // nodes in order take the following nodes in turn, each range after
+        // its parent's node. Every node but the root is then in exactly
+        // one range, below a node before it: one tree, no cycle.
+        let mut next = 1usize;
+        for (k, node) in nodes.iter().enumerate() {
+            let id = node.id;
+            let at = |field: &str| format!("clusters[{id}].{field}");
+            if id as usize >= n || node_of[id as usize] as usize != k || order[k] != id {
+                return Err(bad(
+                    format!("nodes[{k}]"),
+                    format!("cluster id {id} does not map back to node {k}"),
+                ));
+            }
+            if (k == 0) != (id == self.root) {
+                return Err(bad(
+                    "header.root".into(),
+                    format!("the first node is cluster {id}, not the root {}", self.root),
+                ));
+            }
+            let r = &records[id as usize];
+            if node.child_count > 0 {
+                if node.first_child as usize != next || next <= k {
+                    return Err(bad(
+                        at("children"),
+                        format!(
+                            "start at node {}, not {next}: not in breadth-first order",
+                            node.first_child
+                        ),
+                    ));
+                }
+                next += node.child_count as usize;
+                if next > n {
+                    return Err(bad(at("children"), "run past the last node".into()));
+                }
+                let first = node.first_child as usize;
+                if let Some(child) = order[first..first + node.child_count as usize]
+                    .iter()
+                    .find(|&&c| records[c as usize].parent != id)
+                {
+                    return Err(bad(
+                        at("children"),
+                        format!("child {child} does not name {id} as its parent"),
+                    ));
+                }
+            }
+            let Some(class) = class_of(r.class) else {
+                return Err(bad(at("class"), format!("{} is no class", r.class)));
+            };
+            let is_root = class == ClusterClass::Root;
+            if is_root != (id == self.root) {
+                return Err(bad(
+                    at("class"),
+                    format!("only the root ({}) has class \"root\"", self.root),
+                ));
+            }
+            if (r.parent == NONE) != is_root {
+                return Err(bad(at("parent"), "only the root has no parent".into()));
+            }
+            if !node.min.is_finite() || !node.max.is_finite() || node.min.cmpgt(node.max).any() {
+                return Err(bad(
+                    at("bounds"),
+                    "bounds must be finite with min <= max".into(),
+                ));
+            }
+            for (field, x) in [("w", node.w), ("eps", node.eps), ("gamma", r.gamma)] {
+                if !x.is_finite() || x < 0.0 {
+                    return Err(bad(at(field), format!("{x} is not a finite number >= 0")));
+                }
+            }
+            if !range(node.first_step, node.step_count, steps.len()) {
+                return Err(bad(at("visibility"), "lies outside the steps".into()));
+            }
+            let own = &steps[node.first_step as usize..][..node.step_count as usize];
+            if own
+                .iter()
+                .any(|s| !s.t.is_finite() || !(0.0..=1.0).contains(&s.v))
+                || own.windows(2).any(|w| w[0].t >= w[1].t)
+            {
+                return Err(bad(
+                    at("visibility"),
+                    "steps must be finite, in [0, 1], at increasing times".into(),
+                ));
+            }
+            if (class == ClusterClass::Dynamic) != (r.key_count > 0) {
+                return Err(bad(
+                    at("motion"),
+                    "dynamic clusters, and only they, have a motion".into(),
+                ));
+            }
+            if !range(r.first_key, r.key_count, keys.len()) {
+                return Err(bad(at("motion"), "lies outside the keyframes".into()));
+            }
+            let own = &keys[r.first_key as usize..][..r.key_count as usize];
+            let finite = |k: &Key| {
+                k.t.is_finite()
+                    && k.translation
+                        .iter()
+                        .chain(&k.rotation)
+                        .chain(&k.scale)
+                        .all(|x| x.is_finite())
+                    && Quat::from_array(k.rotation).length_squared() >= 1e-12
+            };
+            if !own.iter().all(finite) || own.windows(2).any(|w| w[0].t >= w[1].t) {
+                return Err(bad(
+                    at("motion"),
+                    "keyframes must be finite at increasing times".into(),
+                ));
+            }
+            if node.motion != NONE
+                && records
+                    .get(node.motion as usize)
+                    .is_none_or(|m| m.key_count == 0)
+            {
+                return Err(bad(
+                    format!("nodes[{k}].motion"),
+                    format!("cluster {} has no motion", node.motion),
+                ));
+            }
+            if (node.motion == NONE) != (r.key_count == 0) {
+                return Err(bad(
+                    format!("nodes[{k}].motion"),
+                    "a node names a motion exactly when its cluster has one".into(),
+                ));
+            }
+            if is_root != (r.geometry == NONE)
+                || (r.geometry != NONE && r.geometry as usize >= hashes)
+                || (node.has_geometry != 0) != (r.geometry != NONE)
+            {
+                return Err(bad(
+                    at("geometry"),
+                    "every cluster but the root has a geometry among the hashes".into(),
+                ));
+            }
+            if !range(r.first_object, r.object_count, objects.len()) {
+                return Err(bad(at("objects"), "lie outside the object list".into()));
+            }
+            let own = &objects[r.first_object as usize..][..r.object_count as usize];
+            if own.iter().any(|&s| s as usize + 1 >= starts.len()) {
+                return Err(bad(at("objects"), "name a string that is not there".into()));
+            }
+        }
+        if next != n {
+            return Err(bad(
+                "nodes".into(),
+                format!("{next} of {n} clusters hang under the root"),
+            ));
+        }
+        Ok(())
+    }
+}

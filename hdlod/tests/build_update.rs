@@ -1,0 +1,202 @@
+//! Schedule-only updates of a built tree (`build_or_update_to`): what they
+//! recompute is what a full build computes, they keep every geometry file,
+//! and anything beyond a schedule change builds in full.
+
+use std::collections::HashSet;
+use std::path::Path;
+
+use hdlod::build::{BuildConfig, How, Silent, StepFunction, build_or_update_to, build_to};
+use hdlod::scene::{Scene, format};
+use hdlod::tree::{Cluster, Tree, load};
+
+fn tiny() -> Scene {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
+    format::load(&fixture).expect("the tiny fixture loads")
+}
+
+/// The tiny site with every fourth task of still objects `by` seconds
+/// later: the same objects in the same classes, other dates.
+fn rescheduled(scene: &Scene, by: f64) -> Scene {
+    let mut scene = scene.clone();
+    let day = by;
+    let still: HashSet<String> = scene
+        .objects
+        .iter()
+        .filter(|o| o.motion.is_none())
+        .map(|o| o.id.clone())
+        .collect();
+    let mut moved = 0;
+    for (i, task) in scene.tasks.iter_mut().enumerate() {
+        if i % 4 == 0
+            && task.finish + day < scene.time.seconds
+            && task.objects.iter().all(|o| still.contains(o))
+        {
+            task.start += day;
+            task.finish += day;
+            moved += 1;
+        }
+    }
+    assert!(moved > 5, "{moved} tasks moved");
+    scene.apply_schedule();
+    scene
+}
+
+fn records(tree: &Tree) -> Vec<Cluster> {
+    tree.clusters().map(|c| c.into_owned()).collect()
+}
+
+fn geometry(tree: &Tree) -> Vec<Option<String>> {
+    records(tree).into_iter().map(|c| c.geometry).collect()
+}
+
+#[test]
+fn an_update_recomputes_what_the_build_computes() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let built = load(&dir).unwrap();
+    let files: HashSet<String> = geometry(&built).into_iter().flatten().collect();
+
+    // The same schedule again: every cluster exactly as built.
+    let (same, _, how) = build_or_update_to(&scene, &config, &dir, false, &Silent).unwrap();
+    assert_eq!(
+        how,
+        How::ScheduleUpdate {
+            geometry_files: files.len(),
+            dissolved: 0,
+        }
+    );
+    assert_eq!(records(&same), records(&built));
+    assert_eq!(records(&load(&dir).unwrap()), records(&built));
+
+    // An hour later: the leaves follow the new dates, the geometry stays.
+    let later = rescheduled(&scene, 3600.0);
+    let (_, _, how) = build_or_update_to(&later, &config, &dir, false, &Silent).unwrap();
+    let How::ScheduleUpdate { dissolved, .. } = how else {
+        panic!("{how:?}")
+    };
+    let updated = load(&dir).expect("the updated tree loads and validates");
+    assert_eq!(updated.cluster_count(), built.cluster_count() - dissolved);
+    let span = later.time.seconds;
+    let mut changed = 0;
+    let leaves = |t: &Tree| {
+        records(t)
+            .into_iter()
+            .filter(|c| c.is_leaf())
+            .collect::<Vec<_>>()
+    };
+    let (now, before) = (leaves(&updated), leaves(&built));
+    assert_eq!(now.len(), before.len());
+    for (leaf, was) in now.iter().zip(&before) {
+        assert_eq!(
+            (&leaf.objects, &leaf.geometry),
+            (&was.objects, &was.geometry)
+        );
+        changed += usize::from(leaf.visibility != was.visibility);
+        let object = later.objects.iter().find(|o| o.id == leaf.objects[0]);
+        if let Some(object) = object.filter(|o| o.motion.is_none()) {
+            let want = StepFunction::of_visibility(&object.visibility, span).to_tree();
+            assert_eq!(leaf.visibility, want, "leaf {}", leaf.id);
+        }
+    }
+    assert!(changed > 5, "{changed} leaves changed visibility");
+    for hash in geometry(&updated).into_iter().flatten() {
+        assert!(files.contains(&hash));
+        assert!(dir.join("geometry").join(format!("{hash}.glb")).is_file());
+    }
+}
+
+#[test]
+fn groups_that_no_longer_fit_the_schedule_are_dissolved() {
+    let scene = tiny();
+    let later = rescheduled(&scene, 86_400.0);
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    let (built, stats) = build_to(&scene, &config, &dir, &Silent).unwrap();
+    let (_, _, how) = build_or_update_to(&later, &config, &dir, false, &Silent).unwrap();
+    let How::ScheduleUpdate { dissolved, .. } = how else {
+        panic!("{how:?}")
+    };
+    assert!(
+        dissolved > 0,
+        "a day's shift breaks some group of the tiny site"
+    );
+    let tree = load(&dir).expect("the updated tree loads and validates");
+    assert_eq!(tree.cluster_count(), built.cluster_count() - dissolved);
+    let leaves = |t: &Tree| records(t).iter().filter(|c| c.is_leaf()).count();
+    assert_eq!(leaves(&tree), leaves(&built));
+    let clusters = records(&tree);
+    for c in &clusters {
+        if c.class == hdlod::tree::ClusterClass::Root {
+            continue;
+        }
+        let budget = hdlod::build::thresholds(&config, stats.scene_w, stats.levels, c.level);
+        assert!(
+            c.gamma <= budget.gamma,
+            "cluster {}: gamma {} over {}",
+            c.id,
+            c.gamma,
+            budget.gamma
+        );
+        for &k in &c.children {
+            assert!(clusters[k as usize].eps <= c.eps, "eps grows up the tree");
+        }
+    }
+}
+
+#[test]
+fn a_geometry_change_a_class_change_or_full_build_in_full() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    let (_, _, how) = build_or_update_to(&scene, &config, &dir, false, &Silent).unwrap();
+    assert_eq!(how, How::Full { why: None }, "no tree there yet");
+
+    let (_, _, how) = build_or_update_to(&scene, &config, &dir, true, &Silent).unwrap();
+    assert_eq!(how, How::Full { why: None }, "a full build asked for");
+
+    let mut moved = scene.clone();
+    moved.objects[0].transform.w_axis.x += 1.0;
+    let (_, _, how) = build_or_update_to(&moved, &config, &dir, false, &Silent).unwrap();
+    let How::Full { why: Some(why) } = how else {
+        panic!("{how:?}")
+    };
+    assert!(why.contains("geometry"), "{why}");
+
+    let coarser = BuildConfig {
+        max_children: config.max_children + 1,
+        ..config.clone()
+    };
+    let (_, _, how) = build_or_update_to(&moved, &coarser, &dir, false, &Silent).unwrap();
+    assert!(matches!(how, How::Full { why: Some(_) }), "{how:?}");
+
+    // An object present throughout gets a task: it leaves the static class.
+    let (_, _, how) = build_or_update_to(&scene, &config, &dir, false, &Silent).unwrap();
+    assert!(matches!(how, How::Full { .. }));
+    let mut reclassed = scene.clone();
+    let always = reclassed
+        .objects
+        .iter()
+        .position(|o| reclassed.class_of(o) == hdlod::scene::Class::Static)
+        .expect("a static object");
+    let id = reclassed.objects[always].id.clone();
+    let half = reclassed.time.seconds / 2.0;
+    reclassed.tasks.push(hdlod::scene::Task::planned(
+        "X1",
+        "Demolish",
+        hdlod::scene::TaskType::Demolish,
+        half,
+        half + 3600.0,
+        vec![id],
+    ));
+    reclassed.apply_schedule();
+    let (_, _, how) = build_or_update_to(&reclassed, &config, &dir, false, &Silent).unwrap();
+    let How::Full { why: Some(why) } = how else {
+        panic!("{how:?}")
+    };
+    assert!(why.contains("class"), "{why}");
+}
