@@ -321,7 +321,7 @@ fn eps_bounds_the_distance(b: &Built) {
             },
         );
         assert!(
-            f64::from(h.lower) <= c.eps + 1e-4 + quantization(c),
+            f64::from(h.lower) <= c.eps + 1e-4,
             "cluster {} (level {}): distance {} to its objects above its eps {}",
             c.id,
             c.level,
@@ -467,14 +467,6 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
     common::assert_no_gltf_errors(&files);
 }
 
-/// How far the compact GLB's quantization may move a vertex of cluster `c`:
-/// half a step of its largest half extent over 32767 along each axis
-/// (`hdlod::io::compact`). `eps_c` is measured on the geometry before it.
-fn quantization(c: &hdlod::tree::Cluster) -> f64 {
-    let half = (c.bounds.max - c.bounds.min).max_element() / 2.0;
-    3f64.sqrt() * half / 65534.0
-}
-
 /// Feature fidelity: the triangles a cluster gives an object lie within the
 /// cluster's `eps_c` of that object's own geometry.
 #[test]
@@ -498,7 +490,7 @@ fn an_objects_triangles_lie_within_eps_of_the_object() {
     let mut coarse = 0;
     for d in &distances {
         assert!(
-            d.distance <= d.eps + slack + quantization(&b.tree.clusters[d.cluster as usize]),
+            d.distance <= d.eps + slack,
             "cluster {} object {}: {} triangles up to {} from it, eps {}",
             d.cluster,
             d.feature,

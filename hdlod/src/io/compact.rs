@@ -6,10 +6,9 @@
 //! (<https://github.com/KhronosGroup/glTF/tree/main/extensions/2.0/Vendor/EXT_meshopt_compression>),
 //! and the way back to the plain form for readers without either.
 //!
-//! Quantization: positions are normalized `SHORT` of the mesh's largest
-//! half extent `s` around its bounds' centre (the node's uniform `scale` and
-//! `translation`), so a position moves by at most `s / 65534` along each
-//! axis; normals normalized `BYTE`, colours normalized `UNSIGNED_BYTE`,
+//! Quantization: positions stay `FLOAT`, exactly the values every stored
+//! error bound was measured on; normals normalized `BYTE`, colours
+//! normalized `UNSIGNED_BYTE`,
 //! texture coordinates normalized `UNSIGNED_SHORT`. Feature ids stay `FLOAT`
 //! (exact, and a run of equal ids costs the vertex codec almost nothing),
 //! indices `UNSIGNED_SHORT` below 65,536 vertices. The attributes are
@@ -22,7 +21,7 @@
 //! indices the `TRIANGLES` mode. Both codecs are lossless, except that the
 //! index codec may rotate a triangle's corners (keeping its winding and
 //! the triangles' order): the plain form ([`plain`]) holds exactly the
-//! quantized values, as `f32`.
+//! stored values, as `f32`.
 
 use std::borrow::Cow;
 
@@ -53,17 +52,12 @@ impl GlbBuilder {
         uvs: Option<&[Vec2]>,
     ) -> (MeshAccessors, f32) {
         let n = mesh.positions.len();
-        let extent = mesh
-            .positions
-            .iter()
-            .fold(0.0f32, |m, p| m.max(p.abs().max_element()));
-        let scale = if extent > 0.0 && extent.is_finite() {
-            extent
-        } else {
-            1.0
-        };
+        // Positions stay exact `f32`: every stored `eps_c` is measured on
+        // them, and quantizing would move a vertex by up to half a step
+        // past that bound. The vertex codec is lossless either way.
+        let scale = 1.0;
         // The layout: each attribute's offset in the vertex, 4-byte aligned.
-        let mut stride = 8;
+        let mut stride = 12;
         let mut field = |present: bool| {
             present.then(|| {
                 stride += 4;
@@ -75,16 +69,13 @@ impl GlbBuilder {
         let texcoords = field(uvs.is_some());
         let features = field(!mesh.features.is_empty());
         let mut raw = vec![0u8; n * stride];
-        let (mut lo, mut hi) = ([i16::MAX; 3], [i16::MIN; 3]);
+        let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for (i, vertex) in raw.chunks_exact_mut(stride).enumerate() {
-            let q = (mesh.positions[i] / scale * SHORT)
-                .round()
-                .clamp(Vec3::splat(-SHORT), Vec3::splat(SHORT));
-            let q = [q.x as i16, q.y as i16, q.z as i16];
-            for k in 0..3 {
-                lo[k] = lo[k].min(q[k]);
-                hi[k] = hi[k].max(q[k]);
-                vertex[2 * k..2 * k + 2].copy_from_slice(&q[k].to_le_bytes());
+            let p = mesh.positions[i];
+            lo = lo.min(p);
+            hi = hi.max(p);
+            for (k, v) in p.to_array().into_iter().enumerate() {
+                vertex[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
             }
             if let Some(at) = normals {
                 let v = (mesh.normals[i] * 127.0)
@@ -125,8 +116,8 @@ impl GlbBuilder {
             0,
             n,
             T::Vec3,
-            C::I16,
-            Some((lo.map(f32::from).to_vec(), hi.map(f32::from).to_vec())),
+            C::F32,
+            Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
         );
         let normals = normals.map(|at| self.view_accessor(view, at, n, T::Vec3, C::I8, None));
         let colors = colors.map(|at| self.view_accessor(view, at, n, T::Vec4, C::U8, None));
@@ -335,6 +326,7 @@ fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
         16 => with(bytemuck::cast_slice::<u8, [u8; 16]>(raw)),
         20 => with(bytemuck::cast_slice::<u8, [u8; 20]>(raw)),
         24 => with(bytemuck::cast_slice::<u8, [u8; 24]>(raw)),
+        28 => with(bytemuck::cast_slice::<u8, [u8; 28]>(raw)),
         other => unreachable!("no vertex stream of {other} bytes is written"),
     }
 }
@@ -654,6 +646,8 @@ fn decode_vertices(data: &[u8], count: usize, size: usize) -> Option<meshopt::Re
         16 => meshopt::decode_vertex_buffer::<[u8; 16]>(data, count).map(|v| v.concat()),
         20 => meshopt::decode_vertex_buffer::<[u8; 20]>(data, count).map(|v| v.concat()),
         24 => meshopt::decode_vertex_buffer::<[u8; 24]>(data, count).map(|v| v.concat()),
+        28 => meshopt::decode_vertex_buffer::<[u8; 28]>(data, count).map(|v| v.concat()),
+        32 => meshopt::decode_vertex_buffer::<[u8; 32]>(data, count).map(|v| v.concat()),
         _ => return None,
     };
     Some(bytes)

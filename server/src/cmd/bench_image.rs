@@ -146,11 +146,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let loaded = state.scenes();
     let tree = &loaded[&scene].tree;
     for c in &mut report.cells {
-        let mut hashes: Vec<&str> = c
+        let mut hashes: Vec<String> = c
             .cut
             .ids
             .iter()
-            .filter_map(|&id| tree.clusters.get(id as usize)?.geometry.as_deref())
+            .filter(|&&id| (id as usize) < tree.cluster_count())
+            .filter_map(|&id| tree.geometry_of(id).map(|h| h.into_owned()))
             .collect();
         hashes.sort_unstable();
         hashes.dedup();
