@@ -21,6 +21,7 @@ mod parent;
 mod steps;
 mod update;
 
+use std::borrow::Cow;
 use std::path::Path;
 use std::time::Instant;
 
@@ -48,16 +49,7 @@ pub fn build(
         Error::Argument { at, message } => Error::argument(format!("config.{at}"), message),
         other => other,
     })?;
-    let mut scene_owned;
-    let scene = match config.schedule {
-        Some(options) if options != scene.schedule_options => {
-            scene_owned = scene.clone();
-            scene_owned.schedule_options = options;
-            scene_owned.apply_schedule();
-            &scene_owned
-        }
-        _ => scene,
-    };
+    let scene = &*scheduled(scene, config);
     if scene.objects.len() > crate::io::glb::MAX_FEATURE_ID as usize {
         return Err(Error::argument(
             "scene.objects",
@@ -182,6 +174,20 @@ pub fn build(
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);
     Ok((tree, stats))
+}
+
+/// `scene` on the dates `config.schedule` chooses, when it chooses other
+/// dates than the scene's own.
+pub(super) fn scheduled<'a>(scene: &'a Scene, config: &BuildConfig) -> Cow<'a, Scene> {
+    match config.schedule {
+        Some(options) if options != scene.schedule_options => {
+            let mut owned = scene.clone();
+            owned.schedule_options = options;
+            owned.apply_schedule();
+            Cow::Owned(owned)
+        }
+        _ => Cow::Borrowed(scene),
+    }
 }
 
 /// Builds the tree of `scene` into the directory `out`, atomically: a

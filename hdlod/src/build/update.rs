@@ -18,6 +18,7 @@ use std::collections::HashMap;
 use super::config::{BuildConfig, thresholds};
 use super::leaves::{Piece, split_at_rest};
 use super::outputs::BuildStats;
+use super::scheduled;
 use super::steps::StepFunction;
 use crate::scene::{Class, Scene};
 use crate::tree::{Cluster, ClusterClass, ObjectTables, Tree};
@@ -103,16 +104,7 @@ pub fn geometry_key(scene: &Scene, config: &BuildConfig) -> String {
 /// [`geometry_key`] (the caller compares the key stored in its
 /// statistics).
 pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Update {
-    let mut scene_owned;
-    let scene = match config.schedule {
-        Some(options) if options != scene.schedule_options => {
-            scene_owned = scene.clone();
-            scene_owned.schedule_options = options;
-            scene_owned.apply_schedule();
-            &scene_owned
-        }
-        _ => scene,
-    };
+    let scene = &*scheduled(scene, config);
     let span = scene.time.seconds;
     let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
     let pieces = split_at_rest(scene, &classes);
