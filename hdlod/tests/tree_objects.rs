@@ -84,9 +84,10 @@ fn links_by_task_index() {
 #[test]
 fn every_scene_object_in_scene_order() {
     let (b, t) = (built(), tables());
-    assert_eq!(t.objects().len(), b.scene.objects.len());
+    assert_eq!(t.object_count(), b.scene.objects.len());
     let mut absent = 0;
-    for (i, (row, o)) in t.objects().iter().zip(&b.scene.objects).enumerate() {
+    for (i, o) in b.scene.objects.iter().enumerate() {
+        let row = t.object(i as u32);
         assert_eq!(row.id, o.id);
         assert_eq!(t.object_index(&o.id), Some(i as u32));
         assert_eq!(row.properties, o.properties);
@@ -114,7 +115,7 @@ fn every_scene_object_in_scene_order() {
     }
     assert!(absent > 0, "the fixture has absent objects");
     assert!(
-        t.objects().iter().any(|o| o.clusters.len() > 1),
+        (0..t.object_count() as u32).any(|i| t.rows().clusters(i).len() > 1),
         "a moving object split where it stands still has several leaves"
     );
 }
@@ -128,11 +129,7 @@ fn every_task_with_its_objects() {
         assert_eq!(t.task_index(&task.id), Some(k as u32));
         assert_eq!(row.name.as_deref(), Some(task.name.as_str()));
         assert_eq!((row.kind, row.dates), (task.kind, task.dates()));
-        let ids: Vec<&str> = row
-            .objects
-            .iter()
-            .map(|&i| t.objects()[i as usize].id.as_str())
-            .collect();
+        let ids: Vec<&str> = row.objects.iter().map(|&i| t.rows().id(i)).collect();
         let mut expected: Vec<&str> = task.objects.iter().map(String::as_str).collect();
         expected.sort_by_key(|id| t.object_index(id));
         assert_eq!(ids, expected, "task {}", task.id);
@@ -153,7 +150,7 @@ fn search_finds_by_id_name_and_property_ignoring_case() {
     let columns = t.search_objects("column l01", 0, 1000);
     assert!(columns.total > 0 && columns.next.is_none());
     for &i in &columns.items {
-        let name = t.objects()[i as usize].name.as_deref().unwrap();
+        let name = t.rows().name(i).unwrap();
         assert!(name.to_lowercase().contains("column l01"), "{name}");
     }
     // By a property value only (the storey), and by the id.
@@ -177,7 +174,7 @@ fn search_finds_by_id_name_and_property_ignoring_case() {
     let all = t.search_objects("", 0, 5);
     assert_eq!(
         (all.items, all.next, all.total),
-        (vec![0, 1, 2, 3, 4], Some(5), t.objects().len())
+        (vec![0, 1, 2, 3, 4], Some(5), t.object_count())
     );
     assert_eq!(t.search_objects("no such thing", 0, 5).total, 0);
     let tasks = t.search_tasks("DEMOLISH", 0, 100);
@@ -227,4 +224,118 @@ fn a_broken_table_names_the_field() {
             "{field}: {e}"
         );
     }
+}
+
+/// A copy of the built tree, to damage.
+fn copy_of_built() -> (tempfile::TempDir, PathBuf) {
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    let from = &built().dir;
+    for sub in ["", "geometry"] {
+        std::fs::create_dir_all(dir.join(sub)).unwrap();
+        for entry in std::fs::read_dir(from.join(sub)).unwrap() {
+            let path = entry.unwrap().path();
+            if path.is_file() {
+                std::fs::copy(&path, dir.join(sub).join(path.file_name().unwrap())).unwrap();
+            }
+        }
+    }
+    (tmp, dir)
+}
+
+/// The object index and `objects.json` describe the same tables: the
+/// rows mapped from `objects.bin` decode, search and look up as those read
+/// from the JSON, and a tree written without the index gets it from
+/// `write_index`.
+#[test]
+fn the_object_index_and_the_json_describe_the_same_tables() {
+    use hdlod::tree::format::OBJECTS_INDEX_FILE;
+    use hdlod::tree::store::{load_json, write_index};
+    let b = built();
+    let mapped = load(&b.dir).unwrap().objects.unwrap();
+    let json = load_json(&b.dir).unwrap().objects.unwrap();
+    assert!(mapped.rows().is_mapped() && !json.rows().is_mapped());
+    assert_eq!(mapped, json);
+    assert_eq!(&mapped, tables());
+    assert!(mapped.object_count() > 100);
+    for i in 0..json.object_count() as u32 {
+        let o = json.object(i);
+        assert_eq!(mapped.object(i), o);
+        assert_eq!(mapped.object_index(&o.id), Some(i));
+    }
+    for q in ["", "column", "LEVEL 01", "no such thing"] {
+        assert_eq!(
+            mapped.search_objects(q, 3, 20),
+            json.search_objects(q, 3, 20),
+            "{q}"
+        );
+    }
+    assert_eq!(mapped.tasks(), json.tasks());
+    assert_eq!(mapped.to_record(&b.tree.time), json.to_record(&b.tree.time));
+    // The migration: a tree without the index loads from the JSON, and
+    // `write_index` gives it back the same bytes.
+    let (_tmp, dir) = copy_of_built();
+    let path = dir.join(OBJECTS_INDEX_FILE);
+    let written = std::fs::read(&path).unwrap();
+    std::fs::remove_file(&path).unwrap();
+    assert!(!load(&dir).unwrap().objects.unwrap().rows().is_mapped());
+    write_index(&dir).unwrap();
+    assert_eq!(std::fs::read(&path).unwrap(), written);
+}
+
+/// A damaged object index fails the load, naming the file and what is
+/// wrong, as a damaged cluster index does.
+#[test]
+fn a_damaged_object_index_is_named_with_what_is_wrong() {
+    use hdlod::tree::format::{OBJECTS_FILE, OBJECTS_INDEX_FILE};
+    use hdlod::tree::object_index::VERSION;
+    type Damage = Box<dyn FnOnce(&mut Vec<u8>)>;
+    let cases: Vec<(&str, Damage)> = vec![
+        ("not an hdlod object index", Box::new(|b| b[0] = b'X')),
+        (
+            "version 2, this reader reads version 1",
+            Box::new(|b| b[8..12].copy_from_slice(&(VERSION + 1).to_le_bytes())),
+        ),
+        (
+            "shorter than its 240-byte header",
+            Box::new(|b| b.truncate(100)),
+        ),
+        ("(truncated)", Box::new(|b| b.truncate(b.len() - 8))),
+        (
+            "header.checksum: does not match",
+            Box::new(|b| {
+                let at = b.len() / 2;
+                b[at] ^= 0x40;
+            }),
+        ),
+        (
+            "header.checksum: does not match",
+            Box::new(|b| {
+                let at = b.len() - 1;
+                b[at] ^= 1;
+            }),
+        ),
+    ];
+    for (expected, damage) in cases {
+        let (_tmp, dir) = copy_of_built();
+        let path = dir.join(OBJECTS_INDEX_FILE);
+        let mut bytes = std::fs::read(&path).unwrap();
+        damage(&mut bytes);
+        std::fs::write(&path, &bytes).unwrap();
+        let e = load(&dir).unwrap_err().to_string();
+        assert!(
+            e.contains(OBJECTS_INDEX_FILE) && e.contains(expected),
+            "{expected:?} not in {e}"
+        );
+    }
+    // An index left behind by a hand edit of objects.json.
+    let (_tmp, dir) = copy_of_built();
+    let mut json = std::fs::read(dir.join(OBJECTS_FILE)).unwrap();
+    json.push(b' ');
+    std::fs::write(dir.join(OBJECTS_FILE), json).unwrap();
+    let e = load(&dir).unwrap_err().to_string();
+    assert!(
+        e.contains(OBJECTS_INDEX_FILE) && e.contains("was made from an objects.json of"),
+        "{e}"
+    );
 }

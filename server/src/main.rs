@@ -44,7 +44,7 @@ enum Command {
     Build(cmd::build::Args),
     /// The cut of a tree for a time and camera.
     Cut(cmd::cut::Args),
-    /// Write a tree's serving index (clusters.bin) from its clusters.json.
+    /// Write a tree's serving indexes (clusters.bin, objects.bin) from its JSON files.
     Index(cmd::index::Args),
     /// Write the time slice of a tree at one date as 3D Tiles 1.1.
     ExportTiles(cmd::export_tiles::Args),

@@ -74,33 +74,34 @@ pub fn content(
 fn table(objects: &[u32], tables: &ObjectTables, state: Option<State>) -> PropertyTable {
     let n = objects.len();
     let text = |f: &dyn Fn(u32) -> String| objects.iter().map(|&i| f(i)).collect::<Vec<_>>();
-    let entry = move |i: u32| &tables.objects()[i as usize];
+    let rows = tables.rows();
     // The task shown: the one governing at the slice's time, else the
     // element's first (in most schedules the one that builds it).
     let task = move |i: u32| match state {
         Some(s) => tables.governing_task(i, s.t),
-        None => entry(i).tasks.first().copied(),
+        None => rows.tasks(i).first().copied(),
     };
     let task_entry = move |i: u32| task(i).map(|k| &tables.tasks()[k as usize]);
     let mut columns = vec![
-        ("id".into(), Column::Strings(text(&|i| entry(i).id.clone()))),
+        (
+            "id".into(),
+            Column::Strings(text(&|i| rows.id(i).to_owned())),
+        ),
         ("index".into(), Column::U32(objects.to_vec())),
         (
             "name".into(),
-            Column::Strings(text(&|i| entry(i).name.clone().unwrap_or_default())),
+            Column::Strings(text(&|i| rows.name(i).unwrap_or_default().to_owned())),
         ),
         (
             "class".into(),
-            Column::Strings(text(&|i| entry(i).class.clone().unwrap_or_default())),
+            Column::Strings(text(&|i| rows.class(i).unwrap_or_default().to_owned())),
         ),
         (
             "storey".into(),
             Column::Strings(text(&|i| {
-                entry(i)
-                    .properties
-                    .get(property::STOREY)
-                    .cloned()
+                rows.property(i, property::STOREY)
                     .unwrap_or_default()
+                    .to_owned()
             })),
         ),
         (

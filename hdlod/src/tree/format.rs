@@ -14,6 +14,9 @@ pub const OBJECTS_FILE: &str = "objects.json";
 pub const GEOMETRY_DIR: &str = "geometry";
 /// The binary serving index of the clusters, optional (`super::index`).
 pub const INDEX_FILE: &str = "clusters.bin";
+/// The object rows of `objects.json` in binary, optional
+/// (`super::object_index`).
+pub const OBJECTS_INDEX_FILE: &str = "objects.bin";
 
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct ManifestRecord {

@@ -117,7 +117,7 @@ fn class_of(code: u32) -> Option<ClusterClass> {
 }
 
 /// A blake3 hex hash as its 32 bytes.
-fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
+pub(crate) fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
     if !super::is_hash(hex) {
         return None;
     }
@@ -482,6 +482,19 @@ impl Index {
         let node = self.node(id);
         let first = node.first_child as usize;
         &self.section::<u32>(ORDER)[first..first + node.child_count as usize]
+    }
+
+    /// The distinct geometry hashes the clusters name.
+    pub(crate) fn hashes(&self) -> &[[u8; 32]] {
+        self.section(HASHES)
+    }
+
+    /// The first cluster whose geometry is `hashes()[k]`.
+    pub(crate) fn cluster_with_hash(&self, k: usize) -> Option<u32> {
+        self.section::<Record>(CLUSTERS)
+            .iter()
+            .position(|r| r.geometry as usize == k)
+            .map(|id| id as u32)
     }
 
     /// The blake3 hex of the cluster's GLB.

@@ -13,6 +13,7 @@ pub mod fidelity;
 pub mod format;
 pub mod index;
 mod nodes;
+pub mod object_index;
 pub mod objects;
 pub mod presence;
 pub mod store;
@@ -397,6 +398,14 @@ impl Tree {
         match &self.clusters {
             Clusters::Built(v) => v[id as usize].objects.iter().map(String::as_str).collect(),
             Clusters::Mapped(index) => index.objects(id).collect(),
+        }
+    }
+
+    /// Whether cluster `id` names object `object`, without decoding it.
+    pub(crate) fn names_object(&self, id: u32, object: &str) -> bool {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].objects.iter().any(|o| o == object),
+            Clusters::Mapped(index) => index.objects(id).any(|o| o == object),
         }
     }
 

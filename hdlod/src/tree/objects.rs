@@ -7,12 +7,17 @@
 //! The file is optional in `hdlod-tree/1`: the builder writes it, a tree
 //! without it still loads. The tables are kept apart from the clusters: the
 //! cut never reads them, they only answer what an object or task is.
+//!
+//! The object rows are held in the binary layout of `objects.bin`
+//! ([`super::object_index`]), made in memory from the JSON or mapped from
+//! that file: one form for both, read row by row.
 
 use std::collections::{BTreeMap, HashMap};
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
 
+use super::object_index::{self, ObjectRows};
 use super::{Cluster, Tree};
 use crate::error::{Error, Result};
 use crate::scene::appearance::{Look, Profile, ProfileFile};
@@ -52,13 +57,14 @@ impl ObjectEntry {
     /// Its presence as the files and the API write it: `[start, end)`,
     /// `None` for an open end.
     pub fn open_presence(&self) -> Vec<[Option<f64>; 2]> {
-        let open = |x: f64| x.is_finite().then_some(x);
-        self.presence
-            .intervals()
-            .iter()
-            .map(|&(a, b)| [open(a), open(b)])
-            .collect()
+        open_presence(self.presence.intervals().iter().map(|&(a, b)| [a, b]))
     }
+}
+
+/// Intervals as the files and the API write them: `None` for an open end.
+pub(crate) fn open_presence(intervals: impl Iterator<Item = [f64; 2]>) -> Vec<[Option<f64>; 2]> {
+    let open = |x: f64| x.is_finite().then_some(x);
+    intervals.map(|[a, b]| [open(a), open(b)]).collect()
 }
 
 /// One schedule task, times in seconds since the scene's start.
@@ -116,18 +122,16 @@ pub struct ElementState {
 
 /// The tables, and what answers a look-up or a search without a scan of
 /// the strings: made once, when the tables are made or read (so the rows
-/// are read-only).
+/// are read-only). The object rows carry their own (`ObjectRows`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct ObjectTables {
-    objects: Vec<ObjectEntry>,
+    objects: ObjectRows,
     tasks: Vec<TaskEntry>,
     /// The dates the build's presence followed.
     dates: Dates,
     /// The scene's own appearance profile, if it has one.
     appearance: Option<Profile>,
-    object_ids: ById,
     task_ids: ById,
-    object_text: SearchText,
     task_text: SearchText,
 }
 
@@ -149,13 +153,17 @@ impl ObjectTables {
         dates: Dates,
         appearance: Option<Profile>,
     ) -> ObjectTables {
-        let object_ids = ById::new(|i| &objects[i as usize].id, objects.len());
+        let rows = ObjectRows::of_encoded(&object_index::encode(&objects));
+        ObjectTables::with_rows(rows, tasks, dates, appearance)
+    }
+
+    fn with_rows(
+        objects: ObjectRows,
+        tasks: Vec<TaskEntry>,
+        dates: Dates,
+        appearance: Option<Profile>,
+    ) -> ObjectTables {
         let task_ids = ById::new(|k| &tasks[k as usize].id, tasks.len());
-        let object_text = SearchText::new(objects.iter().map(|o| {
-            [o.id.as_str(), o.name.as_deref().unwrap_or_default()]
-                .into_iter()
-                .chain(o.properties.values().map(String::as_str))
-        }));
         let task_text = SearchText::new(tasks.iter().map(|t| {
             [
                 t.id.as_str(),
@@ -168,9 +176,7 @@ impl ObjectTables {
             tasks,
             dates,
             appearance,
-            object_ids,
             task_ids,
-            object_text,
             task_text,
         }
     }
@@ -267,8 +273,18 @@ impl ObjectTables {
         )
     }
 
-    /// Every object of the scene, in scene order.
-    pub fn objects(&self) -> &[ObjectEntry] {
+    /// The number of objects: every object of the scene.
+    pub fn object_count(&self) -> usize {
+        self.objects.len()
+    }
+
+    /// Object `i` (its index in the scene), decoded.
+    pub fn object(&self, i: u32) -> ObjectEntry {
+        self.objects.entry(i)
+    }
+
+    /// The object rows, read in place: ids, properties, lists.
+    pub fn rows(&self) -> &ObjectRows {
         &self.objects
     }
 
@@ -292,7 +308,7 @@ impl ObjectTables {
     /// the later task). The viewer applies the same rule
     /// (`server/viewer/appearance.js`).
     pub fn governing_task(&self, i: u32, t: f64) -> Option<u32> {
-        let tasks = &self.objects[i as usize].tasks;
+        let tasks = self.objects.tasks(i);
         let of = |k: u32| (k, &self.tasks[k as usize].dates);
         let by = |progress: Progress| {
             tasks
@@ -348,7 +364,7 @@ impl ObjectTables {
 
     /// The index of the object with this id.
     pub fn object_index(&self, id: &str) -> Option<u32> {
-        self.object_ids.find(|i| &self.objects[i as usize].id, id)
+        self.objects.find(id)
     }
 
     /// The index of the task with this id.
@@ -360,7 +376,7 @@ impl ObjectTables {
     /// ignoring case; an empty query matches every object. The scan starts
     /// at index `from` and stops after `limit` matches.
     pub fn search_objects(&self, query: &str, from: usize, limit: usize) -> Page {
-        self.object_text.search(query, from, limit)
+        self.objects.search(query, from, limit)
     }
 
     /// Tasks whose id, name or type contains `query`, as [`Self::search_objects`].
@@ -382,12 +398,13 @@ impl ObjectTables {
         if n > u32::MAX as usize || m > u32::MAX as usize {
             return Err(bad("objects".into(), "too many objects or tasks".into()));
         }
-        if let Some((i, first)) = self.object_ids.duplicate(|i| &self.objects[i as usize].id) {
+        let rows = &self.objects;
+        if let Some((i, first)) = rows.duplicate() {
             return Err(bad(
                 format!("objects[{i}].id"),
                 format!(
                     "{:?} is also objects[{first}].id: ids must be unique",
-                    self.objects[i as usize].id
+                    rows.id(i)
                 ),
             ));
         }
@@ -401,41 +418,38 @@ impl ObjectTables {
             ));
         }
         let mut named = 0usize;
-        for (i, o) in self.objects.iter().enumerate() {
+        for i in 0..n as u32 {
             let at = |field: &str| format!("objects[{i}].{field}");
-            if !increasing(&o.tasks, m) {
+            let (id, own) = (rows.id(i), rows.clusters(i));
+            if !increasing(rows.tasks(i), m) {
                 return Err(bad(
                     at("tasks"),
                     format!("must be increasing task indices below {m}"),
                 ));
             }
-            if !increasing(&o.clusters, clusters) {
+            if !increasing(own, clusters) {
                 return Err(bad(
                     at("clusters"),
                     format!("must be increasing cluster ids below {clusters}"),
                 ));
             }
-            if let Some(&c) = o
-                .clusters
-                .iter()
-                .find(|&&c| !tree.objects_of(c).contains(&o.id.as_str()))
-            {
+            if let Some(&c) = own.iter().find(|&&c| !tree.names_object(c, id)) {
                 return Err(bad(
                     at("clusters"),
-                    format!("cluster {c} does not list {:?} among its objects", o.id),
+                    format!("cluster {c} does not list {id:?} among its objects"),
                 ));
             }
-            named += o.clusters.len();
+            named += own.len();
         }
         // Every object a cluster names lists it (each listing was checked
         // above, so equal counts mean equal sets).
-        let listed: usize = (0..clusters as u32).map(|c| tree.objects_of(c).len()).sum();
+        let listed: usize = (0..clusters as u32).map(|c| tree.facts(c).objects).sum();
         if listed != named {
             let stray = (0..clusters as u32)
                 .flat_map(|c| tree.objects_of(c).into_iter().map(move |id| (c, id)))
                 .find(|&(c, id)| {
                     self.object_index(id)
-                        .is_none_or(|i| !self.objects[i as usize].clusters.contains(&c))
+                        .is_none_or(|i| !rows.clusters(i).contains(&c))
                 });
             let message = match stray {
                 Some((c, id)) => {
@@ -502,12 +516,11 @@ impl ObjectTables {
                     format!("must be increasing object indices below {n}"),
                 ));
             }
-            if let Some(&i) = t.objects.iter().find(|&&i| {
-                self.objects[i as usize]
-                    .tasks
-                    .binary_search(&(k as u32))
-                    .is_err()
-            }) {
+            if let Some(&i) = t
+                .objects
+                .iter()
+                .find(|&&i| rows.tasks(i).binary_search(&(k as u32)).is_err())
+            {
                 return Err(bad(
                     at("objects"),
                     format!("objects[{i}] does not list task {k} among its tasks"),
@@ -517,19 +530,11 @@ impl ObjectTables {
         }
         // As with the clusters: each task's objects list it, so equal
         // counts mean every object's tasks list it too.
-        let listed: usize = self.objects.iter().map(|o| o.tasks.len()).sum();
+        let listed: usize = (0..n as u32).map(|i| rows.tasks(i).len()).sum();
         if listed != pairs {
-            let stray = self
-                .objects
-                .iter()
-                .enumerate()
-                .flat_map(|(i, o)| o.tasks.iter().map(move |&k| (i, k)))
-                .find(|&(i, k)| {
-                    self.tasks[k as usize]
-                        .objects
-                        .binary_search(&(i as u32))
-                        .is_err()
-                });
+            let stray = (0..n as u32)
+                .flat_map(|i| rows.tasks(i).iter().map(move |&k| (i, k)))
+                .find(|&(i, k)| self.tasks[k as usize].objects.binary_search(&i).is_err());
             if let Some((i, k)) = stray {
                 return Err(bad(
                     format!("objects[{i}].tasks"),
@@ -544,47 +549,64 @@ impl ObjectTables {
     pub fn to_record(&self, time: &TimeSpan) -> ObjectsRecord {
         ObjectsRecord {
             format: FORMAT.into(),
-            objects: self
-                .objects
-                .iter()
+            objects: (0..self.objects.len() as u32)
+                .map(|i| self.object(i))
                 .map(|o| ObjectRecord {
-                    id: o.id.clone(),
-                    name: o.name.clone(),
-                    class: o.class.clone(),
-                    properties: o.properties.clone(),
-                    visibility_class: o.visibility_class,
-                    tasks: o.tasks.clone(),
                     presence: o.open_presence(),
-                    clusters: o.clusters.clone(),
+                    id: o.id,
+                    name: o.name,
+                    class: o.class,
+                    properties: o.properties,
+                    visibility_class: o.visibility_class,
+                    tasks: o.tasks,
+                    clusters: o.clusters,
                 })
                 .collect(),
-            tasks: self
-                .tasks
-                .iter()
-                .map(|t| {
-                    let d = &t.dates;
-                    TaskRecord {
-                        id: t.id.clone(),
-                        name: t.name.clone(),
-                        kind: t.kind,
-                        ifc_type: t.ifc_type.map(str::to_owned),
-                        start: d.start,
-                        finish: d.finish,
-                        start_date: format_date(time.date_at(d.start)),
-                        finish_date: format_date(time.date_at(d.finish)),
-                        actual_start: d.actual.start,
-                        actual_finish: d.actual.finish,
-                        baseline_start: d.baseline.map(|b| b.start),
-                        baseline_finish: d.baseline.map(|b| b.finish),
-                        parent: t.parent,
-                        predecessors: t.predecessors.clone(),
-                        objects: t.objects.clone(),
-                    }
-                })
-                .collect(),
+            tasks: self.task_records(time),
             dates: self.dates,
             appearance: self.appearance.as_ref().map(Profile::to_file),
         }
+    }
+
+    /// `objects.bin` (`hdlod-objects-index/1`) for these tables, written
+    /// beside an `objects.json` of `json_len` bytes; `time` gives the
+    /// tasks' dates.
+    pub fn to_index(&self, time: &TimeSpan, json_len: u64) -> Vec<u8> {
+        let rest = ObjectsRecord {
+            format: FORMAT.into(),
+            objects: Vec::new(),
+            tasks: self.task_records(time),
+            dates: self.dates,
+            appearance: self.appearance.as_ref().map(Profile::to_file),
+        };
+        let rest = serde_json::to_vec(&rest).expect("the records serialise");
+        object_index::file(&self.objects, &rest, json_len)
+    }
+
+    fn task_records(&self, time: &TimeSpan) -> Vec<TaskRecord> {
+        self.tasks
+            .iter()
+            .map(|t| {
+                let d = &t.dates;
+                TaskRecord {
+                    id: t.id.clone(),
+                    name: t.name.clone(),
+                    kind: t.kind,
+                    ifc_type: t.ifc_type.map(str::to_owned),
+                    start: d.start,
+                    finish: d.finish,
+                    start_date: format_date(time.date_at(d.start)),
+                    finish_date: format_date(time.date_at(d.finish)),
+                    actual_start: d.actual.start,
+                    actual_finish: d.actual.finish,
+                    baseline_start: d.baseline.map(|b| b.start),
+                    baseline_finish: d.baseline.map(|b| b.finish),
+                    parent: t.parent,
+                    predecessors: t.predecessors.clone(),
+                    objects: t.objects.clone(),
+                }
+            })
+            .collect()
     }
 
     /// The tables of a record, checked against the tree's clusters; `file`
@@ -598,8 +620,9 @@ impl ObjectTables {
                 format!("{:?} is not {FORMAT:?}", record.format),
             ));
         }
+        let mut record = record;
         let mut objects = Vec::with_capacity(record.objects.len());
-        for (i, r) in record.objects.into_iter().enumerate() {
+        for (i, r) in std::mem::take(&mut record.objects).into_iter().enumerate() {
             let raw: Vec<(f64, f64)> = r
                 .presence
                 .iter()
@@ -624,6 +647,35 @@ impl ObjectTables {
                 clusters: r.clusters,
             });
         }
+        let rows = ObjectRows::of_encoded(&object_index::encode(&objects));
+        ObjectTables::with_records(rows, record, tree, file)
+    }
+
+    /// The tables of a mapped `objects.bin`: its rows, and the tasks, dates
+    /// and profile of its JSON section, checked against the tree's
+    /// clusters; `file` names the file in errors.
+    pub fn from_index(rows: ObjectRows, tree: &Tree, file: &Path) -> Result<Self> {
+        let record: ObjectsRecord = serde_json::from_slice(rows.rest()).map_err(|e| {
+            Error::invalid(file, format!("rest, column {}", e.column()), e.to_string())
+        })?;
+        if record.format != FORMAT || !record.objects.is_empty() {
+            return Err(Error::invalid(
+                file,
+                "rest",
+                format!("must be {FORMAT:?} tables with no objects of their own"),
+            ));
+        }
+        ObjectTables::with_records(rows, record, tree, file)
+    }
+
+    /// The tables of `rows` and the tasks, dates and profile of `record`
+    /// (whose objects are in the rows), checked.
+    fn with_records(
+        rows: ObjectRows,
+        record: ObjectsRecord,
+        tree: &Tree,
+        file: &Path,
+    ) -> Result<Self> {
         let mut tasks = Vec::with_capacity(record.tasks.len());
         for (k, r) in record.tasks.into_iter().enumerate() {
             let ifc_type = match &r.ifc_type {
@@ -670,7 +722,7 @@ impl ObjectTables {
             .appearance
             .map(|p| Profile::from_file(p, file, "appearance."))
             .transpose()?;
-        let tables = ObjectTables::new(objects, tasks, record.dates, appearance);
+        let tables = ObjectTables::with_rows(rows, tasks, record.dates, appearance);
         tables.validate(tree, file)?;
         Ok(tables)
     }
@@ -733,49 +785,61 @@ impl SearchText {
     }
 
     fn search(&self, query: &str, from: usize, limit: usize) -> Page {
-        let mut lower = String::with_capacity(query.len());
-        push_lowercase(&mut lower, query);
-        let query = lower;
-        let rows = self.ends.len();
-        let mut page = Page {
-            items: Vec::with_capacity(limit.min(rows)),
-            next: None,
-            total: 0,
-        };
-        if query.is_empty() {
-            page.items
-                .extend((from..rows.min(from.saturating_add(limit))).map(|i| i as u32));
-            page.next = Some(from.saturating_add(limit))
-                .filter(|&i| i < rows)
-                .map(|i| i as u32);
-            page.total = rows;
-            return page;
-        }
-        if query.contains('\0') {
-            return page;
-        }
-        for i in 0..rows {
-            if !self.row(i).contains(query.as_str()) {
-                continue;
-            }
-            page.total += 1;
-            if i < from || page.next.is_some() {
-                continue;
-            }
-            if page.items.len() < limit {
-                page.items.push(i as u32);
-            } else {
-                page.next = Some(i as u32);
-            }
-        }
-        page
+        search_rows(self.ends.len(), |i| self.row(i), query, from, limit)
     }
+}
+
+/// The rows among `rows` whose text (`row`, lower-cased with fields
+/// separated by NUL) contains `query` ignoring case, from `from` on, at
+/// most `limit` of them: one page.
+pub(crate) fn search_rows<'a>(
+    rows: usize,
+    row: impl Fn(usize) -> &'a str,
+    query: &str,
+    from: usize,
+    limit: usize,
+) -> Page {
+    let mut lower = String::with_capacity(query.len());
+    push_lowercase(&mut lower, query);
+    let query = lower;
+    let mut page = Page {
+        items: Vec::with_capacity(limit.min(rows)),
+        next: None,
+        total: 0,
+    };
+    if query.is_empty() {
+        page.items
+            .extend((from..rows.min(from.saturating_add(limit))).map(|i| i as u32));
+        page.next = Some(from.saturating_add(limit))
+            .filter(|&i| i < rows)
+            .map(|i| i as u32);
+        page.total = rows;
+        return page;
+    }
+    if query.contains('\0') {
+        return page;
+    }
+    for i in 0..rows {
+        if !row(i).contains(query.as_str()) {
+            continue;
+        }
+        page.total += 1;
+        if i < from || page.next.is_some() {
+            continue;
+        }
+        if page.items.len() < limit {
+            page.items.push(i as u32);
+        } else {
+            page.next = Some(i as u32);
+        }
+    }
+    page
 }
 
 /// Appends `text` lower-cased. Most ids, names and values are ASCII, which
 /// is lower-cased in place, with no allocation: the search text of a
 /// paper-scale scene is made at every load.
-fn push_lowercase(out: &mut String, text: &str) {
+pub(crate) fn push_lowercase(out: &mut String, text: &str) {
     if text.is_ascii() {
         let start = out.len();
         out.push_str(text);

@@ -16,8 +16,11 @@ use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::Tree;
-use super::format::{self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE};
+use super::format::{
+    self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE, OBJECTS_INDEX_FILE,
+};
 use super::index::{self, Index};
+use super::object_index::ObjectRows;
 use super::objects::{ObjectTables, ObjectsRecord};
 use crate::error::{Error, Result};
 
@@ -128,10 +131,14 @@ impl TreeWriter {
         let json_len = write_json(&self.tmp.join(CLUSTERS_FILE), &clusters, false)?;
         write_bytes(&self.tmp.join(INDEX_FILE), &index::encode(tree, json_len))?;
         if let Some(tables) = &tree.objects {
-            write_json(
+            let json_len = write_json(
                 &self.tmp.join(OBJECTS_FILE),
                 &tables.to_record(&tree.time),
                 false,
+            )?;
+            write_bytes(
+                &self.tmp.join(OBJECTS_INDEX_FILE),
+                &tables.to_index(&tree.time, json_len),
             )?;
         }
 
@@ -251,27 +258,9 @@ fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
         let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
         Tree::from_records(manifest, clusters, dir)?
     };
-    tree.objects = load_objects(dir, &tree)?;
+    tree.objects = load_objects_from(dir, &tree, use_index)?;
 
-    let geometry = dir.join(GEOMETRY_DIR);
-    let mut present = HashSet::new();
-    for entry in fs::read_dir(&geometry).map_err(|e| Error::io(&geometry, e))? {
-        let name = entry.map_err(|e| Error::io(&geometry, e))?.file_name();
-        if let Some(hash) = name.to_str().and_then(|n| n.strip_suffix(".glb")) {
-            present.insert(hash.to_owned());
-        }
-    }
-    for id in 0..tree.cluster_count() as u32 {
-        if let Some(h) = tree.geometry_of(id)
-            && !present.contains(h.as_ref())
-        {
-            return Err(Error::invalid(
-                dir.join(CLUSTERS_FILE),
-                format!("clusters[{id}].geometry"),
-                format!("{} is missing", geometry.join(format!("{h}.glb")).display()),
-            ));
-        }
-    }
+    check_geometry(dir, &tree)?;
     // Made now so that no cut, the first one included, pays for them.
     tree.presence();
     tree.nodes();
@@ -283,19 +272,76 @@ fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     Ok(tree)
 }
 
-/// Writes `clusters.bin` for the tree in `dir` from its `clusters.json`
-/// (a tree written before the index, or whose index is damaged), checked
-/// as [`load_json`] checks it, by a rename: a reader sees the old index or
-/// the new one.
+/// Checks that every geometry file the clusters name is in `geometry/`:
+/// one listing of the directory, no reads. Names are compared as hash
+/// bytes, and a mapped tree's are its index's distinct hashes, so no hex
+/// string is made per cluster.
+fn check_geometry(dir: &Path, tree: &Tree) -> Result<()> {
+    let geometry = dir.join(GEOMETRY_DIR);
+    let mut present = HashSet::new();
+    for entry in fs::read_dir(&geometry).map_err(|e| Error::io(&geometry, e))? {
+        let name = entry.map_err(|e| Error::io(&geometry, e))?.file_name();
+        if let Some(hash) = name
+            .to_str()
+            .and_then(|n| n.strip_suffix(".glb"))
+            .and_then(index::hash_bytes)
+        {
+            present.insert(hash);
+        }
+    }
+    let missing = match tree.index() {
+        Some(index) => index
+            .hashes()
+            .iter()
+            .position(|h| !present.contains(h))
+            .and_then(|k| index.cluster_with_hash(k)),
+        None => (0..tree.cluster_count() as u32).find(|&id| {
+            tree.geometry_of(id)
+                .is_some_and(|h| index::hash_bytes(&h).is_none_or(|b| !present.contains(&b)))
+        }),
+    };
+    match missing {
+        None => Ok(()),
+        Some(id) => Err(Error::invalid(
+            dir.join(CLUSTERS_FILE),
+            format!("clusters[{id}].geometry"),
+            format!(
+                "{} is missing",
+                geometry
+                    .join(format!("{}.glb", tree.geometry_of(id).unwrap_or_default()))
+                    .display()
+            ),
+        )),
+    }
+}
+
+/// Writes `clusters.bin` and, when the tree has object tables,
+/// `objects.bin` for the tree in `dir` from its JSON files (a tree written
+/// before the indexes, or whose indexes are damaged), checked as
+/// [`load_json`] checks it, each by a rename: a reader sees the old index
+/// or the new one. The object index goes first: the server reloads on the
+/// cluster index's change.
 pub fn write_index(dir: impl AsRef<Path>) -> Result<()> {
     let dir = dir.as_ref();
     let tree = load_json(dir)?;
+    if let Some(tables) = &tree.objects {
+        let json = dir.join(OBJECTS_FILE);
+        let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
+        replace(
+            &dir.join(OBJECTS_INDEX_FILE),
+            &tables.to_index(&tree.time, json_len),
+        )?;
+    }
     let json = dir.join(CLUSTERS_FILE);
     let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
-    let target = dir.join(INDEX_FILE);
-    let tmp = sibling(&target, "tmp");
-    let written = write_bytes(&tmp, &index::encode(&tree, json_len))
-        .and_then(|()| fs::rename(&tmp, &target).map_err(|e| Error::io(&target, e)));
+    replace(&dir.join(INDEX_FILE), &index::encode(&tree, json_len))
+}
+
+/// Writes `bytes` to `target` by a rename of a temporary beside it.
+fn replace(target: &Path, bytes: &[u8]) -> Result<()> {
+    let tmp = sibling(target, "tmp");
+    let written = write_bytes(&tmp, bytes)
+        .and_then(|()| fs::rename(&tmp, target).map_err(|e| Error::io(target, e)));
     if written.is_err() {
         let _ = fs::remove_file(&tmp);
     }
@@ -304,11 +350,33 @@ pub fn write_index(dir: impl AsRef<Path>) -> Result<()> {
 
 /// The object and task tables of the tree in `dir` (loaded, with its
 /// clusters, as `tree`), checked against its clusters; `None` when the tree
-/// has none.
+/// has none. Their rows are mapped from `objects.bin` when the tree has it
+/// (made from this `objects.json`), else read from `objects.json`.
 pub fn load_objects(dir: &Path, tree: &Tree) -> Result<Option<ObjectTables>> {
+    load_objects_from(dir, tree, true)
+}
+
+fn load_objects_from(dir: &Path, tree: &Tree, use_index: bool) -> Result<Option<ObjectTables>> {
     let path = dir.join(OBJECTS_FILE);
     if !path.exists() {
         return Ok(None);
+    }
+    let index_path = dir.join(OBJECTS_INDEX_FILE);
+    if use_index && index_path.exists() {
+        let rows = ObjectRows::open(&index_path)?;
+        let json_len = fs::metadata(&path).map_err(|e| Error::io(&path, e))?.len();
+        if json_len != rows.json_len() {
+            return Err(Error::invalid(
+                &index_path,
+                "header",
+                format!(
+                    "was made from an objects.json of {} bytes, this one has {json_len}: write \
+                     it again with `hdlod index TREE`",
+                    rows.json_len()
+                ),
+            ));
+        }
+        return ObjectTables::from_index(rows, tree, &index_path).map(Some);
     }
     let record: ObjectsRecord = read_json(&path)?;
     ObjectTables::from_record(record, tree, &path).map(Some)

@@ -30,7 +30,9 @@ use axum::extract::{DefaultBodyLimit, MatchedPath, Request, State};
 use axum::middleware::Next;
 use axum::response::Response;
 use axum::routing::get;
-use hdlod::tree::format::{CLUSTERS_FILE, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE};
+use hdlod::tree::format::{
+    CLUSTERS_FILE, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE, OBJECTS_INDEX_FILE,
+};
 use hdlod::tree::{Baseline, Tree, TreeSummary};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, watch};
 use tower_http::compression::CompressionLayer;
@@ -84,8 +86,8 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
     let baseline = tree.baseline().clone();
     let fragments = Fragments::of(&tree);
     let mut hasher = blake3::Hasher::new();
-    // A mapped tree's clusters are named by its index's checksum: the
-    // cluster table is not read again.
+    // Mapped clusters and object rows are named by their index's
+    // checksum: the JSON files are not read again.
     let clusters = match tree.index() {
         Some(index) => {
             hasher
@@ -95,7 +97,16 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
         }
         None => Some(CLUSTERS_FILE),
     };
-    for file in [Some(MANIFEST_FILE), clusters, Some(OBJECTS_FILE)]
+    let objects = match tree.objects.as_ref().map(|t| t.rows()) {
+        Some(rows) if rows.is_mapped() => {
+            hasher
+                .update(OBJECTS_INDEX_FILE.as_bytes())
+                .update(&rows.checksum());
+            None
+        }
+        _ => Some(OBJECTS_FILE),
+    };
+    for file in [Some(MANIFEST_FILE), clusters, objects]
         .into_iter()
         .flatten()
     {

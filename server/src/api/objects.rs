@@ -20,7 +20,8 @@ use axum::response::{IntoResponse, Response};
 use hdlod::scene::status::{Deviation, Progress};
 use hdlod::scene::{Class, property};
 use hdlod::time::{TimeValue, format_date};
-use hdlod::tree::objects::{LinkEntry, ObjectEntry, ObjectTables, TaskEntry};
+use hdlod::tree::object_index::ObjectRows;
+use hdlod::tree::objects::{LinkEntry, ObjectTables, TaskEntry};
 use serde::Serialize;
 
 use super::error::{ApiError, quote};
@@ -207,15 +208,15 @@ struct ObjectItem<'a> {
 }
 
 impl<'a> ObjectItem<'a> {
-    fn of(scene: &str, index: u32, o: &'a ObjectEntry) -> Self {
+    fn of(scene: &str, rows: &'a ObjectRows, index: u32) -> Self {
         ObjectItem {
             index,
-            id: &o.id,
-            name: o.name.as_deref(),
-            class: o.class.as_deref(),
-            storey: o.properties.get(property::STOREY).map(String::as_str),
-            visibility_class: o.visibility_class,
-            url: object_url(scene, &o.id),
+            id: rows.id(index),
+            name: rows.name(index),
+            class: rows.class(index),
+            storey: rows.property(index, property::STOREY),
+            visibility_class: rows.visibility_class(index),
+            url: object_url(scene, rows.id(index)),
         }
     }
 }
@@ -314,7 +315,7 @@ pub async fn objects(
         items: page
             .items
             .iter()
-            .map(|&i| ObjectItem::of(&s.tree.scene, i, &tables.objects()[i as usize]))
+            .map(|&i| ObjectItem::of(&s.tree.scene, tables.rows(), i))
             .collect(),
         scene: s.tree.scene.clone(),
         q: listing.q,
@@ -391,16 +392,16 @@ pub async fn object(
     let i = row(
         &key,
         lookup.by_index,
-        tables.objects().len(),
+        tables.object_count(),
         |id| tables.object_index(id),
         "object",
     )?;
-    let o = &tables.objects()[i as usize];
+    let o = tables.object(i);
     let at = at(&s, &lookup.time)?;
     let t = at.as_ref().map(|a| a.time);
     json(&ObjectAnswer {
         scene: &s.tree.scene,
-        item: ObjectItem::of(&s.tree.scene, i, o),
+        item: ObjectItem::of(&s.tree.scene, tables.rows(), i),
         properties: &o.properties,
         presence: o.open_presence(),
         clusters: &o.clusters,
@@ -454,7 +455,7 @@ pub async fn task(
             .iter()
             .map(|&i| ObjectRef {
                 index: i,
-                id: &tables.objects()[i as usize].id,
+                id: tables.rows().id(i),
             })
             .collect(),
         at,

@@ -38,11 +38,12 @@ pub async fn presence(
     let s = find(&state, &scene)?;
     let answer = PresenceAnswer {
         scene: &s.tree.scene,
-        presence: tables(&s)?
-            .objects()
-            .iter()
-            .map(|o| o.open_presence())
-            .collect(),
+        presence: {
+            let rows = tables(&s)?.rows();
+            (0..rows.len() as u32)
+                .map(|i| rows.open_presence(i))
+                .collect()
+        },
     };
     Ok(Json(answer).into_response())
 }

@@ -95,7 +95,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         |query: &'static str| timed(args.repeats, || Ok(tables.search_objects(query, 0, 50)));
     let report = Report {
         scene: tree.scene.clone(),
-        objects: tables.objects().len(),
+        objects: tables.object_count(),
         tasks: tables.tasks().len(),
         file_bytes,
         load_ms,

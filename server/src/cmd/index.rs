@@ -1,10 +1,13 @@
-//! `hdlod index TREE`: writes the serving index (`clusters.bin`) of a tree
-//! from its `clusters.json`: for trees built before the index, or whose
-//! index is damaged. A running server reloads the tree when it appears.
+//! `hdlod index TREE`: writes the serving indexes of a tree from its JSON
+//! files (`clusters.bin` from `clusters.json`; `objects.bin` from
+//! `objects.json` when it has object tables): for trees built before the
+//! indexes, or whose indexes are damaged. A running server reloads the
+//! tree when they appear.
 
 use std::path::PathBuf;
 
 use anyhow::Context;
+use hdlod::tree::format::{INDEX_FILE, OBJECTS_INDEX_FILE};
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -15,9 +18,10 @@ pub struct Args {
 pub fn run(args: Args) -> anyhow::Result<()> {
     hdlod::tree::store::write_index(&args.tree)
         .with_context(|| format!("cannot index the tree {}", args.tree.display()))?;
-    println!(
-        "wrote {}",
-        args.tree.join(hdlod::tree::format::INDEX_FILE).display()
-    );
+    let objects = args.tree.join(OBJECTS_INDEX_FILE);
+    if objects.exists() {
+        println!("wrote {}", objects.display());
+    }
+    println!("wrote {}", args.tree.join(INDEX_FILE).display());
     Ok(())
 }

@@ -11,7 +11,7 @@ use std::sync::mpsc::{Receiver, RecvTimeoutError};
 use std::time::Duration;
 
 use anyhow::Context;
-use hdlod::tree::format::{CLUSTERS_FILE, INDEX_FILE, MANIFEST_FILE};
+use hdlod::tree::format::{CLUSTERS_FILE, INDEX_FILE, MANIFEST_FILE, OBJECTS_INDEX_FILE};
 use notify::{Event, EventKind, RecommendedWatcher, RecursiveMode, Watcher};
 
 use crate::api::listener::{self, Limits};
@@ -224,7 +224,7 @@ fn watch_loop(
 }
 
 /// Whether an event may have changed a tree: the directory itself renamed
-/// or created, or its manifest, cluster table or index written. Removals are not
+/// or created, or its manifest, cluster table or an index written. Removals are not
 /// (the old directory being deleted after a replacement), nor reads.
 fn concerns(event: &Event, dirs: &[PathBuf]) -> bool {
     if matches!(event.kind, EventKind::Remove(_) | EventKind::Access(_)) {
@@ -234,7 +234,9 @@ fn concerns(event: &Event, dirs: &[PathBuf]) -> bool {
         dirs.iter().any(|d| p == d)
             || p.parent()
                 .is_some_and(|parent| dirs.iter().any(|d| parent == d))
-                && p.file_name()
-                    .is_some_and(|n| n == MANIFEST_FILE || n == CLUSTERS_FILE || n == INDEX_FILE)
+                && p.file_name().is_some_and(|n| {
+                    [MANIFEST_FILE, CLUSTERS_FILE, INDEX_FILE, OBJECTS_INDEX_FILE]
+                        .contains(&n.to_str().unwrap_or_default())
+                })
     })
 }

@@ -1,0 +1,625 @@
+//! The object rows of a tree's object tables in binary (`objects.bin`,
+//! `hdlod-objects-index/1`, docs/formats.md): fixed-size records, flat
+//! arrays for their lists, the strings once each, the rows in id order and
+//! their lower-cased search text; the tasks, which are few, as JSON. The
+//! same layout serves the tables a build makes (in memory) and those a
+//! server maps from disk, so a server starts without parsing the object
+//! rows of `objects.json` and reads only the pages its requests need.
+//!
+//! `objects.json` stays the primary form; this file is derived from it in
+//! the tree's atomic write (or by `hdlod index TREE`). The loader checks
+//! the header, the section table and a blake3 checksum, then every
+//! invariant the rows' accessors rely on: no access panics on a file that
+//! loaded.
+
+use std::collections::{BTreeMap, HashMap};
+use std::fs::File;
+use std::path::Path;
+use std::sync::Arc;
+
+use bytemuck::{Pod, Zeroable};
+use memmap2::Mmap;
+
+use super::index::NONE;
+use super::objects::{ObjectEntry, Page, open_presence, push_lowercase, search_rows};
+use crate::error::{Error, Result};
+use crate::scene::{Class, Visibility};
+
+/// The first eight bytes of the file.
+pub const MAGIC: [u8; 8] = *b"HDLODOBJ";
+/// The layout's version; a reader refuses any other.
+pub const VERSION: u32 = 1;
+/// Bytes before the section table: magic, version, section count, object
+/// count, a reserved word, the length of the `objects.json` it was made
+/// from, checksum.
+const HEADER: usize = 64;
+const SECTIONS: usize = 11;
+const BODY: usize = HEADER + SECTIONS * 16;
+
+/// The sections, in file order.
+const ROWS: usize = 0;
+const PROPERTIES: usize = 1;
+const TASKS: usize = 2;
+const PRESENCE: usize = 3;
+const CLUSTERS: usize = 4;
+const BY_ID: usize = 5;
+const TEXT_ENDS: usize = 6;
+const TEXT: usize = 7;
+const STRING_STARTS: usize = 8;
+const STRINGS: usize = 9;
+/// The tasks, the dates and the appearance profile, as JSON.
+pub(crate) const REST: usize = 10;
+const SECTION_NAMES: [&str; SECTIONS] = [
+    "rows",
+    "properties",
+    "tasks",
+    "presence",
+    "clusters",
+    "by_id",
+    "text_ends",
+    "text",
+    "string_starts",
+    "strings",
+    "rest",
+];
+const SIZES: [usize; SECTIONS] = [size_of::<Row>(), 8, 4, 16, 4, 4, 8, 1, 8, 1, 1];
+
+/// One object; lists are ranges of the flat sections, strings indices of
+/// the string table ([`NONE`]: no name, no class).
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+struct Row {
+    id: u32,
+    name: u32,
+    class: u32,
+    /// `Class` as its index in `Class::ALL`.
+    visibility_class: u32,
+    first_property: u32,
+    property_count: u32,
+    first_task: u32,
+    task_count: u32,
+    first_interval: u32,
+    interval_count: u32,
+    first_cluster: u32,
+    cluster_count: u32,
+}
+
+/// The file's bytes: made in memory (8-aligned, as the sections need) or
+/// mapped.
+#[derive(Clone)]
+enum Bytes {
+    Owned(Arc<Vec<u64>>, usize),
+    Mapped(Arc<Mmap>),
+}
+
+impl std::ops::Deref for Bytes {
+    type Target = [u8];
+
+    fn deref(&self) -> &[u8] {
+        match self {
+            Bytes::Owned(words, len) => &bytemuck::cast_slice(words.as_slice())[..*len],
+            Bytes::Mapped(map) => map,
+        }
+    }
+}
+
+/// The object rows, checked.
+#[derive(Clone)]
+pub struct ObjectRows {
+    bytes: Bytes,
+    sections: [(usize, usize); SECTIONS],
+}
+
+impl std::fmt::Debug for ObjectRows {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("ObjectRows")
+            .field("objects", &self.len())
+            .finish()
+    }
+}
+
+/// Rows are equal when their bytes are (the encoding is deterministic),
+/// but for the header and the JSON section, which only a file has.
+impl PartialEq for ObjectRows {
+    fn eq(&self, other: &Self) -> bool {
+        fn rows(r: &ObjectRows) -> (&[(usize, usize)], &[u8]) {
+            (&r.sections[..REST], &r.bytes[BODY..r.sections[REST].0])
+        }
+        rows(self) == rows(other)
+    }
+}
+
+/// The rows of `objects` as the file's bytes, with an empty `rest` and the
+/// header's JSON length and checksum zero ([`file`] sets them).
+pub(crate) fn encode<'a>(objects: &'a [ObjectEntry]) -> Vec<u8> {
+    let mut rows = Vec::with_capacity(objects.len());
+    let mut properties: Vec<[u32; 2]> = Vec::new();
+    let mut tasks: Vec<u32> = Vec::new();
+    let mut presence: Vec<[f64; 2]> = Vec::new();
+    let mut clusters: Vec<u32> = Vec::new();
+    let mut text_ends: Vec<u64> = Vec::with_capacity(objects.len());
+    let mut text = String::new();
+    let mut string_starts: Vec<u64> = vec![0];
+    let mut strings: Vec<u8> = Vec::new();
+    let mut string_ids: HashMap<&str, u32> = HashMap::new();
+    let mut string = |s: &'a str| -> u32 {
+        *string_ids.entry(s).or_insert_with_key(|s| {
+            strings.extend_from_slice(s.as_bytes());
+            string_starts.push(strings.len() as u64);
+            string_starts.len() as u32 - 2
+        })
+    };
+    let range = |first: usize, end: usize| (first as u32, (end - first) as u32);
+    for o in objects {
+        let id = string(&o.id);
+        let name = o.name.as_deref().map_or(NONE, &mut string);
+        let class = o.class.as_deref().map_or(NONE, &mut string);
+        let first = properties.len();
+        for (k, v) in &o.properties {
+            properties.push([string(k), string(v)]);
+        }
+        let (first_property, property_count) = range(first, properties.len());
+        let first = tasks.len();
+        tasks.extend(&o.tasks);
+        let (first_task, task_count) = range(first, tasks.len());
+        let first = presence.len();
+        presence.extend(o.presence.intervals().iter().map(|&(a, b)| [a, b]));
+        let (first_interval, interval_count) = range(first, presence.len());
+        let first = clusters.len();
+        clusters.extend(&o.clusters);
+        let (first_cluster, cluster_count) = range(first, clusters.len());
+        rows.push(Row {
+            id,
+            name,
+            class,
+            visibility_class: Class::ALL
+                .iter()
+                .position(|&c| c == o.visibility_class)
+                .expect("every class is in ALL") as u32,
+            first_property,
+            property_count,
+            first_task,
+            task_count,
+            first_interval,
+            interval_count,
+            first_cluster,
+            cluster_count,
+        });
+        // A separator no query holds (`search` matches nothing for one
+        // that does), so that no match spans two fields.
+        let fields = [o.id.as_str(), o.name.as_deref().unwrap_or_default()]
+            .into_iter()
+            .chain(o.properties.values().map(String::as_str));
+        for field in fields {
+            text.push('\0');
+            push_lowercase(&mut text, field);
+        }
+        text_ends.push(text.len() as u64);
+    }
+    let mut by_id: Vec<u32> = (0..objects.len() as u32).collect();
+    by_id.sort_unstable_by(|&a, &b| {
+        objects[a as usize]
+            .id
+            .cmp(&objects[b as usize].id)
+            .then(a.cmp(&b))
+    });
+    let sections: [&[u8]; SECTIONS] = [
+        bytemuck::cast_slice(&rows),
+        bytemuck::cast_slice(&properties),
+        bytemuck::cast_slice(&tasks),
+        bytemuck::cast_slice(&presence),
+        bytemuck::cast_slice(&clusters),
+        bytemuck::cast_slice(&by_id),
+        bytemuck::cast_slice(&text_ends),
+        text.as_bytes(),
+        bytemuck::cast_slice(&string_starts),
+        &strings,
+        &[],
+    ];
+    let mut out = vec![0u8; BODY];
+    out[..8].copy_from_slice(&MAGIC);
+    out[8..12].copy_from_slice(&VERSION.to_le_bytes());
+    out[12..16].copy_from_slice(&(SECTIONS as u32).to_le_bytes());
+    out[16..20].copy_from_slice(&(objects.len() as u32).to_le_bytes());
+    for (k, bytes) in sections.iter().enumerate() {
+        out.resize(out.len().next_multiple_of(8), 0);
+        let (at, offset) = (HEADER + 16 * k, out.len() as u64);
+        out[at..at + 8].copy_from_slice(&offset.to_le_bytes());
+        out[at + 8..at + 16].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+        out.extend_from_slice(bytes);
+    }
+    out
+}
+
+/// The file of `rows` with `rest` as its last section, the length of the
+/// `objects.json` written beside it and the checksum.
+pub(crate) fn file(rows: &ObjectRows, rest: &[u8], json_len: u64) -> Vec<u8> {
+    let offset = rows.sections[REST].0;
+    let mut bytes = rows.bytes[..offset].to_vec();
+    let at = HEADER + 16 * REST;
+    bytes[at + 8..at + 16].copy_from_slice(&(rest.len() as u64).to_le_bytes());
+    bytes.extend_from_slice(rest);
+    bytes[24..32].copy_from_slice(&json_len.to_le_bytes());
+    let sum = checksum(&bytes);
+    bytes[32..64].copy_from_slice(&sum);
+    bytes
+}
+
+/// The blake3 hash of the file but its checksum field.
+fn checksum(bytes: &[u8]) -> [u8; 32] {
+    *blake3::Hasher::new()
+        .update(&bytes[..32])
+        .update(&bytes[HEADER..])
+        .finalize()
+        .as_bytes()
+}
+
+impl ObjectRows {
+    /// Rows of encoded bytes, made by [`encode`] (so valid).
+    pub(crate) fn of_encoded(bytes: &[u8]) -> ObjectRows {
+        let mut words = vec![0u64; bytes.len().div_ceil(8)];
+        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
+        ObjectRows::parse(Bytes::Owned(Arc::new(words), bytes.len()), Path::new(""))
+            .expect("encoded rows are well formed")
+    }
+
+    /// Maps `path` and checks its header, sections and checksum and every
+    /// invariant of the rows; what they say of the tasks and clusters is
+    /// checked with the tables ([`super::ObjectTables::validate`]).
+    pub fn open(path: &Path) -> Result<ObjectRows> {
+        let file = File::open(path).map_err(|e| Error::io(path, e))?;
+        // SAFETY: the mapping is read-only, and trees are replaced by
+        // renaming a new directory or file into place, never rewritten in
+        // place (as the cluster index, `index::map`).
+        let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
+        let rows = ObjectRows::parse(Bytes::Mapped(Arc::new(map)), path)?;
+        if checksum(&rows.bytes) != rows.checksum() {
+            return Err(Error::invalid(
+                path,
+                "header.checksum",
+                "does not match the file's contents: the object index is corrupt (write it \
+                 again with `hdlod index TREE`)",
+            ));
+        }
+        rows.validate(path)?;
+        Ok(rows)
+    }
+
+    /// The header and the section table, checked against the file's size.
+    fn parse(bytes: Bytes, path: &Path) -> Result<ObjectRows> {
+        let bad = |at: &str, message: String| Error::invalid(path, at, message);
+        let len = bytes.len();
+        if len < 8 || bytes[..8] != MAGIC {
+            return Err(bad(
+                "header",
+                "does not start with \"HDLODOBJ\": not an hdlod object index".into(),
+            ));
+        }
+        if len < BODY {
+            return Err(bad(
+                "header",
+                format!("is {len} bytes, shorter than its {BODY}-byte header (truncated)"),
+            ));
+        }
+        let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4"));
+        let u64_at = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().expect("8"));
+        let version = u32_at(8);
+        if version != VERSION {
+            return Err(bad(
+                "header.version",
+                format!(
+                    "version {version}, this reader reads version {VERSION}: write the index \
+                     again with `hdlod index TREE`"
+                ),
+            ));
+        }
+        if u32_at(12) as usize != SECTIONS {
+            return Err(bad(
+                "header.sections",
+                format!("{} sections, version {VERSION} has {SECTIONS}", u32_at(12)),
+            ));
+        }
+        let mut sections = [(0usize, 0usize); SECTIONS];
+        for (k, section) in sections.iter_mut().enumerate() {
+            let (offset, length) = (u64_at(HEADER + 16 * k), u64_at(HEADER + 16 * k + 8));
+            let name = SECTION_NAMES[k];
+            let Some(end) = offset.checked_add(length).filter(|&e| e <= len as u64) else {
+                return Err(bad(
+                    &format!("sections.{name}"),
+                    format!(
+                        "bytes {offset} to {offset}+{length} lie beyond the file's {len} bytes \
+                         (truncated)"
+                    ),
+                ));
+            };
+            if offset % 8 != 0 || (offset as usize) < BODY {
+                return Err(bad(
+                    &format!("sections.{name}"),
+                    format!("offset {offset} is not a multiple of 8 after the header"),
+                ));
+            }
+            if length % SIZES[k] as u64 != 0 {
+                return Err(bad(
+                    &format!("sections.{name}"),
+                    format!(
+                        "{length} bytes is not a whole number of {}-byte records",
+                        SIZES[k]
+                    ),
+                ));
+            }
+            *section = (offset as usize, end as usize);
+        }
+        let n = u32_at(16) as usize;
+        let rows = ObjectRows { bytes, sections };
+        for k in [ROWS, BY_ID, TEXT_ENDS] {
+            let count = (sections[k].1 - sections[k].0) / SIZES[k];
+            if count != n {
+                return Err(bad(
+                    &format!("sections.{}", SECTION_NAMES[k]),
+                    format!("{count} records for the header's {n} objects"),
+                ));
+            }
+        }
+        Ok(rows)
+    }
+
+    /// Every invariant the accessors rely on: ranges within their
+    /// sections, strings that are UTF-8, presence intervals in order, the
+    /// id order a sorted permutation.
+    fn validate(&self, path: &Path) -> Result<()> {
+        let bad = |at: String, message: String| Error::invalid(path, at, message);
+        let starts = self.section::<u64>(STRING_STARTS);
+        let strings = self.section::<u8>(STRINGS);
+        if starts.first() != Some(&0)
+            || starts.windows(2).any(|w| w[0] > w[1])
+            || starts.last().map(|&e| e as usize) != Some(strings.len())
+        {
+            return Err(bad(
+                "string_starts".into(),
+                "offsets must increase from 0 to the strings' length".into(),
+            ));
+        }
+        if let Some(s) = starts
+            .windows(2)
+            .position(|w| std::str::from_utf8(&strings[w[0] as usize..w[1] as usize]).is_err())
+        {
+            return Err(bad(format!("strings[{s}]"), "is not UTF-8".into()));
+        }
+        let ends = self.section::<u64>(TEXT_ENDS);
+        let text = self.section::<u8>(TEXT);
+        if ends.windows(2).any(|w| w[0] > w[1])
+            || ends.last().is_some_and(|&e| e as usize > text.len())
+        {
+            return Err(bad(
+                "text_ends".into(),
+                "must increase within the search text".into(),
+            ));
+        }
+        let mut start = 0;
+        for (i, &end) in ends.iter().enumerate() {
+            if std::str::from_utf8(&text[start..end as usize]).is_err() {
+                return Err(bad(format!("text[{i}]"), "is not UTF-8".into()));
+            }
+            start = end as usize;
+        }
+        let strings = starts.len() - 1;
+        let string_ok = |s: u32| (s as usize) < strings;
+        let within = |first: u32, count: u32, k: usize| {
+            (first as usize)
+                .checked_add(count as usize)
+                .is_some_and(|end| end <= self.count(k))
+        };
+        let properties = self.section::<[u32; 2]>(PROPERTIES);
+        let presence = self.section::<[f64; 2]>(PRESENCE);
+        for (i, r) in self.rows().iter().enumerate() {
+            let at = |field: &str| format!("objects[{i}].{field}");
+            if !string_ok(r.id)
+                || (r.name != NONE && !string_ok(r.name))
+                || (r.class != NONE && !string_ok(r.class))
+            {
+                return Err(bad(at("id"), "names a string that is not there".into()));
+            }
+            if r.visibility_class as usize >= Class::ALL.len() {
+                return Err(bad(
+                    at("visibility_class"),
+                    format!("{} is no class", r.visibility_class),
+                ));
+            }
+            if !within(r.first_property, r.property_count, PROPERTIES)
+                || !properties[r.first_property as usize..][..r.property_count as usize]
+                    .iter()
+                    .all(|&[k, v]| string_ok(k) && string_ok(v))
+            {
+                return Err(bad(
+                    at("properties"),
+                    "lie outside the properties or name a string that is not there".into(),
+                ));
+            }
+            if !within(r.first_task, r.task_count, TASKS) {
+                return Err(bad(at("tasks"), "lie outside the task lists".into()));
+            }
+            if !within(r.first_cluster, r.cluster_count, CLUSTERS) {
+                return Err(bad(at("clusters"), "lie outside the cluster lists".into()));
+            }
+            if !within(r.first_interval, r.interval_count, PRESENCE) {
+                return Err(bad(at("presence"), "lies outside the intervals".into()));
+            }
+            let own = &presence[r.first_interval as usize..][..r.interval_count as usize];
+            if Visibility::from_normalised(own.iter().map(|&[a, b]| (a, b)).collect()).is_none() {
+                return Err(bad(
+                    at("presence"),
+                    "intervals must be non-empty, sorted and apart".into(),
+                ));
+            }
+        }
+        let by_id = self.section::<u32>(BY_ID);
+        let n = self.len();
+        let mut seen = vec![false; n];
+        for &r in by_id {
+            if (r as usize) >= n || std::mem::replace(&mut seen[r as usize], true) {
+                return Err(bad("by_id".into(), "must hold every object once".into()));
+            }
+        }
+        if let Some(w) = by_id
+            .windows(2)
+            .find(|w| (self.id(w[0]), w[0]) > (self.id(w[1]), w[1]))
+        {
+            return Err(bad(
+                "by_id".into(),
+                format!("objects {} and {} are out of id order", w[0], w[1]),
+            ));
+        }
+        Ok(())
+    }
+
+    /// The stored checksum of the file but that field.
+    pub fn checksum(&self) -> [u8; 32] {
+        self.bytes[32..64].try_into().expect("32 bytes")
+    }
+
+    /// The length of the `objects.json` the file was made from.
+    pub fn json_len(&self) -> u64 {
+        u64::from_le_bytes(self.bytes[24..32].try_into().expect("8 bytes"))
+    }
+
+    /// Whether the rows are mapped from a file.
+    pub fn is_mapped(&self) -> bool {
+        matches!(self.bytes, Bytes::Mapped(_))
+    }
+
+    fn section<T: Pod>(&self, k: usize) -> &[T] {
+        let (a, b) = self.sections[k];
+        bytemuck::cast_slice(&self.bytes[a..b])
+    }
+
+    fn count(&self, k: usize) -> usize {
+        (self.sections[k].1 - self.sections[k].0) / SIZES[k]
+    }
+
+    fn rows(&self) -> &[Row] {
+        self.section(ROWS)
+    }
+
+    pub(crate) fn rest(&self) -> &[u8] {
+        self.section(REST)
+    }
+
+    pub fn len(&self) -> usize {
+        self.rows().len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+
+    fn string(&self, s: u32) -> &str {
+        let starts = self.section::<u64>(STRING_STARTS);
+        let bytes = &self.section::<u8>(STRINGS)
+            [starts[s as usize] as usize..starts[s as usize + 1] as usize];
+        std::str::from_utf8(bytes).expect("checked at open")
+    }
+
+    fn optional(&self, s: u32) -> Option<&str> {
+        (s != NONE).then(|| self.string(s))
+    }
+
+    pub fn id(&self, i: u32) -> &str {
+        self.string(self.rows()[i as usize].id)
+    }
+
+    pub fn name(&self, i: u32) -> Option<&str> {
+        self.optional(self.rows()[i as usize].name)
+    }
+
+    pub fn class(&self, i: u32) -> Option<&str> {
+        self.optional(self.rows()[i as usize].class)
+    }
+
+    pub fn visibility_class(&self, i: u32) -> Class {
+        Class::ALL[self.rows()[i as usize].visibility_class as usize]
+    }
+
+    /// Its properties, in key order.
+    pub fn properties(&self, i: u32) -> impl ExactSizeIterator<Item = (&str, &str)> + '_ {
+        let r = &self.rows()[i as usize];
+        self.section::<[u32; 2]>(PROPERTIES)[r.first_property as usize..]
+            [..r.property_count as usize]
+            .iter()
+            .map(|&[k, v]| (self.string(k), self.string(v)))
+    }
+
+    /// The value of property `key`.
+    pub fn property(&self, i: u32, key: &str) -> Option<&str> {
+        self.properties(i).find(|&(k, _)| k == key).map(|(_, v)| v)
+    }
+
+    pub fn tasks(&self, i: u32) -> &[u32] {
+        let r = &self.rows()[i as usize];
+        &self.section::<u32>(TASKS)[r.first_task as usize..][..r.task_count as usize]
+    }
+
+    pub fn clusters(&self, i: u32) -> &[u32] {
+        let r = &self.rows()[i as usize];
+        &self.section::<u32>(CLUSTERS)[r.first_cluster as usize..][..r.cluster_count as usize]
+    }
+
+    /// Its presence intervals `[start, end)`, infinite for an open end.
+    pub fn presence(&self, i: u32) -> &[[f64; 2]] {
+        let r = &self.rows()[i as usize];
+        &self.section::<[f64; 2]>(PRESENCE)[r.first_interval as usize..]
+            [..r.interval_count as usize]
+    }
+
+    /// Its presence as the files and the API write it: `[start, end)`,
+    /// `None` for an open end.
+    pub fn open_presence(&self, i: u32) -> Vec<[Option<f64>; 2]> {
+        open_presence(self.presence(i).iter().copied())
+    }
+
+    /// Object `i` decoded.
+    pub fn entry(&self, i: u32) -> ObjectEntry {
+        ObjectEntry {
+            id: self.id(i).to_owned(),
+            name: self.name(i).map(str::to_owned),
+            class: self.class(i).map(str::to_owned),
+            properties: self
+                .properties(i)
+                .map(|(k, v)| (k.to_owned(), v.to_owned()))
+                .collect::<BTreeMap<_, _>>(),
+            visibility_class: self.visibility_class(i),
+            tasks: self.tasks(i).to_vec(),
+            presence: Visibility::from_normalised(
+                self.presence(i).iter().map(|&[a, b]| (a, b)).collect(),
+            )
+            .expect("checked at open"),
+            clusters: self.clusters(i).to_vec(),
+        }
+    }
+
+    /// The first object with this id: a binary search of the id order.
+    pub fn find(&self, id: &str) -> Option<u32> {
+        let by_id = self.section::<u32>(BY_ID);
+        let k = by_id.partition_point(|&r| self.id(r) < id);
+        by_id.get(k).copied().filter(|&r| self.id(r) == id)
+    }
+
+    /// An object whose id an earlier object in id order has, and that one.
+    pub fn duplicate(&self) -> Option<(u32, u32)> {
+        self.section::<u32>(BY_ID)
+            .windows(2)
+            .find(|w| self.id(w[0]) == self.id(w[1]))
+            .map(|w| (w[1], w[0]))
+    }
+
+    /// Objects whose id, name or any property value contains `query`
+    /// (lower-cased by the caller), as `ObjectTables::search_objects`.
+    pub fn search(&self, query: &str, from: usize, limit: usize) -> Page {
+        let ends = self.section::<u64>(TEXT_ENDS);
+        let text = self.section::<u8>(TEXT);
+        let row = |i: usize| {
+            let start = if i == 0 { 0 } else { ends[i - 1] as usize };
+            std::str::from_utf8(&text[start..ends[i] as usize]).expect("checked at open")
+        };
+        search_rows(ends.len(), row, query, from, limit)
+    }
+}
