@@ -116,14 +116,20 @@ fn class_of(code: u32) -> Option<ClusterClass> {
     ClusterClass::ALL.get(code as usize).copied()
 }
 
-/// A blake3 hex hash as its 32 bytes.
+/// A blake3 hex hash (64 lowercase digits) as its 32 bytes.
 pub(crate) fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
-    if !super::is_hash(hex) {
+    let digit = |b: u8| match b {
+        b'0'..=b'9' => Some(b - b'0'),
+        b'a'..=b'f' => Some(b - b'a' + 10),
+        _ => None,
+    };
+    let hex = hex.as_bytes();
+    if hex.len() != 64 {
         return None;
     }
     let mut out = [0u8; 32];
-    for (i, byte) in out.iter_mut().enumerate() {
-        *byte = u8::from_str_radix(&hex[2 * i..2 * i + 2], 16).ok()?;
+    for (byte, pair) in out.iter_mut().zip(hex.chunks_exact(2)) {
+        *byte = digit(pair[0])? << 4 | digit(pair[1])?;
     }
     Some(out)
 }

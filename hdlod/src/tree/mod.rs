@@ -401,6 +401,14 @@ impl Tree {
         }
     }
 
+    /// The number of objects cluster `id` names, without decoding it.
+    pub(crate) fn object_count_of(&self, id: u32) -> usize {
+        match &self.clusters {
+            Clusters::Built(v) => v[id as usize].objects.len(),
+            Clusters::Mapped(index) => index.object_count(id),
+        }
+    }
+
     /// Whether cluster `id` names object `object`, without decoding it.
     pub(crate) fn names_object(&self, id: u32, object: &str) -> bool {
         match &self.clusters {

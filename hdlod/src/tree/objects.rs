@@ -443,7 +443,7 @@ impl ObjectTables {
         }
         // Every object a cluster names lists it (each listing was checked
         // above, so equal counts mean equal sets).
-        let listed: usize = (0..clusters as u32).map(|c| tree.facts(c).objects).sum();
+        let listed: usize = (0..clusters as u32).map(|c| tree.object_count_of(c)).sum();
         if listed != named {
             let stray = (0..clusters as u32)
                 .flat_map(|c| tree.objects_of(c).into_iter().map(move |id| (c, id)))

@@ -10,6 +10,7 @@
 
 use std::collections::HashSet;
 use std::fs;
+use std::hash::{BuildHasherDefault, Hasher};
 use std::io::{BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
@@ -222,6 +223,21 @@ pub fn load_json(dir: impl AsRef<Path>) -> Result<Tree> {
 }
 
 fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
+    // The listing of the geometry directory (120,000 files on the paper
+    // scene) is mostly the kernel's work: it runs beside the rest.
+    std::thread::scope(|scope| {
+        let listing = scope.spawn(|| list_geometry(dir));
+        load_listed(dir, use_index, || {
+            listing.join().expect("the listing does not panic")
+        })
+    })
+}
+
+fn load_listed(
+    dir: &Path,
+    use_index: bool,
+    listing: impl FnOnce() -> Result<Hashes>,
+) -> Result<Tree> {
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
     let index_path = dir.join(INDEX_FILE);
     let mut tree = if use_index && index_path.exists() {
@@ -260,7 +276,7 @@ fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     };
     tree.objects = load_objects_from(dir, &tree, use_index)?;
 
-    check_geometry(dir, &tree)?;
+    check_geometry(dir, &tree, &listing()?)?;
     // Made now so that no cut, the first one included, pays for them.
     tree.presence();
     tree.nodes();
@@ -272,13 +288,35 @@ fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     Ok(tree)
 }
 
-/// Checks that every geometry file the clusters name is in `geometry/`:
-/// one listing of the directory, no reads. Names are compared as hash
-/// bytes, and a mapped tree's are its index's distinct hashes, so no hex
-/// string is made per cluster.
-fn check_geometry(dir: &Path, tree: &Tree) -> Result<()> {
+/// Hashes blake3 hashes by their first eight bytes: they are uniform
+/// already, and a listing of 120,000 files is hashed at every load.
+#[derive(Default)]
+struct Prefix(u64);
+
+impl Hasher for Prefix {
+    fn finish(&self) -> u64 {
+        self.0
+    }
+
+    fn write(&mut self, bytes: &[u8]) {
+        let mut word = [0u8; 8];
+        let n = bytes.len().min(8);
+        word[..n].copy_from_slice(&bytes[..n]);
+        self.0 ^= u64::from_le_bytes(word);
+    }
+
+    /// The array's length, the same for every key.
+    fn write_usize(&mut self, _: usize) {}
+}
+
+/// Hashes of geometry files.
+type Hashes = HashSet<[u8; 32], BuildHasherDefault<Prefix>>;
+
+/// The hashes of the geometry files in `dir`: one listing of the
+/// directory, no reads.
+fn list_geometry(dir: &Path) -> Result<Hashes> {
     let geometry = dir.join(GEOMETRY_DIR);
-    let mut present = HashSet::new();
+    let mut present = Hashes::default();
     for entry in fs::read_dir(&geometry).map_err(|e| Error::io(&geometry, e))? {
         let name = entry.map_err(|e| Error::io(&geometry, e))?.file_name();
         if let Some(hash) = name
@@ -289,6 +327,14 @@ fn check_geometry(dir: &Path, tree: &Tree) -> Result<()> {
             present.insert(hash);
         }
     }
+    Ok(present)
+}
+
+/// Checks that every geometry file the clusters name is among the
+/// `present` ones. Names are compared as hash bytes, and a mapped tree's
+/// are its index's distinct hashes, so no hex string is made per cluster.
+fn check_geometry(dir: &Path, tree: &Tree, present: &Hashes) -> Result<()> {
+    let geometry = dir.join(GEOMETRY_DIR);
     let missing = match tree.index() {
         Some(index) => index
             .hashes()
