@@ -28,9 +28,10 @@ struct Report {
     objects: usize,
     tasks: usize,
     file_bytes: u64,
-    /// Reading, parsing and checking `objects.json` against the clusters
-    /// and making its look-up and search indexes (`store::load_objects`):
-    /// median, fastest, slowest.
+    /// Loading the tables as a server does (`store::load_objects`:
+    /// `objects.bin` mapped and checked when the tree has it, else
+    /// `objects.json` read and parsed; checks against the clusters, the
+    /// indexes): median, fastest, slowest.
     load_ms: [f64; 3],
     /// Its parts, medians: reading the file, parsing it into records,
     /// making the tables of the records (checks and indexes).
