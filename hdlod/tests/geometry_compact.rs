@@ -271,13 +271,26 @@ fn positions_are_quantized_within_the_allowance_and_the_move_is_answered() {
     let (mesh, texture) = textured();
     let (exact, none) = compact_mesh_to_glb(&mesh, Some(&texture), 0.0);
     assert_eq!(none, 0.0);
-    assert_eq!(exact, encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact));
+    assert_eq!(
+        exact,
+        encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact)
+    );
     // The mesh is 30 m across: a 16-bit step is under a millimetre.
     let (glb, moved) = compact_mesh_to_glb(&mesh, Some(&texture), 0.001);
     assert!(moved > 0.0 && moved <= 0.001, "moved {moved}");
     let json = json_of(&glb);
-    let position = json["meshes"][0]["primitives"][0]["attributes"]["POSITION"].as_u64().unwrap();
+    let position = json["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap();
     assert_eq!(json["accessors"][position as usize]["componentType"], 5122);
+    // The node's f32 translation and scale as their shortest decimals.
+    for key in ["translation", "scale"] {
+        for v in json["nodes"][0][key].as_array().unwrap() {
+            let text = v.to_string();
+            let x: f32 = text.parse().unwrap();
+            assert!(text.len() <= 12 && x.to_string() == text, "{key}: {text}");
+        }
+    }
     let decoded = compact::decode(&glb).unwrap();
     let slack = position_tolerance(&mesh);
     let mut farthest = 0.0f32;

@@ -59,7 +59,9 @@ impl GlbBuilder {
     ) -> (MeshAccessors, f32, f32) {
         let n = mesh.positions.len();
         let quantized = quantized(&mesh.positions, allowance);
-        let (scale, moved) = quantized.as_ref().map_or((1.0, 0.0), |q| (q.scale, q.moved));
+        let (scale, moved) = quantized
+            .as_ref()
+            .map_or((1.0, 0.0), |q| (q.scale, q.moved));
         // The layout: each attribute's offset in the vertex, 4-byte aligned.
         let mut stride = if quantized.is_some() { 8 } else { 12 };
         let mut field = |present: bool| {
@@ -295,6 +297,23 @@ pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback:
             .and_then(Value::as_object_mut)
         {
             pbr.retain(|k, v| !is_default(k, v));
+        }
+    }
+    // A node's translation and scale are `f32`, which the JSON value holds
+    // as `f64`: written as the shortest decimal that reads back as the same
+    // `f32` rather than the `f64` expansion, they take half the characters.
+    for node in json["nodes"].as_array_mut().into_iter().flatten() {
+        for key in ["translation", "scale"] {
+            for v in node
+                .get_mut(key)
+                .and_then(Value::as_array_mut)
+                .into_iter()
+                .flatten()
+            {
+                if let Some(x) = v.as_f64().filter(|x| f64::from(*x as f32) == *x) {
+                    *v = serde_json::from_str(&(x as f32).to_string()).unwrap_or(x.into());
+                }
+            }
         }
     }
     let buffers = json["buffers"]

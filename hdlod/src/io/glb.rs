@@ -66,7 +66,11 @@ pub fn encoded_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>, encoding: Enc
 /// when that moves none by more than `allowance` (world units), exact
 /// otherwise ([`super::compact`]); and the farthest a vertex moved, 0 when
 /// exact, which a stored error bound must add.
-pub fn compact_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>, allowance: f32) -> (Vec<u8>, f32) {
+pub fn compact_mesh_to_glb(
+    mesh: &Mesh,
+    texture: Option<&Texture>,
+    allowance: f32,
+) -> (Vec<u8>, f32) {
     let mesh = &*unit_normals(mesh);
     let (local, centre) = centred(mesh);
     glb_within(&local, centre, texture, None, Encoding::Compact, allowance)
