@@ -254,3 +254,29 @@ fn a_killed_update_leaves_a_tree_that_loads() {
     left.sort();
     assert_eq!(left, [".tree.geometry", "tree"]);
 }
+
+/// `hdlod bench build SCENE` times the scene's build and then schedule
+/// updates of its tree, and leaves nothing behind in its work directory.
+#[test]
+fn bench_build_times_builds_and_schedule_updates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let work = tmp.path().join("work");
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    let out = hdlod(&[
+        "bench".as_ref(),
+        "build".as_ref(),
+        fixture.as_os_str(),
+        "--repeats".as_ref(),
+        "1".as_ref(),
+        "--work".as_ref(),
+        work.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert_success(&out);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["runs"].as_array().unwrap().len(), 1);
+    assert_eq!(report["update_runs"].as_array().unwrap().len(), 1);
+    assert!(report["schedule_edit_tasks"].as_u64().unwrap() > 0);
+    assert!(report["median_update_wall_seconds"].as_f64().unwrap() > 0.0);
+    assert!(!work.exists(), "the work directory is removed");
+}
