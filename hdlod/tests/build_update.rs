@@ -200,3 +200,73 @@ fn a_geometry_change_a_class_change_or_full_build_in_full() {
     };
     assert!(why.contains("class"), "{why}");
 }
+
+/// The digest that decides between an update and a full build is computed
+/// the same way by every release: a tree built by an earlier one updates.
+#[test]
+fn the_geometry_key_is_stable_across_releases() {
+    assert_eq!(
+        hdlod::build::geometry_key(&tiny(), &BuildConfig::default()),
+        "d0fee90c01e3686b8833211c822e61ae0bfbac3869c875b81345b8519a567acb"
+    );
+}
+
+/// An update shares the old tree's geometry directory instead of linking
+/// each file: it moves once into the store beside the tree and both
+/// generations link to it; no geometry file is written or replaced, so a
+/// tree hard-linked from another is not written through. A full build
+/// makes a directory of its own again and removes the store.
+#[cfg(target_os = "linux")]
+#[test]
+fn updates_share_the_geometry_store_and_a_full_build_removes_it() {
+    use std::collections::BTreeMap;
+    use std::os::unix::fs::MetadataExt;
+
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    let store = tmp.path().join(".tree.geometry");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let files = |dir: &Path| -> BTreeMap<String, (u64, Vec<u8>)> {
+        std::fs::read_dir(dir.join("geometry"))
+            .unwrap()
+            .map(|e| {
+                let path = e.unwrap().path();
+                let name = path.file_name().unwrap().to_string_lossy().into_owned();
+                let inode = std::fs::metadata(&path).unwrap().ino();
+                (name, (inode, std::fs::read(&path).unwrap()))
+            })
+            .collect()
+    };
+    let built = files(&dir);
+
+    for by in [3600.0, 7200.0] {
+        let (_, _, how) =
+            build_or_update_to(&rescheduled(&scene, by), &config, &dir, false, &Silent).unwrap();
+        assert!(matches!(how, How::ScheduleUpdate { .. }), "{how:?}");
+        let link = std::fs::read_link(dir.join("geometry")).expect("geometry is a link");
+        assert_eq!(link, Path::new("../.tree.geometry"));
+        assert!(store.is_dir());
+        assert_eq!(files(&dir), built, "the same files, not one rewritten");
+        load(&dir).expect("the updated tree loads");
+    }
+    let mut names: Vec<String> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    names.sort();
+    assert_eq!(names, [".tree.geometry", "tree"]);
+
+    build_or_update_to(&scene, &config, &dir, true, &Silent).unwrap();
+    assert!(
+        std::fs::symlink_metadata(dir.join("geometry"))
+            .unwrap()
+            .is_dir()
+    );
+    assert!(
+        !store.exists(),
+        "the store goes with the last tree using it"
+    );
+    load(&dir).expect("the rebuilt tree loads");
+}

@@ -1,7 +1,8 @@
 //! The compact GLB form (`hdlod::io::compact`): what is written reads back
-//! within the quantization's error (normals, colours, texture coordinates)
-//! and exactly (positions, feature ids, the texture's PNG, the triangles
-//! in order, each with its winding); the
+//! within the quantization's error (normals, colours, texture coordinates;
+//! positions within the allowance given, the move answered) and exactly
+//! (positions without an allowance, feature ids, the texture's PNG, the
+//! triangles in order, each with its winding); the
 //! plain form derived from it is today's `f32` GLB; both pass the Khronos
 //! glTF validator; a tree stores the compact form under the hash of its
 //! bytes.
@@ -15,7 +16,7 @@ use glam::{Vec2, Vec3};
 use hdlod::geometry::Mesh;
 use hdlod::geometry::bake::Atlas;
 use hdlod::io::compact;
-use hdlod::io::glb::{Encoding, encoded_mesh_to_glb, mesh_to_glb};
+use hdlod::io::glb::{Encoding, compact_mesh_to_glb, encoded_mesh_to_glb, mesh_to_glb};
 use hdlod::io::texture::{Texture, encode_png};
 
 /// Two boxes of two objects far from the origin (as a georeferenced site's
@@ -258,4 +259,52 @@ fn both_forms_have_zero_validator_errors() {
             "{report}"
         );
     }
+}
+
+/// With an allowance, positions become 16-bit shorts when that moves none
+/// by more than it (docs/benchmarks.md measures the bytes saved on real
+/// trees; a box or two gains nothing): the farthest move is answered,
+/// and every position reads back within that move. An allowance below
+/// the move a 16-bit grid needs keeps them exact.
+#[test]
+fn positions_are_quantized_within_the_allowance_and_the_move_is_answered() {
+    let (mesh, texture) = textured();
+    let (exact, none) = compact_mesh_to_glb(&mesh, Some(&texture), 0.0);
+    assert_eq!(none, 0.0);
+    assert_eq!(
+        exact,
+        encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact)
+    );
+    // The mesh is 30 m across: a 16-bit step is under a millimetre.
+    let (glb, moved) = compact_mesh_to_glb(&mesh, Some(&texture), 0.001);
+    assert!(moved > 0.0 && moved <= 0.001, "moved {moved}");
+    let json = json_of(&glb);
+    let position = json["meshes"][0]["primitives"][0]["attributes"]["POSITION"]
+        .as_u64()
+        .unwrap();
+    assert_eq!(json["accessors"][position as usize]["componentType"], 5122);
+    // The node's f32 translation and scale as their shortest decimals.
+    for key in ["translation", "scale"] {
+        for v in json["nodes"][0][key].as_array().unwrap() {
+            let text = v.to_string();
+            let x: f32 = text.parse().unwrap();
+            assert!(text.len() <= 12 && x.to_string() == text, "{key}: {text}");
+        }
+    }
+    let decoded = compact::decode(&glb).unwrap();
+    let slack = position_tolerance(&mesh);
+    let mut farthest = 0.0f32;
+    for (p, q) in mesh.positions.iter().zip(&decoded.mesh.positions) {
+        let d = p.distance(*q + decoded.translation);
+        assert!(d <= moved + slack, "{p} read as {q}: {d} beyond {moved}");
+        farthest = farthest.max(d);
+    }
+    // The answer is the move, not a loose bound of it.
+    assert!(farthest > moved / 4.0, "moved {farthest}, answered {moved}");
+    let dir = tempfile::tempdir().unwrap();
+    let path = dir.path().join("quantized.glb");
+    std::fs::write(&path, &glb).unwrap();
+    assert_no_gltf_errors(&[path]);
+    let (kept, zero) = compact_mesh_to_glb(&mesh, Some(&texture), 1e-6);
+    assert_eq!((kept, zero), (exact, 0.0));
 }

@@ -109,6 +109,28 @@ fn responses_match_the_openapi_document() {
         }
     }
 
+    // Without levels of detail: every present leaf, in view or not, which
+    // are the baseline's triangles; a camera looking away changes nothing.
+    let mut body = cut_body(json!(5e6));
+    body["lod"] = json!("none");
+    assert_component(&doc, "CutRequest", &body);
+    let none = server.post_json("/api/v1/scenes/sample-1/cut", &body);
+    assert_component(&doc, "CutResponse", &none);
+    let stats = &none["stats"];
+    assert_eq!(stats["triangles"], stats["baseline_triangles"], "{stats}");
+    assert!(stats["triangles"].as_u64().unwrap() > post["stats"]["triangles"].as_u64().unwrap());
+    assert!(
+        none["clusters"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .all(|c| c["level"] == 0)
+    );
+    let away = get(
+        "/api/v1/scenes/sample-1/cut?time=5000000&position=150,120,150&target=300,120,300&lod=none",
+    );
+    assert_eq!(ids(&away), ids(&none));
+
     let error = get("/api/v1/scenes/nope");
     assert_component(&doc, "Error", &error);
 
@@ -214,6 +236,12 @@ fn bad_requests_name_the_field() {
         response.json::<Value>().unwrap()["error"]["field"],
         "presence"
     );
+    let response = http
+        .get(format!("{cut}?time=1&position=1,2,3&target=0,0,0&lod=some"))
+        .send()
+        .unwrap();
+    assert_eq!(response.status(), StatusCode::BAD_REQUEST);
+    assert_eq!(response.json::<Value>().unwrap()["error"]["field"], "lod");
 
     let response = http
         .post(server.url("/api/v1/scenes/nope/cut"))

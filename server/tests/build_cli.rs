@@ -196,3 +196,87 @@ fn a_build_removes_what_killed_builds_left() {
     left.sort();
     assert_eq!(temporaries(), left);
 }
+
+/// An update killed with SIGKILL at any point leaves a tree that loads:
+/// the old one until the rename, the new one after (the first update
+/// moves the geometry into the store beside the tree by an atomic
+/// exchange, so the old tree has its files throughout). The next build
+/// updates it and leaves no temporary.
+#[test]
+fn a_killed_update_leaves_a_tree_that_loads() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = common::build_tree(tmp.path());
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    let args = [
+        "build".as_ref(),
+        fixture.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+        "--json".as_ref(),
+    ];
+    let mut interrupted = 0;
+    for extra in [0, 0, 2, 5, 10, 20, 40, 80] {
+        let mut update = std::process::Command::new(env!("CARGO_BIN_EXE_hdlod"))
+            .args(args)
+            .stdout(std::process::Stdio::null())
+            .stderr(std::process::Stdio::null())
+            .spawn()
+            .unwrap();
+        let temporary = format!(".tree.tmp-{}-", update.id());
+        let started = std::time::Instant::now();
+        while started.elapsed().as_secs() < 60
+            && update.try_wait().unwrap().is_none()
+            && !std::fs::read_dir(tmp.path()).unwrap().any(|e| {
+                e.unwrap()
+                    .file_name()
+                    .to_string_lossy()
+                    .starts_with(&temporary)
+            })
+        {
+            std::thread::sleep(std::time::Duration::from_millis(1));
+        }
+        std::thread::sleep(std::time::Duration::from_millis(extra));
+        let _ = update.kill();
+        let status = update.wait().unwrap();
+        interrupted += usize::from(!status.success());
+        hdlod::tree::load(&tree).unwrap_or_else(|e| panic!("killed after {extra} ms more: {e}"));
+    }
+    assert!(interrupted > 0, "no update was killed before its end");
+
+    let out = hdlod(&args);
+    assert_success(&out);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(summary["mode"], "schedule-update");
+    let mut left: Vec<String> = std::fs::read_dir(tmp.path())
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    left.sort();
+    assert_eq!(left, [".tree.geometry", "tree"]);
+}
+
+/// `hdlod bench build SCENE` times the scene's build and then schedule
+/// updates of its tree, and leaves nothing behind in its work directory.
+#[test]
+fn bench_build_times_builds_and_schedule_updates() {
+    let tmp = tempfile::tempdir().unwrap();
+    let work = tmp.path().join("work");
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    let out = hdlod(&[
+        "bench".as_ref(),
+        "build".as_ref(),
+        fixture.as_os_str(),
+        "--repeats".as_ref(),
+        "1".as_ref(),
+        "--work".as_ref(),
+        work.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert_success(&out);
+    let report: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(report["runs"].as_array().unwrap().len(), 1);
+    assert_eq!(report["update_runs"].as_array().unwrap().len(), 1);
+    assert!(report["schedule_edit_tasks"].as_u64().unwrap() > 0);
+    assert!(report["median_update_wall_seconds"].as_f64().unwrap() > 0.0);
+    assert!(!work.exists(), "the work directory is removed");
+}

@@ -978,3 +978,66 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
         assert_eq!(f(&b["cut"]["textureBytes"]), 0.0);
     }
 }
+
+/// `hdlod bench viewer` on the tiny site: the report follows its schema;
+/// the first frames and the step end with a drawn cut whose geometry was
+/// fetched in batches; without levels of detail every present leaf is
+/// drawn, the baseline's triangles, more than the cut's.
+#[test]
+fn hdlod_bench_viewer_times_first_frames_and_frames_without_lod() {
+    if !browser_ready() {
+        return;
+    }
+    let dir = tempfile::tempdir().unwrap();
+    let tree = build_tree(dir.path());
+    let out = hdlod(&[
+        "bench".as_ref(),
+        "viewer".as_ref(),
+        tree.as_os_str(),
+        "--json".as_ref(),
+        "--width".as_ref(),
+        "640".as_ref(),
+        "--height".as_ref(),
+        "360".as_ref(),
+        "--frames".as_ref(),
+        "3".as_ref(),
+        "--tools".as_ref(),
+        repo().join("tools").as_os_str(),
+    ]);
+    assert_success(&out);
+    let report: Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_valid(
+        &schema("bench-viewer.schema.json"),
+        &report,
+        "bench viewer --json",
+    );
+    let open = report["open"].as_array().unwrap();
+    assert_eq!(open.len(), 4);
+    for o in open {
+        assert!(f(&o["ms"]) > 0.0 && f(&o["clusters"]) > 0.0, "{o}");
+        assert!(f(&o["requests"]) >= 1.0, "{o}");
+        // A batch carries many GLBs: fewer requests than clusters.
+        assert!(f(&o["requests"]) < f(&o["clusters"]), "{o}");
+    }
+    // The plain form is bigger decoded than the stored form of the same cut.
+    let of = |screen: &str, encoding: &str| {
+        open.iter()
+            .find(|o| o["screen"] == screen && o["encoding"] == encoding)
+            .unwrap()
+    };
+    for screen in ["1/1", "1/16"] {
+        let (compact, plain) = (of(screen, "compact"), of(screen, "plain"));
+        assert_eq!(compact["triangles"], plain["triangles"]);
+        assert!(f(&plain["decodedBytes"]) > f(&compact["decodedBytes"]));
+    }
+    assert!(f(&report["step"]["ms"]) > 0.0);
+    let cells = report["cells"].as_array().unwrap();
+    assert_eq!(cells.len(), 12);
+    for c in cells {
+        let (cut, none) = (&c["hdlod"], &c["none"]);
+        assert_eq!(none["triangles"], none["baseline"], "{c}");
+        assert!(f(&none["triangles"]) > f(&cut["triangles"]), "{c}");
+        assert_eq!(none["all"].as_array().unwrap().len(), 3);
+        assert!(f(&none["ms"]) > 0.0 && f(&cut["ms"]) > 0.0, "{c}");
+    }
+}

@@ -44,6 +44,9 @@ const viewer = {
   sceneUrl: null, // that path, the base of the scene's routes
   t: 0,
   pixelError: 1,
+  // "none" draws every present leaf at full detail, in view or not (the
+  // paper's comparison, `lod=none` in the address); null: the cut.
+  lod: null,
   colourMode: "vertex",
   playing: false,
   clusters: new Map(), // id -> {info (cut cluster), gpu, transform}
@@ -285,6 +288,7 @@ function cutRequest(width, height) {
     // objects inside any cluster, so the partly present clusters the
     // paper's rule leaves out can be drawn too: nothing present is missing.
     presence: viewer.features.count > 0 ? "exact" : "paper",
+    ...(viewer.lod ? { lod: viewer.lod } : {}),
   };
 }
 
@@ -417,6 +421,7 @@ function updateStats() {
   const tri = drawnTriangles();
   const ratio = tri > 0 ? (s.baseline_triangles / tri).toFixed(1) + "x" : "-";
   const lines = [
+    ...(viewer.lod === "none" ? ["no LOD           every present object"] : []),
     `clusters drawn   ${number(viewer.clusters.size)}`,
     ...(viewer.missing.size > 0 ? [`clusters loading ${number(viewer.missing.size)} (retrying)`] : []),
     `triangles drawn  ${number(tri)}`,
@@ -452,6 +457,7 @@ function updateUrl(now) {
   set("task", viewer.search.task);
   set("gantt", ui.gantt.hidden ? null : "1");
   set("appearance", viewer.profileSource);
+  set("lod", viewer.lod);
   history.replaceState(null, "", `?${params}`);
 }
 
@@ -696,6 +702,7 @@ function testHook() {
         span: viewer.scene && span(),
         playing: viewer.playing,
         pixelError: viewer.pixelError,
+        lod: viewer.lod || "hdlod",
         colourMode: viewer.colourMode,
         mode: camera && camera.mode,
         distance: camera && camera.distance,
@@ -783,6 +790,26 @@ function testHook() {
     },
     setTime: (t) => setTime(t),
     setPixelError: (p) => setPixelError(p),
+    setLod: (lod) => {
+      viewer.lod = lod === "none" ? "none" : null;
+      urlDirty = true;
+    },
+    // The time of each of k frames of the drawn cut, in milliseconds, each
+    // drawn and then read back (one pixel), which waits for the GPU to
+    // finish it: what a frame costs, not only the calls that queue it.
+    timeFrames: (k) => {
+      const [width, height] = viewportSize();
+      const gl = renderer.gl;
+      const px = new Uint8Array(4);
+      const ms = [];
+      for (let i = 0; i < k; i++) {
+        const start = performance.now();
+        draw(width, height);
+        gl.readPixels(0, 0, 1, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+        ms.push(performance.now() - start);
+      }
+      return ms;
+    },
     setColourMode: (m) => setColourMode(m),
     // The tasks of feature i, by index into the schedule.
     tasksOf: (i) => viewer.colours.tasksOf(i),
@@ -999,6 +1026,7 @@ async function start() {
   setTime(t === null ? 0 : t);
   const p = Number(params.get("pixel_error"));
   setPixelError(p > 0 ? p : 1);
+  viewer.lod = params.get("lod") === "none" ? "none" : null;
   setColourMode(params.get("colour") || "vertex");
   setMode("orbit");
   const position = coordinates(params.get("position"));

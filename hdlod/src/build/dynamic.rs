@@ -13,7 +13,7 @@ use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
 use super::context::{Context, Node, add};
-use super::outputs::{LevelStats, Progress};
+use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE};
 use super::parent::{bake_colour, reduce_within};
 use super::steps::StepFunction;
 use crate::Result;
@@ -41,7 +41,7 @@ struct Version {
 fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
     let bounds = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
     let mut out = vec![Version {
-        hash: ctx.sink.put(mesh, None)?,
+        hash: ctx.sink.put(mesh, None, 0.0)?.hash,
         triangles: mesh.triangle_count() as u64,
         eps: 0.0,
         bounds,
@@ -70,10 +70,13 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
         let baked = bake_colour(ctx, &reduced, eps, &[model], None);
         // Contains the finer versions' boxes, as a parent's box must.
         let (lo, hi) = reduced.bounds().unwrap_or(bounds);
+        let stored = ctx
+            .sink
+            .put(&reduced, baked.as_ref(), eps * QUANTIZATION_SHARE)?;
         out.push(Version {
-            hash: ctx.sink.put(&reduced, baked.as_ref())?,
+            hash: stored.hash,
             triangles: reduced.triangle_count() as u64,
-            eps,
+            eps: eps + stored.moved,
             bounds: (lo.min(previous.bounds.0), hi.max(previous.bounds.1)),
         });
     }

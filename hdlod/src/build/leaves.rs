@@ -113,7 +113,8 @@ pub(super) fn leaves(
                 }],
                 0.0,
             );
-            let hash = sink.put(&mesh, None)?;
+            // A leaf is the object itself: exact, its `eps` 0.
+            let hash = sink.put(&mesh, None, 0.0)?.hash;
             progress.advance(1);
             Ok((mesh, hash))
         })

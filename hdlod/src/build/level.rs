@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use super::config::{Thresholds, thresholds};
 use super::context::{Active, Context, Node, add};
 use super::hilbert::hilbert_key;
-use super::outputs::{LevelStats, Progress};
+use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE};
 use super::parent::{Parent, make_parent, single_parent};
 use super::steps::StepFunction;
 use crate::Result;
@@ -133,6 +133,11 @@ pub(super) fn cluster_class(
                 next.push(a);
                 continue;
             };
+            let stored = ctx
+                .sink
+                .put(&mesh, baked.as_ref(), eps * QUANTIZATION_SHARE)?;
+            // The stored positions lie up to `moved` from the mesh's.
+            let eps = eps + stored.moved;
             let child = &clusters[a.id as usize];
             let gamma = child.gamma;
             stats.children_triangles += child.triangles;
@@ -147,10 +152,7 @@ pub(super) fn cluster_class(
                 eps,
                 gamma,
                 children: vec![a.id],
-                geometry: Some((
-                    ctx.sink.put(&mesh, baked.as_ref())?,
-                    mesh.triangle_count() as u64,
-                )),
+                geometry: Some((stored.hash, mesh.triangle_count() as u64)),
                 ..Node::new(kind, level, (lo, hi), &a.steps)
             };
             let w = node.w;

@@ -238,12 +238,15 @@ pub fn build_or_update_to(
     } else {
         let clock = Instant::now();
         progress.phase("load tree", 1);
-        match crate::tree::load(out) {
+        match crate::tree::store::load_to_update(out) {
             Err(e) => Some(format!("the tree there does not load: {e}")),
             Ok(old) => {
                 let load = clock.elapsed().as_secs_f64();
+                let clock = Instant::now();
                 let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
-                if key != Some(geometry_key(scene, config).as_str()) {
+                let same = key == Some(geometry_key(scene, config).as_str());
+                let key_seconds = clock.elapsed().as_secs_f64();
+                if !same {
                     Some(
                         "the scene's geometry or placements, or the build configuration, \
                          changed since it was built"
@@ -260,21 +263,27 @@ pub fn build_or_update_to(
                             dissolved,
                         } => {
                             stats.phases.push(("load tree".into(), load));
+                            stats.phases.push(("geometry key".into(), key_seconds));
                             stats
                                 .phases
                                 .push(("update".into(), clock.elapsed().as_secs_f64()));
                             let clock = Instant::now();
                             progress.phase("write", 1);
                             let writer = TreeWriter::create(out)?;
-                            let mut files = std::collections::BTreeSet::new();
-                            for id in 0..tree.cluster_count() as u32 {
-                                if let Some(hash) = tree.geometry_of(id)
-                                    && files.insert(hash.to_string())
-                                {
-                                    writer.reuse_geometry(out, &hash)?;
+                            let files: std::collections::HashSet<Cow<str>> =
+                                (0..tree.cluster_count() as u32)
+                                    .filter_map(|id| tree.geometry_of(id))
+                                    .collect();
+                            let geometry_files = files.len();
+                            if !writer.share_geometry(files.iter().map(|h| h.to_string()))? {
+                                for hash in &files {
+                                    writer.reuse_geometry(out, hash)?;
                                 }
                             }
-                            let geometry_files = files.len();
+                            stats
+                                .phases
+                                .push(("geometry".into(), clock.elapsed().as_secs_f64()));
+                            let clock = Instant::now();
                             writer.finish(&tree)?;
                             stats
                                 .phases

@@ -5,27 +5,46 @@
 use crate::Result;
 use crate::geometry::Mesh;
 use crate::geometry::bake::Baked;
-use crate::io::glb::{Encoding, encoded_mesh_to_glb};
+use crate::io::glb::compact_mesh_to_glb;
 use crate::io::texture::textured;
 use crate::tree::TreeWriter;
 
+/// The share of a cluster's `eps` its stored positions may move by when
+/// they are quantized (`io::compact`): small enough that the cut hardly
+/// changes, large enough that most coarse clusters take 16-bit positions.
+/// The move is measured and added to `eps`, which stays a bound.
+pub const QUANTIZATION_SHARE: f64 = 1.0 / 32.0;
+
+/// A cluster's geometry as stored.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Stored {
+    /// The content hash it is stored under.
+    pub hash: String,
+    /// How far a stored position lies from the mesh's at most, 0 when
+    /// they are exact: what the cluster's `eps` adds.
+    pub moved: f64,
+}
+
 /// Where the builder puts cluster geometry, with its baked colour if it
-/// has one; answers the content hash under which it is stored. Called
+/// has one, its positions allowed to move by up to `allowance`. Called
 /// from several threads.
 pub trait GeometrySink: Sync {
-    fn put(&self, mesh: &Mesh, baked: Option<&Baked>) -> Result<String>;
+    fn put(&self, mesh: &Mesh, baked: Option<&Baked>, allowance: f64) -> Result<Stored>;
 }
 
 impl GeometrySink for TreeWriter {
-    fn put(&self, mesh: &Mesh, baked: Option<&Baked>) -> Result<String> {
-        let glb = match baked {
+    fn put(&self, mesh: &Mesh, baked: Option<&Baked>, allowance: f64) -> Result<Stored> {
+        let (glb, moved) = match baked {
             Some(b) => {
                 let (drawn, texture) = textured(mesh, b);
-                encoded_mesh_to_glb(&drawn, Some(&texture), Encoding::Compact)
+                compact_mesh_to_glb(&drawn, Some(&texture), allowance as f32)
             }
-            None => encoded_mesh_to_glb(mesh, None, Encoding::Compact),
+            None => compact_mesh_to_glb(mesh, None, allowance as f32),
         };
-        self.put_geometry(&glb)
+        Ok(Stored {
+            hash: self.put_geometry(&glb)?,
+            moved: f64::from(moved),
+        })
     }
 }
 

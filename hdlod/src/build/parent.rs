@@ -9,6 +9,7 @@ use glam::Mat4;
 
 use super::config::Thresholds;
 use super::context::{Active, Context};
+use super::outputs::QUANTIZATION_SHARE;
 use crate::Result;
 use crate::geometry::bake::{self, BakeOptions, Baked, Source};
 use crate::geometry::{self, ErrorMetric, Mesh, Part, SimplifyOptions, Strategy};
@@ -53,11 +54,14 @@ pub(super) fn make_parent(
     let eps = stored_eps(&mesh, h, child_eps, originals.as_deref(), tolerance, metric);
     let sources: Vec<Source> = children.iter().map(|c| c.source()).collect();
     let baked = bake_colour(ctx, &mesh, eps, &sources, originals.as_deref());
-    let hash = ctx.sink.put(&mesh, baked.as_ref())?;
+    let stored = ctx
+        .sink
+        .put(&mesh, baked.as_ref(), eps * QUANTIZATION_SHARE)?;
     Ok(Parent {
         mesh,
-        eps,
-        hash,
+        // The stored positions lie up to `moved` from the mesh's.
+        eps: eps + stored.moved,
+        hash: stored.hash,
         baked,
         originals,
     })

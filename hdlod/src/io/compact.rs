@@ -6,8 +6,12 @@
 //! (<https://github.com/KhronosGroup/glTF/tree/main/extensions/2.0/Vendor/EXT_meshopt_compression>),
 //! and the way back to the plain form for readers without either.
 //!
-//! Quantization: positions stay `FLOAT`, exactly the values every stored
-//! error bound was measured on; normals normalized `BYTE`, colours
+//! Quantization: positions are normalized `SHORT` of the mesh's largest
+//! coordinate `s` (the node's uniform `scale`) when that moves no vertex by
+//! more than the caller's allowance, and stay exact `FLOAT` otherwise (a
+//! leaf's allowance is 0); the largest move is measured and answered, and
+//! the build adds it to the cluster's `eps`, so every stored `eps` stays a
+//! bound of the geometry as stored. Normals normalized `BYTE`, colours
 //! normalized `UNSIGNED_BYTE`,
 //! texture coordinates normalized `UNSIGNED_SHORT`. Feature ids stay `FLOAT`
 //! (exact, and a run of equal ids costs the vertex codec almost nothing),
@@ -41,23 +45,25 @@ const SHORT: f32 = 32767.0;
 
 impl GlbBuilder {
     /// [`GlbBuilder::add_mesh`] quantized and compressed, with the texture
-    /// coordinates `uvs` (in `[0, 1]`, as the baker's are) when given; the
-    /// scale of the positions, the node's. The attributes are interleaved
-    /// in one view: one compressed stream and one extension object per
-    /// file, where a view per attribute would cost more JSON than the
-    /// compressed data of a small cluster.
+    /// coordinates `uvs` (in `[0, 1]`, as the baker's are) when given, its
+    /// positions moved by at most `allowance`; the scale of the positions
+    /// (the node's) and how far a vertex moved at most. The attributes are
+    /// interleaved in one view: one compressed stream and one extension
+    /// object per file, where a view per attribute would cost more JSON
+    /// than the compressed data of a small cluster.
     pub(super) fn add_compact_mesh(
         &mut self,
         mesh: &Mesh,
         uvs: Option<&[Vec2]>,
-    ) -> (MeshAccessors, f32) {
+        allowance: f32,
+    ) -> (MeshAccessors, f32, f32) {
         let n = mesh.positions.len();
-        // Positions stay exact `f32`: every stored `eps_c` is measured on
-        // them, and quantizing would move a vertex by up to half a step
-        // past that bound. The vertex codec is lossless either way.
-        let scale = 1.0;
+        let quantized = quantized(&mesh.positions, allowance);
+        let (scale, moved) = quantized
+            .as_ref()
+            .map_or((1.0, 0.0), |q| (q.scale, q.moved));
         // The layout: each attribute's offset in the vertex, 4-byte aligned.
-        let mut stride = 12;
+        let mut stride = if quantized.is_some() { 8 } else { 12 };
         let mut field = |present: bool| {
             present.then(|| {
                 stride += 4;
@@ -71,11 +77,23 @@ impl GlbBuilder {
         let mut raw = vec![0u8; n * stride];
         let (mut lo, mut hi) = (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY));
         for (i, vertex) in raw.chunks_exact_mut(stride).enumerate() {
-            let p = mesh.positions[i];
-            lo = lo.min(p);
-            hi = hi.max(p);
-            for (k, v) in p.to_array().into_iter().enumerate() {
-                vertex[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
+            match &quantized {
+                Some(q) => {
+                    let v = q.values[i];
+                    lo = lo.min(v);
+                    hi = hi.max(v);
+                    for (k, x) in v.to_array().into_iter().enumerate() {
+                        vertex[2 * k..2 * k + 2].copy_from_slice(&(x as i16).to_le_bytes());
+                    }
+                }
+                None => {
+                    let p = mesh.positions[i];
+                    lo = lo.min(p);
+                    hi = hi.max(p);
+                    for (k, v) in p.to_array().into_iter().enumerate() {
+                        vertex[4 * k..4 * k + 4].copy_from_slice(&v.to_le_bytes());
+                    }
+                }
             }
             if let Some(at) = normals {
                 let v = (mesh.normals[i] * 127.0)
@@ -116,7 +134,7 @@ impl GlbBuilder {
             0,
             n,
             T::Vec3,
-            C::F32,
+            if quantized.is_some() { C::I16 } else { C::F32 },
             Some((lo.to_array().to_vec(), hi.to_array().to_vec())),
         );
         let normals = normals.map(|at| self.view_accessor(view, at, n, T::Vec3, C::I8, None));
@@ -140,7 +158,7 @@ impl GlbBuilder {
             features,
             indices,
         };
-        (accessors, scale)
+        (accessors, scale, moved)
     }
 
     /// An accessor of `count` elements at `offset` in each vertex of the
@@ -281,6 +299,23 @@ pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback:
             pbr.retain(|k, v| !is_default(k, v));
         }
     }
+    // A node's translation and scale are `f32`, which the JSON value holds
+    // as `f64`: written as the shortest decimal that reads back as the same
+    // `f32` rather than the `f64` expansion, they take half the characters.
+    for node in json["nodes"].as_array_mut().into_iter().flatten() {
+        for key in ["translation", "scale"] {
+            for v in node
+                .get_mut(key)
+                .and_then(Value::as_array_mut)
+                .into_iter()
+                .flatten()
+            {
+                if let Some(x) = v.as_f64().filter(|x| f64::from(*x as f32) == *x) {
+                    *v = serde_json::from_str(&(x as f32).to_string()).unwrap_or(x.into());
+                }
+            }
+        }
+    }
     let buffers = json["buffers"]
         .as_array_mut()
         .expect("a compressed GLB has its binary chunk's buffer");
@@ -312,6 +347,52 @@ fn is_default(key: &str, value: &Value) -> bool {
         "baseColorFactor" => *value == serde_json::json!([1.0, 1.0, 1.0, 1.0]),
         _ => false,
     }
+}
+
+/// Positions as normalized shorts of the node's uniform `scale`.
+struct Quantized {
+    /// Each position's three shorts, as `f32` (whole numbers).
+    values: Vec<Vec3>,
+    scale: f32,
+    /// The farthest a position moved, a little over: as a reader computes
+    /// it in `f32`, `scale * q / 32767`.
+    moved: f32,
+}
+
+/// `positions` quantized to normalized shorts of their largest coordinate,
+/// if that moves none of them by more than `allowance`; `None` keeps them
+/// exact.
+fn quantized(positions: &[Vec3], allowance: f32) -> Option<Quantized> {
+    if allowance <= 0.0 || positions.is_empty() {
+        return None;
+    }
+    let scale = positions
+        .iter()
+        .fold(0.0f32, |m, p| m.max(p.abs().max_element()));
+    if scale <= 0.0 || !scale.is_finite() {
+        return None;
+    }
+    let values: Vec<Vec3> = positions
+        .iter()
+        .map(|p| {
+            (*p / scale * SHORT)
+                .round()
+                .clamp(Vec3::splat(-SHORT), Vec3::splat(SHORT))
+        })
+        .collect();
+    let moved = positions
+        .iter()
+        .zip(&values)
+        .map(|(p, q)| (q.as_dvec3() / f64::from(SHORT) * f64::from(scale) - p.as_dvec3()).length())
+        .fold(0.0f64, f64::max);
+    // A reader's `f32` arithmetic rounds the decoded value by a few units
+    // in the last place of `scale`.
+    let moved = (moved + f64::from(scale) * 4.0 * f64::from(f32::EPSILON)) as f32;
+    (moved <= allowance).then_some(Quantized {
+        values,
+        scale,
+        moved,
+    })
 }
 
 /// Encodes `raw`, elements of `stride` bytes, with the vertex codec at the

@@ -62,6 +62,20 @@ pub fn encoded_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>, encoding: Enc
     glb_with_features(mesh, texture, None, encoding)
 }
 
+/// The compact GLB of `mesh` (with its texture), its positions quantized
+/// when that moves none by more than `allowance` (world units), exact
+/// otherwise ([`super::compact`]); and the farthest a vertex moved, 0 when
+/// exact, which a stored error bound must add.
+pub fn compact_mesh_to_glb(
+    mesh: &Mesh,
+    texture: Option<&Texture>,
+    allowance: f32,
+) -> (Vec<u8>, f32) {
+    let mesh = &*unit_normals(mesh);
+    let (local, centre) = centred(mesh);
+    glb_within(&local, centre, texture, None, Encoding::Compact, allowance)
+}
+
 /// [`mesh_to_glb`] with a colour texture: `TEXCOORD_0` from its
 /// coordinates (one per vertex) and its PNG as the material's
 /// `baseColorTexture`, which `COLOR_0` multiplies (glTF 2.0, section
@@ -101,13 +115,32 @@ pub(crate) fn glb_at(
     table: Option<&PropertyTable>,
     encoding: Encoding,
 ) -> Vec<u8> {
+    glb_within(local, centre, texture, table, encoding, 0.0).0
+}
+
+/// [`glb_at`] whose compact positions may move by up to `allowance`; the
+/// farthest one moved.
+fn glb_within(
+    local: &Mesh,
+    centre: Vec3,
+    texture: Option<&Texture>,
+    table: Option<&PropertyTable>,
+    encoding: Encoding,
+    allowance: f32,
+) -> (Vec<u8>, f32) {
     let mut glb = GlbBuilder::new();
     let mut nodes = Vec::new();
     let mut features = None;
+    let mut moved = 0.0;
     if !local.is_empty() {
         let (mut accessors, scale) = match encoding {
             Encoding::Plain => (glb.add_mesh(local), 1.0),
-            Encoding::Compact => glb.add_compact_mesh(local, texture.map(|t| &t.uvs[..])),
+            Encoding::Compact => {
+                let (accessors, scale, m) =
+                    glb.add_compact_mesh(local, texture.map(|t| &t.uvs[..]), allowance);
+                moved = m;
+                (accessors, scale)
+            }
         };
         let texture = texture.map(|t| {
             if encoding == Encoding::Plain {
@@ -121,12 +154,12 @@ pub(crate) fn glb_at(
         nodes.push(glb.add_node_at(m, centre, scale));
     }
     let Some((m, count)) = features else {
-        return glb.finish(nodes);
+        return (glb.finish(nodes), moved);
     };
     let metadata = table.map(|t| t.write(&mut glb));
     // EXT_mesh_features and EXT_structural_metadata (3D Tiles 1.1): the
     // gltf crate models neither.
-    glb.finish_with(nodes, |json| {
+    let bytes = glb.finish_with(nodes, |json| {
         let mut ids = serde_json::json!({ "featureCount": count, "attribute": 0 });
         let mut used = vec![MESH_FEATURES];
         if let Some(metadata) = metadata {
@@ -138,7 +171,8 @@ pub(crate) fn glb_at(
         json["meshes"][m]["primitives"][0]["extensions"] = serde_json::json!({
             MESH_FEATURES: { "featureIds": [ids] }
         });
-    })
+    });
+    (bytes, moved)
 }
 
 /// <https://github.com/CesiumGS/glTF/tree/3d-tiles-next/extensions/2.0/Vendor/EXT_structural_metadata>.

@@ -207,12 +207,19 @@ pub fn load(path: &Path) -> Result<Scene> {
         path.to_path_buf()
     };
     let text = crate::input::read_to_string(&file)?;
-    let de = &mut serde_json::Deserializer::from_str(&text);
-    let parsed: SceneFile = serde_path_to_error::deserialize(de).map_err(|e| {
-        let at = e.path().to_string();
-        let at = if at == "." { "JSON".to_owned() } else { at };
-        Error::invalid(&file, at, e.into_inner().to_string())
-    })?;
+    // Tracking the path slows the parse of a large scene (the paper's has
+    // 43 MB of JSON): only a file that fails is parsed again to say where.
+    let parsed: SceneFile = match serde_json::from_str(&text) {
+        Ok(parsed) => parsed,
+        Err(_) => {
+            let de = &mut serde_json::Deserializer::from_str(&text);
+            serde_path_to_error::deserialize(de).map_err(|e| {
+                let at = e.path().to_string();
+                let at = if at == "." { "JSON".to_owned() } else { at };
+                Error::invalid(&file, at, e.into_inner().to_string())
+            })?
+        }
+    };
     Loader {
         file: &file,
         base: file.parent().unwrap_or(Path::new(".")),

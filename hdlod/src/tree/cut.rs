@@ -20,6 +20,9 @@
 //! (`nodes`), is iterative with one reused stack;
 //! children are pushed in reverse so that clusters come out in the order of
 //! the recursive definition.
+//!
+//! [`present_leaves_into`] is the comparison the paper draws against (its
+//! "none" column): every present leaf, whatever the view.
 
 use glam::Mat4;
 
@@ -48,6 +51,18 @@ impl Presence {
             Presence::Exact => f32::MIN_POSITIVE,
         }
     }
+}
+
+/// Whether a viewer draws the cut or everything present.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Lod {
+    /// The cut: levels of detail within the pixel error, culled to the view.
+    #[default]
+    Hdlod,
+    /// No levels of detail: every present leaf at full detail, in view or
+    /// not ([`present_leaves_into`]).
+    None,
 }
 
 /// One emitted cluster.
@@ -111,17 +126,10 @@ pub fn cut_into(
         if v <= 0.0 {
             continue;
         }
-        let (bounds, transform) = if c.motion != u32::MAX {
-            // The levels of a chain come one after another and share it.
-            if sampled.0 != c.motion {
-                sampled = (c.motion, tree.pose_at(c.motion, t));
-            }
-            (
-                c.bounds().transformed(&sampled.1.as_dmat4()),
-                Some(sampled.1),
-            )
-        } else {
-            (c.bounds(), None)
+        let transform = pose(tree, c, t, &mut sampled);
+        let bounds = match transform {
+            Some(m) => c.bounds().transformed(&m.as_dmat4()),
+            None => c.bounds(),
         };
         if view.outside(&bounds) {
             continue;
@@ -140,14 +148,73 @@ pub fn cut_into(
         } else if refine {
             stack.extend((c.first_child..c.first_child + c.child_count).rev());
         } else if v >= drawn && c.has_geometry != 0 {
-            out.stats.clusters += 1;
-            out.stats.triangles += tree.triangles_of(c.id);
-            out.items.push(CutItem {
-                id: c.id,
-                transform,
-                visibility: v,
-                error: delta,
-            });
+            emit(tree, out, c.id, transform, v, delta);
         }
     }
+}
+
+/// Every leaf with `v(t)` at least `presence`'s threshold, in view or not,
+/// into reused buffers: what drawing without levels of detail draws (the
+/// paper's "none" column). Its triangles are the baseline's
+/// (`hdlod::tree::Baseline`) under the paper's rule.
+pub fn present_leaves_into(
+    tree: &Tree,
+    t: f64,
+    presence: Presence,
+    out: &mut Cut,
+    stack: &mut Vec<u32>,
+) {
+    let drawn = presence.threshold();
+    out.items.clear();
+    out.stats = CutStats::default();
+    stack.clear();
+    let nodes = tree.nodes();
+    stack.push(0);
+    let mut sampled = (u32::MAX, Mat4::IDENTITY);
+    while let Some(i) = stack.pop() {
+        out.stats.visited += 1;
+        let c = &nodes.nodes[i as usize];
+        let v = nodes.visibility(c, t);
+        if v <= 0.0 {
+            continue;
+        }
+        if i == 0 {
+            let candidates = tree.presence().candidates(t);
+            stack.extend(
+                candidates
+                    .iter()
+                    .rev()
+                    .map(|&id| nodes.node_of[id as usize]),
+            );
+        } else if c.child_count > 0 {
+            stack.extend((c.first_child..c.first_child + c.child_count).rev());
+        } else if v >= drawn && c.has_geometry != 0 {
+            let transform = pose(tree, c, t, &mut sampled);
+            emit(tree, out, c.id, transform, v, c.delta(v));
+        }
+    }
+}
+
+/// A dynamic node's pose at `t`, `None` for others. `sampled` keeps the
+/// last motion sampled: the levels of a chain come one after another and
+/// share it.
+fn pose(tree: &Tree, c: &super::nodes::Node, t: f64, sampled: &mut (u32, Mat4)) -> Option<Mat4> {
+    if c.motion == u32::MAX {
+        return None;
+    }
+    if sampled.0 != c.motion {
+        *sampled = (c.motion, tree.pose_at(c.motion, t));
+    }
+    Some(sampled.1)
+}
+
+fn emit(tree: &Tree, out: &mut Cut, id: u32, transform: Option<Mat4>, visibility: f32, error: f64) {
+    out.stats.clusters += 1;
+    out.stats.triangles += tree.triangles_of(id);
+    out.items.push(CutItem {
+        id,
+        transform,
+        visibility,
+        error,
+    });
 }

@@ -764,11 +764,15 @@ impl Tree {
 
     /// The on-disk records of this tree.
     pub fn to_records(&self) -> (format::ManifestRecord, format::ClustersRecord) {
-        let bounds = |b: &Aabb| format::BoundsRecord {
-            min: b.min.to_array(),
-            max: b.max.to_array(),
-        };
-        let manifest = format::ManifestRecord {
+        let clusters = (0..self.cluster_count() as u32)
+            .map(|id| self.cluster_record(id))
+            .collect();
+        (self.manifest_record(), format::ClustersRecord { clusters })
+    }
+
+    /// The record of `manifest.json`.
+    pub fn manifest_record(&self) -> format::ManifestRecord {
+        format::ManifestRecord {
             format: format::FORMAT.into(),
             scene: self.scene.clone(),
             time: format::TimeRecord {
@@ -776,48 +780,49 @@ impl Tree {
                 end: format_date(self.time.end()),
                 seconds: self.time.seconds,
             },
-            bounds: bounds(&self.bounds),
+            bounds: bounds_record(&self.bounds),
             up: self.up,
             georeference: self.georeference,
             root: self.root,
             config: self.config.clone(),
             stats: self.stats.clone(),
-        };
-        let clusters = self
-            .clusters()
-            .map(|c| format::ClusterRecord {
-                id: c.id,
-                parent: c.parent,
-                children: c.children.clone(),
-                level: c.level,
-                class: c.class,
-                bounds: bounds(&c.bounds),
-                w: c.w,
-                eps: c.eps,
-                gamma: c.gamma,
-                visibility: c
-                    .visibility
-                    .steps()
+        }
+    }
+
+    /// The record of cluster `id` in `clusters.json`.
+    pub fn cluster_record(&self, id: u32) -> format::ClusterRecord {
+        let c = self.cluster(id);
+        format::ClusterRecord {
+            id: c.id,
+            parent: c.parent,
+            children: c.children.clone(),
+            level: c.level,
+            class: c.class,
+            bounds: bounds_record(&c.bounds),
+            w: c.w,
+            eps: c.eps,
+            gamma: c.gamma,
+            visibility: c
+                .visibility
+                .steps()
+                .iter()
+                .map(|&(t, v)| (t, f64::from(v)))
+                .collect(),
+            motion: c.motion.as_ref().map(|m| {
+                m.keyframes()
                     .iter()
-                    .map(|&(t, v)| (t, f64::from(v)))
-                    .collect(),
-                motion: c.motion.as_ref().map(|m| {
-                    m.keyframes()
-                        .iter()
-                        .map(|k| format::KeyframeRecord {
-                            t: k.t,
-                            translation: k.translation.to_array(),
-                            rotation: k.rotation.to_array(),
-                            scale: k.scale.to_array(),
-                        })
-                        .collect()
-                }),
-                geometry: c.geometry.clone(),
-                triangles: c.triangles,
-                objects: c.objects.clone(),
-            })
-            .collect();
-        (manifest, format::ClustersRecord { clusters })
+                    .map(|k| format::KeyframeRecord {
+                        t: k.t,
+                        translation: k.translation.to_array(),
+                        rotation: k.rotation.to_array(),
+                        scale: k.scale.to_array(),
+                    })
+                    .collect()
+            }),
+            geometry: c.geometry.clone(),
+            triangles: c.triangles,
+            objects: c.objects.clone(),
+        }
     }
 
     /// The tree of on-disk records, validated. `dir` names the files in errors.
@@ -922,5 +927,12 @@ impl Tree {
             self.clusters = Clusters::Mapped(index.remap()?);
         }
         Ok(())
+    }
+}
+
+fn bounds_record(b: &Aabb) -> format::BoundsRecord {
+    format::BoundsRecord {
+        min: b.min.to_array(),
+        max: b.max.to_array(),
     }
 }

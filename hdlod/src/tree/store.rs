@@ -7,6 +7,16 @@
 //! except for the instant between the two renames of a replacement (the old
 //! tree moved aside, the new one not yet in place), when the target is
 //! missing and a reader must retry or keep what it has loaded.
+//!
+//! A schedule update keeps every geometry file, and linking each one into
+//! the new directory costs seconds at paper scale. Instead the geometry
+//! directory is shared between the two generations: it moves once into a
+//! store beside the tree, `.NAME.geometry`, and each generation's
+//! `geometry` is a relative symbolic link to it (docs/formats.md, "The
+//! geometry store"). The move is one atomic exchange of the directory with
+//! the link (`renameat2(RENAME_EXCHANGE)`, Linux), so a reader of the old
+//! tree finds its files throughout, and content addressing makes the
+//! store safe to share: a new generation only adds files.
 
 use std::collections::HashSet;
 use std::fs;
@@ -83,6 +93,59 @@ impl TreeWriter {
         Ok(())
     }
 
+    /// Makes the new tree's `geometry` the geometry directory of the tree
+    /// now at the target, shared rather than copied: the store that tree
+    /// links to, or its own directory moved into the store `.NAME.geometry`
+    /// beside it by one atomic exchange with a link to it. `hashes`: the
+    /// files the new tree uses, all the old tree's. Answers false, having
+    /// changed nothing, where the exchange is not available (not Linux, or
+    /// a file system without it); the caller then reuses the files one by
+    /// one.
+    pub fn share_geometry(&self, hashes: impl IntoIterator<Item = String>) -> Result<bool> {
+        let old = self.target.join(GEOMETRY_DIR);
+        let meta = fs::symlink_metadata(&old).map_err(|e| Error::io(&old, e))?;
+        let link = if meta.file_type().is_symlink() {
+            fs::read_link(&old).map_err(|e| Error::io(&old, e))?
+        } else {
+            let store = store_of(&self.target);
+            let link = Path::new("..").join(store.file_name().expect("a store has a name"));
+            // Left by an interrupted move (a dangling link) or by a full
+            // build that replaced a tree with a store: nothing uses it.
+            if let Ok(m) = fs::symlink_metadata(&store) {
+                let removed = if m.is_dir() {
+                    fs::remove_dir_all(&store)
+                } else {
+                    fs::remove_file(&store)
+                };
+                removed.map_err(|e| Error::io(&store, e))?;
+            }
+            // Made where the store goes, then exchanged with the directory:
+            // the link lands in the tree (where `../` is the tree's parent),
+            // the directory in the store's place, in one step.
+            if !symlink(&link, &store)? {
+                return Ok(false);
+            }
+            if !exchange(&old, &store) {
+                let _ = fs::remove_file(&store);
+                return Ok(false);
+            }
+            link
+        };
+        let path = self.tmp.join(GEOMETRY_DIR);
+        fs::remove_dir(&path).map_err(|e| Error::io(&path, e))?;
+        if !symlink(&link, &path)? {
+            return Err(Error::io(
+                &path,
+                std::io::Error::other("cannot link to the geometry store"),
+            ));
+        }
+        self.stored
+            .lock()
+            .expect("no panic while holding")
+            .extend(hashes);
+        Ok(true)
+    }
+
     /// Stores GLB bytes under the blake3 hex of their content and returns
     /// that hash; identical bytes are stored once.
     pub fn put_geometry(&self, glb: &[u8]) -> Result<String> {
@@ -108,6 +171,16 @@ impl TreeWriter {
     /// writes the manifest, the cluster table and the object and task
     /// tables when the tree has them, and moves the directory into place.
     pub fn finish(mut self, tree: &Tree) -> Result<()> {
+        let clock = std::time::Instant::now();
+        let mut lap = {
+            let mut last = clock.elapsed();
+            move || {
+                let now = clock.elapsed();
+                let lap = (now - last).as_secs_f64();
+                last = now;
+                lap
+            }
+        };
         let clusters_path = self.target.join(CLUSTERS_FILE);
         tree.validate(&clusters_path)?;
         if let Some(tables) = &tree.objects {
@@ -127,21 +200,40 @@ impl TreeWriter {
                 }
             }
         }
-        let (manifest, clusters) = tree.to_records();
-        write_json(&self.tmp.join(MANIFEST_FILE), &manifest, true)?;
-        let json_len = write_json(&self.tmp.join(CLUSTERS_FILE), &clusters, false)?;
-        write_bytes(&self.tmp.join(INDEX_FILE), &index::encode(tree, json_len))?;
-        if let Some(tables) = &tree.objects {
-            let json_len = write_json(
-                &self.tmp.join(OBJECTS_FILE),
-                &tables.to_record(&tree.time),
-                false,
-            )?;
-            write_bytes(
-                &self.tmp.join(OBJECTS_INDEX_FILE),
-                &tables.to_index(&tree.time, json_len),
-            )?;
-        }
+        let validated = lap();
+        write_json(&self.tmp.join(MANIFEST_FILE), &tree.manifest_record(), true)?;
+        // The cluster table is most of the time at paper scale (hundreds of
+        // megabytes): serialised in chunks on every core, then written
+        // while the index and the object tables are made beside it.
+        let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE))?;
+        let json_len = table.len();
+        let serialised = lap();
+        let (table, others) = rayon::join(
+            || table.write(&self.tmp.join(CLUSTERS_FILE)),
+            || {
+                rayon::join(
+                    || write_bytes(&self.tmp.join(INDEX_FILE), &index::encode(tree, json_len)),
+                    || match &tree.objects {
+                        Some(tables) => write_json(
+                            &self.tmp.join(OBJECTS_FILE),
+                            &tables.to_record(&tree.time),
+                            false,
+                        )
+                        .and_then(|json_len| {
+                            write_bytes(
+                                &self.tmp.join(OBJECTS_INDEX_FILE),
+                                &tables.to_index(&tree.time, json_len),
+                            )
+                        }),
+                        None => Ok(()),
+                    },
+                )
+            },
+        );
+        table?;
+        others.0?;
+        others.1?;
+        let written = lap();
 
         let old = sibling(&self.target, "old");
         let had_old = self.target.exists();
@@ -156,10 +248,79 @@ impl TreeWriter {
         }
         self.finished = true;
         if had_old {
+            // Removes the link to a shared store, not the store.
             fs::remove_dir_all(&old).map_err(|e| Error::io(&old, e))?;
         }
+        // A full build over a tree with a store leaves the store unused.
+        let shared = fs::symlink_metadata(self.target.join(GEOMETRY_DIR))
+            .is_ok_and(|m| m.file_type().is_symlink());
+        let store = store_of(&self.target);
+        if !shared && fs::symlink_metadata(&store).is_ok() {
+            fs::remove_dir_all(&store).map_err(|e| Error::io(&store, e))?;
+        }
+        tracing::debug!(
+            "{}: validated in {validated:.2} s, the cluster table serialised in \
+             {serialised:.2} s, the files written in {written:.2} s, moved into place \
+             and the old tree removed in {:.2} s",
+            self.target.display(),
+            lap()
+        );
         Ok(())
     }
+}
+
+/// The geometry store of `target` when its generations share their
+/// geometry: `.NAME.geometry` beside it.
+fn store_of(target: &Path) -> PathBuf {
+    let name = target
+        .file_name()
+        .map(|n| n.to_string_lossy().into_owned())
+        .unwrap_or_else(|| "tree".into());
+    target.with_file_name(format!(".{name}.geometry"))
+}
+
+/// A symbolic link at `path` to `to`; false where there are none.
+#[cfg(unix)]
+fn symlink(to: &Path, path: &Path) -> Result<bool> {
+    std::os::unix::fs::symlink(to, path)
+        .map(|()| true)
+        .map_err(|e| Error::io(path, e))
+}
+
+#[cfg(not(unix))]
+fn symlink(_to: &Path, _path: &Path) -> Result<bool> {
+    Ok(false)
+}
+
+/// Swaps the entries `a` and `b` in one step (`renameat2` with
+/// `RENAME_EXCHANGE`); false where the system or file system cannot.
+#[cfg(target_os = "linux")]
+fn exchange(a: &Path, b: &Path) -> bool {
+    use std::ffi::CString;
+    use std::os::unix::ffi::OsStrExt;
+    let (Ok(a), Ok(b)) = (
+        CString::new(a.as_os_str().as_bytes()),
+        CString::new(b.as_os_str().as_bytes()),
+    ) else {
+        return false;
+    };
+    // SAFETY: both paths are NUL-terminated strings that outlive the call.
+    let done = unsafe {
+        libc::syscall(
+            libc::SYS_renameat2,
+            libc::AT_FDCWD,
+            a.as_ptr(),
+            libc::AT_FDCWD,
+            b.as_ptr(),
+            libc::RENAME_EXCHANGE,
+        )
+    };
+    done == 0
+}
+
+#[cfg(not(target_os = "linux"))]
+fn exchange(_a: &Path, _b: &Path) -> bool {
+    false
 }
 
 impl Drop for TreeWriter {
@@ -222,25 +383,43 @@ pub fn load_json(dir: impl AsRef<Path>) -> Result<Tree> {
     load_from(dir.as_ref(), false)
 }
 
+/// What a schedule update reads of the tree it replaces: the manifest and
+/// the clusters, checked as [`load`] checks them, every geometry file
+/// present, but neither the object tables (the update makes them again)
+/// nor what the cut and the server derive.
+pub fn load_to_update(dir: impl AsRef<Path>) -> Result<Tree> {
+    let dir = dir.as_ref();
+    let tree = load_clusters(dir, true)?;
+    check_geometry(dir, &tree, &list_geometry(dir)?)?;
+    Ok(tree)
+}
+
 fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     // The listing of the geometry directory (120,000 files on the paper
     // scene) is mostly the kernel's work: it runs beside the rest.
     std::thread::scope(|scope| {
         let listing = scope.spawn(|| list_geometry(dir));
-        load_listed(dir, use_index, || {
-            listing.join().expect("the listing does not panic")
-        })
+        let mut tree = load_clusters(dir, use_index)?;
+        tree.objects = load_objects_from(dir, &tree, use_index)?;
+        let present = listing.join().expect("the listing does not panic")?;
+        check_geometry(dir, &tree, &present)?;
+        // Made now so that no cut, the first one included, pays for them.
+        tree.presence();
+        tree.nodes();
+        tree.summary();
+        tree.baseline();
+        // What the load read of a mapped index need not stay resident: the
+        // cuts fault in the pages they visit.
+        tree.remap()?;
+        Ok(tree)
     })
 }
 
-fn load_listed(
-    dir: &Path,
-    use_index: bool,
-    listing: impl FnOnce() -> Result<Hashes>,
-) -> Result<Tree> {
+/// The manifest and the clusters, from the index or from `clusters.json`.
+fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
     let index_path = dir.join(INDEX_FILE);
-    let mut tree = if use_index && index_path.exists() {
+    let tree = if use_index && index_path.exists() {
         let index = Index::open(&index_path)?;
         let json = dir.join(CLUSTERS_FILE);
         let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
@@ -274,17 +453,6 @@ fn load_listed(
         let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
         Tree::from_records(manifest, clusters, dir)?
     };
-    tree.objects = load_objects_from(dir, &tree, use_index)?;
-
-    check_geometry(dir, &tree, &listing()?)?;
-    // Made now so that no cut, the first one included, pays for them.
-    tree.presence();
-    tree.nodes();
-    tree.summary();
-    tree.baseline();
-    // What the load read of a mapped index need not stay resident: the
-    // cuts fault in the pages they visit.
-    tree.remap()?;
     Ok(tree)
 }
 
@@ -426,4 +594,62 @@ fn load_objects_from(dir: &Path, tree: &Tree, use_index: bool) -> Result<Option<
     }
     let record: ObjectsRecord = read_json(&path)?;
     ObjectTables::from_record(record, tree, &path).map(Some)
+}
+
+/// `clusters.json` as `serde_json::to_writer` writes the clusters record,
+/// byte for byte, with a newline: the clusters serialised in chunks in
+/// parallel, each chunk its clusters separated by commas.
+struct ClustersJson {
+    chunks: Vec<Vec<u8>>,
+}
+
+impl ClustersJson {
+    const OPEN: &[u8] = b"{\"clusters\":[";
+    const CLOSE: &[u8] = b"]}\n";
+
+    fn of(tree: &Tree, path: &Path) -> Result<Self> {
+        use rayon::prelude::*;
+        const CHUNK: u32 = 4096;
+        let n = tree.cluster_count() as u32;
+        let chunks = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|k| {
+                let ids = k * CHUNK..((k + 1) * CHUNK).min(n);
+                let mut out = Vec::with_capacity(ids.len() * 1200);
+                for id in ids {
+                    if id > k * CHUNK {
+                        out.push(b',');
+                    }
+                    serde_json::to_writer(&mut out, &tree.cluster_record(id))?;
+                }
+                Ok(out)
+            })
+            .collect::<std::result::Result<_, serde_json::Error>>()
+            .map_err(|e| Error::invalid(path, "", e.to_string()))?;
+        Ok(ClustersJson { chunks })
+    }
+
+    /// The file's length in bytes.
+    fn len(&self) -> u64 {
+        let commas = self.chunks.len().saturating_sub(1);
+        (Self::OPEN.len()
+            + self.chunks.iter().map(Vec::len).sum::<usize>()
+            + commas
+            + Self::CLOSE.len()) as u64
+    }
+
+    fn write(&self, path: &Path) -> Result<()> {
+        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut written = file.write_all(Self::OPEN);
+        for (i, chunk) in self.chunks.iter().enumerate() {
+            if i > 0 {
+                written = written.and_then(|()| file.write_all(b","));
+            }
+            written = written.and_then(|()| file.write_all(chunk));
+        }
+        written
+            .and_then(|()| file.write_all(Self::CLOSE))
+            .and_then(|()| file.sync_all())
+            .map_err(|e| Error::io(path, e))
+    }
 }

@@ -110,7 +110,7 @@ impl Session {
             tree,
             &view,
             t,
-            request.presence,
+            (request.presence, request.lod),
             &mut self.cut,
             &mut self.stack,
         );

@@ -2,7 +2,8 @@
 //! (`hdlod_fixtures::paper`), printed and written into docs/benchmarks.md.
 //! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
 //! their view at a fixed rate, bounded in time, reporting update latency.
-//! `build`, `simplify`, `objects`, `image` and `xer` are in their own files.
+//! `build`, `simplify`, `objects`, `image`, `viewer` and `xer` are in their
+//! own files.
 
 use std::path::PathBuf;
 use std::time::{Duration, Instant};
@@ -33,6 +34,9 @@ pub enum Bench {
     /// What the eye sees: each cell rendered in headless chromium at the
     /// pixel budget and at full detail, the pictures compared.
     Image(super::bench_image::Args),
+    /// How fast the web viewer shows a site: the first frame, a week's
+    /// step, and frame time with the cut against every present object.
+    Viewer(super::bench_viewer::Args),
     /// Reading a Primavera P6 XER of tens of thousands of activities made
     /// from the generated site's schedule.
     #[cfg(feature = "ifc")]
@@ -85,6 +89,7 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
         Bench::Features(a) => super::bench_identity::features(a),
         Bench::Objects(a) => super::bench_objects::run(a),
         Bench::Image(a) => super::bench_image::run(a),
+        Bench::Viewer(a) => super::bench_viewer::run(a),
         #[cfg(feature = "ifc")]
         Bench::Xer(a) => super::bench_xer::run(a),
         Bench::Ws(a) => ws(a),

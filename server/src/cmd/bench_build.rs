@@ -2,13 +2,15 @@
 //! the builder's n log n growth (issue: the scaling benchmark), the table
 //! and an SVG plot into docs/ on request; or, given a scene, that scene's
 //! build repeated: median wall and CPU time and the peak memory, the
-//! figures the build's speed targets are stated in.
+//! figures the build's speed targets are stated in, then as many
+//! schedule updates of the tree (a schedule edit and back).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use hdlod::build::{BuildConfig, Silent, build_to};
+use hdlod::build::{BuildConfig, How, Silent, build_or_update_to, build_to};
+use hdlod::scene::{Scene, TaskType};
 use hdlod_fixtures::{Scale, skyscraper};
 use plotters::prelude::*;
 use serde::Serialize;
@@ -16,7 +18,8 @@ use serde::Serialize;
 #[derive(clap::Args)]
 pub struct Args {
     /// A scene (a directory with scene.json, or the file) to build
-    /// `--repeats` times instead of the scaling series.
+    /// `--repeats` times instead of the scaling series, then to update
+    /// `--repeats` times, to a schedule edit and back.
     scene: Option<PathBuf>,
     /// Builds of SCENE; the medians are reported.
     #[arg(long, default_value_t = 3)]
@@ -127,6 +130,15 @@ struct Repeated {
     runs: Vec<Run>,
     median_wall_seconds: f64,
     median_cpu_seconds: f64,
+    /// Tasks the schedule edit moves a day later: every tenth construct
+    /// task of objects that do not move.
+    schedule_edit_tasks: usize,
+    /// Schedule updates of the last tree built, alternately to the edited
+    /// schedule and back to the scene's own (`build_or_update_to`, the
+    /// scene already loaded).
+    update_runs: Vec<Run>,
+    median_update_wall_seconds: f64,
+    median_update_cpu_seconds: f64,
     /// The process's peak resident set over every build (and the scene's
     /// load), in bytes.
     peak_rss_bytes: u64,
@@ -154,7 +166,9 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         };
         clusters = tree.cluster_count();
         drop(tree);
-        std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
+        if k + 1 < args.repeats {
+            std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
+        }
         if !args.json {
             eprintln!(
                 "build {}/{}: {:.2} s wall, {:.2} s CPU",
@@ -166,12 +180,44 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         }
         runs.push(run);
     }
+    let (edited, moved) = schedule_edit(&scene);
+    let mut updates = Vec::new();
+    for k in 0..args.repeats {
+        let next = if k % 2 == 0 { &edited } else { &scene };
+        let (cpu, started) = (cpu_seconds(), Instant::now());
+        let (_, _, how) = build_or_update_to(next, &BuildConfig::default(), &out, false, &Silent)
+            .with_context(|| format!("updating {}", out.display()))?;
+        anyhow::ensure!(
+            matches!(how, How::ScheduleUpdate { .. }),
+            "the schedule edit was built in full: {how:?}"
+        );
+        let run = Run {
+            wall_seconds: started.elapsed().as_secs_f64(),
+            cpu_seconds: cpu_seconds() - cpu,
+        };
+        if !args.json {
+            eprintln!(
+                "update {}/{}: {:.2} s wall, {:.2} s CPU",
+                k + 1,
+                args.repeats,
+                run.wall_seconds,
+                run.cpu_seconds
+            );
+        }
+        updates.push(run);
+    }
+    std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
+    let store = work.join(".tree.geometry");
+    if store.exists() {
+        std::fs::remove_dir_all(&store).with_context(|| format!("removing {}", store.display()))?;
+    }
     let _ = std::fs::remove_dir(work);
-    let median = |f: fn(&Run) -> f64| {
+    let median_of = |runs: &[Run], f: fn(&Run) -> f64| {
         let mut v: Vec<f64> = runs.iter().map(f).collect();
         v.sort_by(f64::total_cmp);
         v[v.len() / 2]
     };
+    let median = |f: fn(&Run) -> f64| median_of(&runs, f);
     let report = Repeated {
         scene: scene.name.clone(),
         objects: scene.objects.len(),
@@ -180,6 +226,10 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         median_wall_seconds: median(|r| r.wall_seconds),
         median_cpu_seconds: median(|r| r.cpu_seconds),
         peak_rss_bytes: peak_rss_bytes(),
+        schedule_edit_tasks: moved,
+        median_update_wall_seconds: median_of(&updates, |r| r.wall_seconds),
+        median_update_cpu_seconds: median_of(&updates, |r| r.cpu_seconds),
+        update_runs: updates,
         runs,
     };
     if args.json {
@@ -196,8 +246,46 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
             report.median_cpu_seconds,
             report.peak_rss_bytes as f64 / (1024.0 * 1024.0)
         );
+        println!(
+            "schedule updates ({} tasks a day later, and back): median of {}: {:.2} s wall, {:.2} s CPU",
+            report.schedule_edit_tasks,
+            args.repeats,
+            report.median_update_wall_seconds,
+            report.median_update_cpu_seconds
+        );
     }
     Ok(())
+}
+
+/// `scene` with every tenth construct task of objects that do not move a
+/// day later, where it still ends within the period: a schedule-only edit
+/// (the same objects in the same classes). Answers how many tasks moved.
+fn schedule_edit(scene: &Scene) -> (Scene, usize) {
+    const DAY: f64 = 86_400.0;
+    let mut edited = scene.clone();
+    let still: std::collections::HashSet<&str> = scene
+        .objects
+        .iter()
+        .filter(|o| o.motion.is_none())
+        .map(|o| o.id.as_str())
+        .collect();
+    let mut moved = 0;
+    let constructs = edited
+        .tasks
+        .iter_mut()
+        .filter(|t| t.kind == TaskType::Construct);
+    for (i, task) in constructs.enumerate() {
+        if i % 10 == 0
+            && task.finish + DAY < scene.time.seconds
+            && task.objects.iter().all(|o| still.contains(o.as_str()))
+        {
+            task.start += DAY;
+            task.finish += DAY;
+            moved += 1;
+        }
+    }
+    edited.apply_schedule();
+    (edited, moved)
 }
 
 fn usage() -> libc::rusage {

@@ -12,12 +12,11 @@
 //! (`npm ci --prefix tools`, as `scripts/test` runs) and Debian's chromium.
 
 use std::path::PathBuf;
-use std::process::Command;
 
 use anyhow::{Context, bail};
 use serde::{Deserialize, Serialize};
 
-use crate::api::{self, AppState, Cors};
+use super::browser;
 
 #[derive(clap::Args)]
 pub struct Args {
@@ -88,62 +87,31 @@ struct Render {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    let driver = args.tools.join("browser/image.mjs");
-    if !driver.is_file() {
-        bail!(
-            "{} not found: run from the repository's root or give --tools DIR",
-            driver.display()
-        );
-    }
-    let state = AppState::load(vec![args.tree.clone()], &Default::default())?;
-    let scene = state
-        .scenes()
-        .keys()
-        .next()
-        .cloned()
-        .context("the tree holds no scene")?;
-    let runtime = tokio::runtime::Runtime::new()?;
-    let listener = runtime
-        .block_on(tokio::net::TcpListener::bind("127.0.0.1:0"))
-        .context("cannot listen on loopback")?;
-    let base = format!("http://{}", listener.local_addr()?);
-    let served = state.clone();
-    runtime.spawn(async move {
-        let _ = axum::serve(listener, api::router(served, &Cors::default())).await;
-    });
+    let driver = browser::driver(&args.tools, "image.mjs")?;
+    let served = browser::serve(&args.tree)?;
+    let scene = served.scene.clone();
     eprintln!(
         "rendering the 12 cells of {scene:?} twice at {}x{} (pictures in {})",
         args.width,
         args.height,
         args.out.display()
     );
-    let run = Command::new("node")
-        .arg(&driver)
-        .arg(&base)
-        .arg(&scene)
-        .arg(args.width.to_string())
-        .arg(args.height.to_string())
-        .arg(args.pixel_error.to_string())
-        .arg(&args.out)
-        .output()
-        .context("cannot run node (the driver needs node and tools/node_modules)")?;
-    if !run.status.success() {
-        bail!(
-            "the driver failed: {}",
-            String::from_utf8_lossy(&run.stderr)
-        );
-    }
-    let mut report: Report = serde_json::from_slice(&run.stdout).with_context(|| {
-        format!(
-            "the driver's report is not JSON: {}",
-            String::from_utf8_lossy(&run.stdout)
-        )
-    })?;
+    let mut report: Report = browser::drive(
+        &driver,
+        &[
+            served.base.clone(),
+            scene.clone(),
+            args.width.to_string(),
+            args.height.to_string(),
+            args.pixel_error.to_string(),
+            args.out.display().to_string(),
+        ],
+    )?;
     if let Some(e) = report.errors.first() {
         bail!("the page failed: {e} ({} errors)", report.errors.len());
     }
     let sizes = GeometrySizes::of(&args.tree)?;
-    let loaded = state.scenes();
+    let loaded = served.state.scenes();
     let tree = &loaded[&scene].tree;
     for c in &mut report.cells {
         let mut hashes: Vec<String> = c

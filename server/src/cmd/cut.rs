@@ -40,6 +40,10 @@ pub struct Args {
     /// objects by their feature ids).
     #[arg(long, default_value = "paper")]
     presence: String,
+    /// `hdlod` (the cut) or `none` (every present leaf at full detail, in
+    /// view or not: drawing without levels of detail).
+    #[arg(long, default_value = "hdlod")]
+    lod: String,
     /// Print the HTTP answer's JSON.
     #[arg(long)]
     json: bool,
@@ -68,6 +72,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         viewport: &args.viewport,
         pixel_error: args.pixel_error,
         presence: &args.presence,
+        lod: &args.lod,
     })?;
     let baseline = hdlod::tree::Baseline::of(&tree);
     let answer = protocol::answer(&tree, &baseline, &request)?;

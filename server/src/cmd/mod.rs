@@ -4,8 +4,10 @@ pub mod bench_identity;
 pub mod bench_image;
 pub mod bench_objects;
 pub mod bench_simplify;
+pub mod bench_viewer;
 #[cfg(feature = "ifc")]
 pub mod bench_xer;
+pub mod browser;
 pub mod build;
 pub mod cut;
 pub mod demo;

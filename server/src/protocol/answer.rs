@@ -244,7 +244,14 @@ pub fn write_answer(
 ) -> Result<CutStats, ProtocolError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
-    let micros = run(tree, &view, t, request.presence, &mut cut, &mut stack);
+    let micros = run(
+        tree,
+        &view,
+        t,
+        (request.presence, request.lod),
+        &mut cut,
+        &mut stack,
+    );
     out.reserve((cut.items.len() + 1) * CLUSTER_JSON_BYTES);
     write_response(tree, baseline, fragments, t, &cut, micros, out);
     Ok(cut.stats)
@@ -258,7 +265,14 @@ pub fn answer<'a>(
 ) -> Result<CutResponse<'a>, ProtocolError> {
     let (view, t) = prepare(tree, request)?;
     let (mut cut, mut stack) = (Cut::default(), Vec::new());
-    let micros = run(tree, &view, t, request.presence, &mut cut, &mut stack);
+    let micros = run(
+        tree,
+        &view,
+        t,
+        (request.presence, request.lod),
+        &mut cut,
+        &mut stack,
+    );
     Ok(response(tree, baseline, t, &cut, micros))
 }
 
@@ -292,7 +306,14 @@ mod tests {
                 )
                 .unwrap();
                 let (mut cut, mut stack) = (Cut::default(), Vec::new());
-                let micros = run(&tree, &view, t, Presence::Paper, &mut cut, &mut stack);
+                let micros = run(
+                    &tree,
+                    &view,
+                    t,
+                    (Presence::Paper, Default::default()),
+                    &mut cut,
+                    &mut stack,
+                );
                 let mut fast = Vec::new();
                 write_response(&tree, &baseline, &fragments, t, &cut, micros, &mut fast);
                 let serde =

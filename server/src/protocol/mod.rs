@@ -12,7 +12,7 @@ mod request;
 
 use std::time::Instant;
 
-use hdlod::tree::cut::{Presence, cut_into};
+use hdlod::tree::cut::{Lod, Presence, cut_into, present_leaves_into};
 use hdlod::tree::{Cut, Tree, View};
 
 pub use answer::{
@@ -24,16 +24,20 @@ pub use request::{
     resolve_time, within_period,
 };
 
-/// Runs the cut into reused buffers and returns its duration in microseconds.
+/// Runs the cut (or, without levels of detail, takes every present leaf)
+/// into reused buffers and returns its duration in microseconds.
 pub fn run(
     tree: &Tree,
     view: &View,
     t: f64,
-    presence: Presence,
+    (presence, lod): (Presence, Lod),
     cut: &mut Cut,
     stack: &mut Vec<u32>,
 ) -> f64 {
     let start = Instant::now();
-    cut_into(tree, view, t, presence, cut, stack);
+    match lod {
+        Lod::Hdlod => cut_into(tree, view, t, presence, cut, stack),
+        Lod::None => present_leaves_into(tree, t, presence, cut, stack),
+    }
     start.elapsed().as_secs_f64() * 1e6
 }

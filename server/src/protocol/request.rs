@@ -7,7 +7,7 @@ use glam::DVec3;
 use hdlod::input::quote;
 use hdlod::scene::Up;
 use hdlod::time::TimeValue;
-use hdlod::tree::cut::Presence;
+use hdlod::tree::cut::{Lod, Presence};
 use hdlod::tree::{CameraSpec, Tree, View, Viewport};
 use serde::{Deserialize, Serialize};
 
@@ -31,6 +31,22 @@ pub struct CutRequest {
     /// (every cluster with `v_c(t) > 0`; the client hides absent features).
     #[serde(default)]
     pub presence: Presence,
+    /// `hdlod` (the default: the cut) or `none` (every present leaf at full
+    /// detail, in view or not: drawing without levels of detail).
+    #[serde(default)]
+    pub lod: Lod,
+}
+
+/// `hdlod` or `none`; `field` names it in errors.
+pub fn parse_lod(field: &str, text: &str) -> Result<Lod, ProtocolError> {
+    match text.trim() {
+        "hdlod" => Ok(Lod::Hdlod),
+        "none" => Ok(Lod::None),
+        other => Err(ProtocolError::new(
+            field,
+            format!("{} is neither hdlod nor none", quote(other)),
+        )),
+    }
 }
 
 /// `paper` or `exact`; `field` names it in errors.
@@ -108,13 +124,14 @@ pub fn parse_time(text: &str) -> TimeValue {
 /// The query parameters of `GET .../cut`: `time`, `position`, `target`,
 /// `up` (`x,y,z`), `fov_y_deg`, `aspect`, `near`, `far`, `view_projection`
 /// (16 numbers), `viewport` (`WxH`) or `width` and `height`, `pixel_error`,
-/// `presence`.
+/// `presence`, `lod`.
 pub fn parse_query(pairs: &[(String, String)]) -> Result<CutRequest, ProtocolError> {
     let mut time = None;
     let mut camera = CameraSpec::default();
     let mut viewport = Viewport::default();
     let mut pixel_error = 1.0;
     let mut presence = Presence::default();
+    let mut lod = Lod::default();
     for (key, value) in pairs {
         let k = key.as_str();
         match k {
@@ -132,6 +149,7 @@ pub fn parse_query(pairs: &[(String, String)]) -> Result<CutRequest, ProtocolErr
             "height" => viewport.height = dimension(k, value)?,
             "pixel_error" => pixel_error = number(k, value)?,
             "presence" => presence = parse_presence(k, value)?,
+            "lod" => lod = parse_lod(k, value)?,
             _ => return Err(ProtocolError::new(k, "unknown query parameter")),
         }
     }
@@ -141,6 +159,7 @@ pub fn parse_query(pairs: &[(String, String)]) -> Result<CutRequest, ProtocolErr
         viewport,
         pixel_error,
         presence,
+        lod,
     })
 }
 
@@ -172,6 +191,8 @@ pub struct Flags<'a> {
     pub pixel_error: f64,
     /// Named `--presence` in errors.
     pub presence: &'a str,
+    /// Named `--lod` in errors.
+    pub lod: &'a str,
 }
 
 pub fn parse_flags(flags: Flags) -> Result<CutRequest, ProtocolError> {
@@ -192,6 +213,7 @@ pub fn parse_flags(flags: Flags) -> Result<CutRequest, ProtocolError> {
         viewport: parse_viewport("--viewport", flags.viewport)?,
         pixel_error: flags.pixel_error,
         presence: parse_presence("--presence", flags.presence)?,
+        lod: parse_lod("--lod", flags.lod)?,
     })
 }
 
