@@ -111,12 +111,8 @@ pub fn cut_into(
     out: &mut Cut,
     stack: &mut Vec<u32>,
 ) {
-    let drawn = presence.threshold();
-    out.items.clear();
-    out.stats = CutStats::default();
-    stack.clear();
+    let drawn = start(presence, out, stack);
     let nodes = tree.nodes();
-    stack.push(0);
     let r = view.r();
     let mut sampled = (u32::MAX, Mat4::IDENTITY);
     while let Some(i) = stack.pop() {
@@ -137,16 +133,8 @@ pub fn cut_into(
         let delta = c.delta(v);
         let leaf = c.child_count == 0;
         let refine = !leaf && (c.has_geometry == 0 || delta >= r * view.distance(&bounds));
-        if refine && i == 0 {
-            let candidates = tree.presence().candidates(t);
-            stack.extend(
-                candidates
-                    .iter()
-                    .rev()
-                    .map(|&id| nodes.node_of[id as usize]),
-            );
-        } else if refine {
-            stack.extend((c.first_child..c.first_child + c.child_count).rev());
+        if refine {
+            push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
             emit(tree, out, c.id, transform, v, delta);
         }
@@ -164,12 +152,8 @@ pub fn present_leaves_into(
     out: &mut Cut,
     stack: &mut Vec<u32>,
 ) {
-    let drawn = presence.threshold();
-    out.items.clear();
-    out.stats = CutStats::default();
-    stack.clear();
+    let drawn = start(presence, out, stack);
     let nodes = tree.nodes();
-    stack.push(0);
     let mut sampled = (u32::MAX, Mat4::IDENTITY);
     while let Some(i) = stack.pop() {
         out.stats.visited += 1;
@@ -178,20 +162,45 @@ pub fn present_leaves_into(
         if v <= 0.0 {
             continue;
         }
-        if i == 0 {
-            let candidates = tree.presence().candidates(t);
-            stack.extend(
-                candidates
-                    .iter()
-                    .rev()
-                    .map(|&id| nodes.node_of[id as usize]),
-            );
-        } else if c.child_count > 0 {
-            stack.extend((c.first_child..c.first_child + c.child_count).rev());
+        if i == 0 || c.child_count > 0 {
+            push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
             let transform = pose(tree, c, t, &mut sampled);
             emit(tree, out, c.id, transform, v, c.delta(v));
         }
+    }
+}
+
+/// Clears the buffers and pushes the root; answers the least `v_c(t)` drawn.
+fn start(presence: Presence, out: &mut Cut, stack: &mut Vec<u32>) -> f32 {
+    out.items.clear();
+    out.stats = CutStats::default();
+    stack.clear();
+    stack.push(0);
+    presence.threshold()
+}
+
+/// Pushes node `i`'s children, in reverse so that they come out in order:
+/// the root's from its presence index (those that may be present at `t`),
+/// any other's from its range of nodes.
+fn push_children(
+    tree: &Tree,
+    nodes: &super::nodes::NodesRef,
+    i: u32,
+    t: f64,
+    stack: &mut Vec<u32>,
+) {
+    if i == 0 {
+        let candidates = tree.presence().candidates(t);
+        stack.extend(
+            candidates
+                .iter()
+                .rev()
+                .map(|&id| nodes.node_of[id as usize]),
+        );
+    } else {
+        let c = &nodes.nodes[i as usize];
+        stack.extend((c.first_child..c.first_child + c.child_count).rev());
     }
 }
 
