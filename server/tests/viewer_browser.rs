@@ -890,8 +890,10 @@ fn the_viewer_resumes_its_view_after_the_server_restarts_in_chromium() {
 /// `hdlod bench image` on the tiny site: every cell of table 2 rendered at
 /// 1 px and at full detail, the report following its schema, full detail
 /// drawing leaves only and more triangles than the cut, the pictures kept.
-/// `hdlod bench image --json` on `tree` at 640x360, pictures in `pictures`.
-fn bench_image(tree: &Path, pictures: &Path) -> Value {
+/// `hdlod bench image --json` on `tree` at 640x360, pictures in `pictures`,
+/// each pixel `supersample` device pixels a side.
+fn bench_image(tree: &Path, pictures: &Path, supersample: u32) -> Value {
+    let supersample = supersample.to_string();
     let out = hdlod(&[
         "bench".as_ref(),
         "image".as_ref(),
@@ -903,6 +905,8 @@ fn bench_image(tree: &Path, pictures: &Path) -> Value {
         "360".as_ref(),
         "--out".as_ref(),
         pictures.as_os_str(),
+        "--supersample".as_ref(),
+        supersample.as_ref(),
         "--tools".as_ref(),
         repo().join("tools").as_os_str(),
     ]);
@@ -924,7 +928,7 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
     let dir = tempfile::tempdir().unwrap();
     let tree = build_tree(dir.path());
     let pictures = dir.path().join("pictures");
-    let report = bench_image(&tree, &pictures);
+    let report = bench_image(&tree, &pictures, 1);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 12);
     let mut differs = 0;
@@ -934,6 +938,9 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
         assert!(f(&full["triangles"]) > f(&cut["triangles"]), "{c}");
         assert!(f(&c["scenePixels"]) > 1000.0, "{c}");
         assert!(f(&c["share48"]) <= f(&c["share16"]), "{c}");
+        // Full detail moved a whole pixel differs from itself.
+        assert_eq!(f(&c["shifted"]["pixels"]), 1.0);
+        assert!(f(&c["shifted"]["share16"]) > 0.0, "{c}");
         differs += usize::from(f(&c["share16"]) > 0.0);
         for p in c["pictures"].as_array().unwrap() {
             assert!(pictures.join(p.as_str().unwrap()).is_file(), "{p}");
@@ -957,8 +964,20 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
         config.as_os_str(),
     ]));
     let without = report;
-    let report = bench_image(&baked, &dir.path().join("baked-pictures"));
+    // Two device pixels a side: the viewer's pixel error is scaled with
+    // them, so the cut is the same, and moving by one device pixel is half
+    // a pixel, which changes fewer pixels than a whole one.
+    let report = bench_image(&baked, &dir.path().join("baked-pictures"), 2);
     let cells = report["cells"].as_array().unwrap();
+    assert_eq!(report["supersample"], 2);
+    for (a, b) in cells.iter().zip(without["cells"].as_array().unwrap()) {
+        assert_eq!(a["cut"]["clusters"], b["cut"]["clusters"], "{a}");
+        assert_eq!(f(&a["shifted"]["pixels"]), 0.5);
+        assert!(
+            f(&a["shifted"]["share16"]) < f(&b["shifted"]["share16"]),
+            "{a} against {b}"
+        );
+    }
     let share = |r: &Value| {
         r["cells"]
             .as_array()

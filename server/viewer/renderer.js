@@ -245,9 +245,11 @@ export class Renderer {
       gl.bindTexture(gl.TEXTURE_2D, texture);
       gl.pixelStorei(gl.UNPACK_COLORSPACE_CONVERSION_WEBGL, gl.NONE);
       gl.texImage2D(gl.TEXTURE_2D, 0, gl.SRGB8_ALPHA8, gl.RGBA, gl.UNSIGNED_BYTE, image);
-      // Linear without mipmaps, clamped, as the GLB's sampler says: a
-      // baked texel is about a pixel where the cut draws the cluster.
-      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR);
+      // Trilinear, clamped, as the GLB's sampler says: a baked texel is a
+      // pixel or less where the cut draws the cluster, and where it is
+      // less the mipmaps average it as full detail's samples would.
+      gl.generateMipmap(gl.TEXTURE_2D);
+      gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MIN_FILTER, gl.LINEAR_MIPMAP_LINEAR);
       gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_MAG_FILTER, gl.LINEAR);
       gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_S, gl.CLAMP_TO_EDGE);
       gl.texParameteri(gl.TEXTURE_2D, gl.TEXTURE_WRAP_T, gl.CLAMP_TO_EDGE);
@@ -259,7 +261,7 @@ export class Renderer {
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.indices, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
     const attributes = [mesh.positions, mesh.normals, mesh.colors, mesh.features, texture && mesh.uvs, mesh.indices];
-    const bytes = attributes.reduce((s, a) => s + (a ? a.byteLength : 0), 0) + (texture ? 4 * image.width * image.height : 0);
+    const bytes = attributes.reduce((s, a) => s + (a ? a.byteLength : 0), 0) + (texture ? Math.ceil((4 * 4 * image.width * image.height) / 3) : 0); // with its mipmaps
     return {
       vao, buffers, texture, bytes, count: mesh.indices.length,
       hasNormals: !!mesh.normals, hasColors: !!mesh.colors, hasFeatures: !!mesh.features,

@@ -70,10 +70,11 @@ pub struct BakeOptions {
     pub max_size: u32,
 }
 
-/// Texels of gutter around each chart: bilinear filtering reads half a
-/// texel past a chart's edge, and the gutter holds the source's colour
-/// there too.
-const GUTTER: u32 = 1;
+/// Texels of gutter around each chart, holding the source's colour past
+/// its edge: bilinear filtering reads half a texel past it, and the first
+/// mipmap level (which the viewer uses where a texel is under a pixel) a
+/// texel of the full-size image more.
+const GUTTER: u32 = 2;
 /// The white block every untextured triangle samples (its vertex colour
 /// times white): bilinear filtering at its centre reads white alone.
 const WHITE: u32 = 4;
@@ -495,6 +496,9 @@ struct Sampling<'a> {
 
 /// Blocks of at most this many texels are sampled texel by texel.
 const LEAST_BLOCK: u32 = 2;
+/// Samples along each side of a texel on a colour border (their mean is
+/// the texel).
+const SUBSAMPLES: u32 = 3;
 
 impl<'a> Surface<'a> {
     fn new(sources: &'a [Source<'a>]) -> Option<Self> {
@@ -549,24 +553,56 @@ impl<'a> Surface<'a> {
         out
     }
 
-    /// The colour the source shows at `p` of a chart seen along `normal`:
-    /// the first surface met from `reach` in front of `p` to `reach`
-    /// behind it, else the nearest.
-    fn texel(
+    /// Texel `(i, j)` of a chart on a colour border: the mean of the
+    /// source's linear colour at `SUBSAMPLES` x `SUBSAMPLES` points spread
+    /// over its square. One sample at its centre would give a band border
+    /// as a staircase of whole texels, where the eye (and a multisampled
+    /// render of full detail) sees the share of the texel each colour
+    /// covers.
+    fn texel_average(
+        &self,
+        at: &Sampling,
+        i: u32,
+        j: u32,
+        hint: &mut Option<u32>,
+    ) -> Option<[u8; 4]> {
+        let mut sum = [0.0f32; 4];
+        let mut n = 0u32;
+        for b in 0..SUBSAMPLES {
+            for a in 0..SUBSAMPLES {
+                let offset = |k: u32| (k as f32 + 0.5) / SUBSAMPLES as f32;
+                let p = at
+                    .chart
+                    .point(i as f32 + offset(a), j as f32 + offset(b), at.texel);
+                if let Some(c) = self.colour_seen(p, at.chart.normal, at.reach, hint) {
+                    for (s, c) in sum.iter_mut().zip(c) {
+                        *s += c;
+                    }
+                    n += 1;
+                }
+            }
+        }
+        (n > 0).then(|| encode(sum.map(|s| s / n as f32)))
+    }
+
+    /// The linear colour the source shows at `p` of a chart seen along
+    /// `normal`: the first surface met from `reach` in front of `p` to
+    /// `reach` behind it, else the nearest.
+    fn colour_seen(
         &self,
         p: Vec3,
         normal: Option<Vec3>,
         reach: f32,
         hint: &mut Option<u32>,
-    ) -> Option<[u8; 4]> {
+    ) -> Option<[f32; 4]> {
         if let Some(n) = normal.filter(|_| reach > 0.0)
             && let Some((t, along)) = self.set.first_hit(p + n * reach, -n, 2.0 * reach)
         {
-            return Some(encode(self.colour_at(p + n * (reach - along), t)));
+            return Some(self.colour_at(p + n * (reach - along), t));
         }
         let n = self.set.nearest(p, *hint)?;
         *hint = Some(n.triangle);
-        Some(encode(self.colour_at(p, n.triangle)))
+        Some(self.colour_at(p, n.triangle))
     }
 
     /// Fills the block `[i, j, w, h]` of a chart's texels (rows `row`
@@ -593,8 +629,7 @@ impl<'a> Surface<'a> {
         if w * h <= LEAST_BLOCK {
             for j in j0..j0 + h {
                 for i in i0..i0 + w {
-                    let p = chart.point(i as f32 + 0.5, j as f32 + 0.5, texel);
-                    if let Some(c) = self.texel(p, chart.normal, reach, hint) {
+                    if let Some(c) = self.texel_average(at, i, j, hint) {
                         out[(j * row + i) as usize] = c;
                     }
                 }
@@ -1025,10 +1060,15 @@ mod tests {
         for texel in [0.013, 0.07, 0.3] {
             let size = chart.texels(texel);
             let filled = surface.sample(chart, size, texel, 0.05);
+            let at = Sampling {
+                chart,
+                texel,
+                reach: 0.05,
+                row: size[0],
+            };
             for j in 0..size[1] {
                 for i in 0..size[0] {
-                    let p = chart.point(i as f32 + 0.5, j as f32 + 0.5, texel);
-                    let one = surface.texel(p, chart.normal, 0.05, &mut None).unwrap();
+                    let one = surface.texel_average(&at, i, j, &mut None).unwrap();
                     assert_eq!(
                         filled[(j * size[0] + i) as usize],
                         one,
@@ -1037,6 +1077,39 @@ mod tests {
                 }
             }
         }
+    }
+
+    #[test]
+    fn a_texel_across_a_band_border_takes_each_colours_share() {
+        let (wall, quad) = banded_wall();
+        let sources = [Source {
+            mesh: &wall,
+            baked: None,
+        }];
+        let surface = Surface::new(&sources).unwrap();
+        let chart = &charts(&quad, &[0, 1])[0];
+        // Texels of 0.3 from the wall's foot: the second row spans 0.3 to
+        // 0.6, the wall below the border at 0.5 and the band above it.
+        let texel = 0.3;
+        let size = chart.texels(texel);
+        let at = Sampling {
+            chart,
+            texel,
+            reach: 0.05,
+            row: size[0],
+        };
+        let row = (0..size[1])
+            .find(|&j| {
+                let p = chart.point(5.0, j as f32 + 0.5, texel);
+                (0.3..0.6).contains(&p.y)
+            })
+            .unwrap();
+        let got = decode(surface.texel_average(&at, 5, row, &mut None).unwrap());
+        // A third of the texel's samples fall on the band: its colour is a
+        // third of the way from the wall's to the band's, to within the
+        // sRGB bytes.
+        let expected: [f32; 4] = std::array::from_fn(|k| WALL[k] + (BAND[k] - WALL[k]) / 3.0);
+        assert!(near(got, expected), "{got:?} against {expected:?}");
     }
 
     #[test]

@@ -523,7 +523,10 @@ impl GlbBuilder {
         });
         let sampler = self.root.push(json::texture::Sampler {
             mag_filter: Some(Valid(json::texture::MagFilter::Linear)),
-            min_filter: Some(Valid(json::texture::MinFilter::Linear)),
+            // Mipmapped: where a baked texel is under a pixel the texture
+            // is averaged, not sampled at one texel (the atlas's gutters
+            // keep the first level clean of neighbouring charts).
+            min_filter: Some(Valid(json::texture::MinFilter::LinearMipmapLinear)),
             name: None,
             wrap_s: Valid(json::texture::WrappingMode::ClampToEdge),
             wrap_t: Valid(json::texture::WrappingMode::ClampToEdge),

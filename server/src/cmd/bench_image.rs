@@ -7,7 +7,12 @@
 //! are kept in `--out`. The cut's bytes are those the viewer fetched (the
 //! GLBs as the tree stores them, compact in trees built now) and, from the
 //! tree's files, those of the same GLBs in the plain form
-//! (`?encoding=plain`); the header gives both for the whole tree. Needs
+//! (`?encoding=plain`); the header gives both for the whole tree.
+//! `--supersample N` renders N x N device pixels to a pixel and averages
+//! them (the same cut: the viewer's pixel error is scaled to match). Each
+//! cell also gives full detail against itself moved by one device pixel
+//! (a whole pixel, or 1/N with `--supersample`): the share a displacement
+//! that small makes alone, under what the cut's error allows. Needs
 //! `node` and the npm tools of `tools/`
 //! (`npm ci --prefix tools`, as `scripts/test` runs) and Debian's chromium.
 
@@ -33,6 +38,10 @@ pub struct Args {
     /// The cut's pixel error.
     #[arg(long, default_value_t = 1.0)]
     pixel_error: f64,
+    /// Device pixels along each side of a pixel, averaged: samples beyond
+    /// the GPU's multisampling, for pixels with sub-pixel detail.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4))]
+    supersample: u32,
     /// Where the picture pairs go.
     #[arg(long, default_value = "target/bench-image")]
     out: PathBuf,
@@ -48,6 +57,7 @@ struct Report {
     height: u32,
     #[serde(rename = "pixelError")]
     pixel_error: f64,
+    supersample: u32,
     cells: Vec<Cell>,
     errors: Vec<String>,
 }
@@ -67,7 +77,17 @@ struct Cell {
     share48: f64,
     /// None when the pictures are equal.
     psnr: Option<f64>,
+    /// Full detail against itself moved across.
+    shifted: Shifted,
     pictures: Vec<String>,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+struct Shifted {
+    /// How far, in pixels.
+    pixels: f64,
+    share16: f64,
+    share48: f64,
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -91,9 +111,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let served = browser::serve(&args.tree)?;
     let scene = served.scene.clone();
     eprintln!(
-        "rendering the 12 cells of {scene:?} twice at {}x{} (pictures in {})",
+        "rendering the 12 cells of {scene:?} twice at {}x{}, {} x {} samples a pixel (pictures in {})",
         args.width,
         args.height,
+        args.supersample,
+        args.supersample,
         args.out.display()
     );
     let mut report: Report = browser::drive(
@@ -105,6 +127,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.height.to_string(),
             args.pixel_error.to_string(),
             args.out.display().to_string(),
+            args.supersample.to_string(),
         ],
     )?;
     if let Some(e) = report.errors.first() {
@@ -130,8 +153,14 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "Scene `{scene}`, {}x{}, pixel error {}; full detail: every present leaf.",
-        report.width, report.height, report.pixel_error
+        "Scene `{scene}`, {}x{} ({} x {} device pixels a pixel), pixel error {}; full detail: every present leaf; \
+         moved: full detail against itself {} px across.",
+        report.width,
+        report.height,
+        report.supersample,
+        report.supersample,
+        report.pixel_error,
+        1.0 / f64::from(report.supersample)
     );
     println!(
         "Geometry: {} GLB files, {} bytes as stored, {} bytes in the plain form.\n",
@@ -140,12 +169,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         sizes.plain_total()
     );
     println!(
-        "| time | screen | cut triangles | full triangles | cut bytes (textures) | plain bytes | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) |"
+        "| time | screen | cut triangles | full triangles | cut bytes (textures) | plain bytes | scene pixels | differ > 16/255 | differ > 48/255 | PSNR (dB) | moved: > 16/255 | > 48/255 |"
     );
-    println!("|---|---|---|---|---|---|---|---|---|---|");
+    println!("|---|---|---|---|---|---|---|---|---|---|---|---|");
     for c in &report.cells {
         println!(
-            "| {} | {} | {} | {} | {} ({}) | {} | {} | {:.2}% | {:.2}% | {} |",
+            "| {} | {} | {} | {} | {} ({}) | {} | {} | {:.2}% | {:.2}% | {} | {:.2}% | {:.2}% |",
             c.time,
             c.screen,
             c.cut.triangles,
@@ -156,7 +185,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             c.scene_pixels,
             100.0 * c.share16,
             100.0 * c.share48,
-            c.psnr.map_or("equal".into(), |p| format!("{p:.1}"))
+            c.psnr.map_or("equal".into(), |p| format!("{p:.1}")),
+            100.0 * c.shifted.share16,
+            100.0 * c.shifted.share48
         );
     }
     Ok(())
