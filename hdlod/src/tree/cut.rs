@@ -13,8 +13,11 @@
 //! only at distance 0 (the eye inside its box) since a leaf's `delta` is 0
 //! unless its visibility is fractional; and the root has no geometry, so it
 //! is always refined. Beside the paper's rule, [`Presence::Exact`] draws
-//! every cluster with `v > 0` for clients that hide absent objects inside a
-//! cluster by their feature ids. The root's children are taken from its presence
+//! what is present at `t` for clients that hide absent objects inside a
+//! cluster by their feature ids: a cluster at least half present is drawn
+//! as the paper draws it, one less than half present is refined to its
+//! children (where the paper leaves it out), and a leaf with any presence
+//! is drawn. The root's children are taken from its presence
 //! index (`presence`): those that may be present at `t`, in order, rather
 //! than every one of them. The traversal reads the tree's compact copy
 //! (`nodes`), is iterative with one reused stack;
@@ -37,9 +40,14 @@ pub enum Presence {
     /// absent (its cluster mostly present).
     #[default]
     Paper,
-    /// Every cluster with `v_c(t) > 0`: the client hides the features
-    /// absent at `t` by their ids, so nothing present is missing and
-    /// nothing absent is drawn, for more clusters drawn.
+    /// What is present at `t`: the client hides the features absent at
+    /// `t` by their ids, so nothing present is missing and nothing absent
+    /// is drawn. A cluster less than half present is refined to its
+    /// children rather than drawn: drawing it would spend most of its
+    /// triangles and bytes on hidden objects (at the start of a
+    /// construction a coarse cluster of the whole tower may be a few
+    /// percent present). At least half present, it is drawn whole, as by
+    /// the paper's rule; a leaf with any presence is drawn.
     Exact,
 }
 
@@ -49,6 +57,15 @@ impl Presence {
         match self {
             Presence::Paper => 0.5,
             Presence::Exact => f32::MIN_POSITIVE,
+        }
+    }
+
+    /// Below this `v_c(t)` a cluster with children is refined, however
+    /// fine it is.
+    fn split_below(self) -> f32 {
+        match self {
+            Presence::Paper => 0.0,
+            Presence::Exact => 0.5,
         }
     }
 }
@@ -112,6 +129,7 @@ pub fn cut_into(
     stack: &mut Vec<u32>,
 ) {
     let drawn = start(presence, out, stack);
+    let split_below = presence.split_below();
     let nodes = tree.nodes();
     let r = view.r();
     let mut sampled = (u32::MAX, Mat4::IDENTITY);
@@ -132,7 +150,8 @@ pub fn cut_into(
         }
         let delta = c.delta(v);
         let leaf = c.child_count == 0;
-        let refine = !leaf && (c.has_geometry == 0 || delta >= r * view.distance(&bounds));
+        let refine = !leaf
+            && (c.has_geometry == 0 || v < split_below || delta >= r * view.distance(&bounds));
         if refine {
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
