@@ -212,6 +212,9 @@ pub struct Tree {
 /// The clusters of a tree: built (or read from `clusters.json`) as
 /// records, or mapped from the serving index (`clusters.bin`) and decoded
 /// on demand.
+// One per tree, read on every cut: the mapped index's section table
+// inline (no box to follow) is worth the bytes the built form leaves unused.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 enum Clusters {
     Built(Vec<Cluster>),
