@@ -82,6 +82,18 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
             dir.display()
         );
     }
+    if let Some(index) = tree
+        .index()
+        .filter(|i| i.version() < hdlod::tree::index::VERSION)
+    {
+        tracing::info!(
+            "{}: its index is of version {}, whose counts and baseline are made at every \
+             load: `hdlod index {}` writes the current version",
+            dir.display(),
+            index.version(),
+            dir.display()
+        );
+    }
     let summary = tree.summary();
     let baseline = tree.baseline().clone();
     let fragments = Fragments::of(&tree);
