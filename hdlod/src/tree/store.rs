@@ -373,8 +373,8 @@ fn read_json<T: serde::de::DeserializeOwned>(path: &Path) -> Result<T> {
 /// from `clusters.bin` when the tree has one, else read from
 /// `clusters.json`) and the object and task tables when there are any;
 /// makes what the cut and the server derive from the clusters. It does not
-/// list the geometry directory (121,000 files at paper scale, 0.2 s of CPU,
-/// half the start of a server): [`check_geometry`] does, for whoever needs
+/// list the geometry directory (121,000 files at paper scale, 0.1 to 0.2 s
+/// of CPU, half the start of a server): [`check_geometry`] does, for whoever needs
 /// every file present before going on.
 pub fn load(dir: impl AsRef<Path>) -> Result<Tree> {
     load_from(dir.as_ref(), true)
