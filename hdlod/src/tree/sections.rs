@@ -42,8 +42,6 @@ pub(crate) struct Layout<const N: usize> {
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub(crate) struct Header<const N: usize> {
     pub version: u32,
-    /// The header's item count.
-    pub count: u32,
     /// Bytes 20..24, the file's own.
     pub word: u32,
     /// Byte ranges; those a version does not have are empty.
@@ -238,7 +236,6 @@ pub(crate) fn read<const N: usize>(
     }
     Ok(Header {
         version,
-        count: n as u32,
         word: u32_at(20),
         sections,
     })
