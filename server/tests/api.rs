@@ -490,6 +490,59 @@ fn reloads_without_dropping_requests(hangup: bool) {
     );
 }
 
+/// The load does not list the geometry directory: a GLB the served tree
+/// names whose file is gone is answered 500, saying that the tree is
+/// incomplete (a hash the tree does not name stays a 404). A reload checks
+/// every file: a replacement with a GLB missing keeps the previous tree
+/// served, a whole one is served.
+#[test]
+fn a_missing_glb_is_a_server_error_and_keeps_a_replacement_out() {
+    let server = Server::sample_with(3, &["--no-watch"]);
+    let http = client();
+    let clusters = || {
+        server.get_json("/api/v1/scenes/sample-1")["clusters"]
+            .as_u64()
+            .unwrap()
+    };
+    let before = clusters();
+    let cut = server.post_json("/api/v1/scenes/sample-1/cut", &cut_body(json!(4e6)));
+    let url = cut["clusters"][0]["geometry"].as_str().unwrap().to_owned();
+    let file = url.rsplit('/').next().unwrap();
+    std::fs::remove_file(server.tree.join("geometry").join(file)).unwrap();
+    let response = http.get(server.url(&url)).send().unwrap();
+    assert_eq!(response.status(), StatusCode::INTERNAL_SERVER_ERROR);
+    let body: Value = response.json().unwrap();
+    let message = body["error"]["message"].as_str().unwrap();
+    assert!(message.contains("is incomplete"), "{message}");
+
+    let hangup = |server: &Server| {
+        let reloaded = reloads(server);
+        let status = Command::new("kill")
+            .args(["-HUP", &server.pid().to_string()])
+            .status()
+            .unwrap();
+        assert!(status.success());
+        await_reloads(server, reloaded + 1);
+    };
+    // A bigger tree, one of its GLBs missing, renamed into place.
+    let next = server.tree.with_file_name("next");
+    hdlod_fixtures::sample::write_sample_tree(&next, 1, 6).unwrap();
+    let glb = std::fs::read_dir(next.join("geometry"))
+        .unwrap()
+        .next()
+        .unwrap()
+        .unwrap()
+        .path();
+    std::fs::remove_file(glb).unwrap();
+    std::fs::rename(&server.tree, server.tree.with_file_name("old")).unwrap();
+    std::fs::rename(&next, &server.tree).unwrap();
+    hangup(&server);
+    assert_eq!(clusters(), before);
+    hdlod_fixtures::sample::write_sample_tree(&server.tree, 1, 6).unwrap();
+    hangup(&server);
+    assert!(clusters() > before);
+}
+
 /// `hdlod_reloads_total` of the server's metrics.
 fn reloads(server: &Server) -> u64 {
     let text = client()

@@ -69,6 +69,18 @@ impl Baseline {
         baseline
     }
 
+    /// The steps: what is present from each time on.
+    pub(crate) fn steps(&self) -> impl Iterator<Item = (f64, Present)> + '_ {
+        self.times.iter().copied().zip(self.values.iter().copied())
+    }
+
+    /// The baseline of `steps` (as [`Baseline::steps`] gives them: times
+    /// strictly increasing).
+    pub(crate) fn from_steps(steps: impl Iterator<Item = (f64, Present)>) -> Baseline {
+        let (times, values) = steps.unzip();
+        Baseline { times, values }
+    }
+
     /// What is present at `t`.
     pub fn present(&self, t: f64) -> Present {
         let i = self.times.partition_point(|&x| x <= t);

@@ -1,12 +1,14 @@
-//! The binary serving index of a tree, `clusters.bin` (`hdlod-index/1`,
+//! The binary serving index of a tree, `clusters.bin` (`hdlod-index/2`,
 //! docs/formats.md): the clusters as fixed-size little-endian records and
-//! flat arrays for their variable parts, memory-mapped. The cut reads its
-//! node records in place, so a server touches the pages its cuts need and
-//! nothing else, and starts without parsing the JSON cluster table.
+//! flat arrays for their variable parts, and the tree's counts and
+//! baseline, memory-mapped. The cut reads its node records in place, so a
+//! server touches the pages its cuts need and nothing else, and starts
+//! without parsing the JSON cluster table or going over every cluster.
 //!
 //! `clusters.json` stays the primary form; this file is derived from it in
 //! the same atomic write (or by `hdlod index TREE` for a tree written
-//! without it). The loader checks the header, the section table, a blake3
+//! without it, or with version 1 of it). The loader checks the header, the
+//! section table (`sections.rs`, shared with `objects.bin`), a blake3
 //! checksum of the whole file and every invariant the JSON loader checks,
 //! on a mapping it then drops: the mapping served afterwards starts with
 //! no page resident.
@@ -20,23 +22,21 @@ use bytemuck::{Pod, Zeroable};
 use glam::{Quat, Vec3};
 use memmap2::Mmap;
 
+use super::baseline::{Baseline, Present};
 use super::nodes::{Node, Nodes, Step};
-use super::{Cluster, ClusterClass, Steps, Tree};
+use super::sections::{self, Layout};
+use super::{Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary};
 use crate::error::{Error, Result};
 use crate::scene::{Keyframe, Motion};
 
 /// The first eight bytes of the file.
 pub const MAGIC: [u8; 8] = *b"HDLODIDX";
-/// The layout's version; a reader refuses any other.
-pub const VERSION: u32 = 1;
-/// Bytes before the section table: magic, version, section count, cluster
-/// count, root, the length of the `clusters.json` it was made from,
-/// checksum.
-const HEADER: usize = 64;
-const SECTIONS: usize = 10;
-/// Where the sections start: the header and the table of
-/// `(offset, length)` pairs.
-const BODY: usize = HEADER + SECTIONS * 16;
+/// The layout's version. Version 2 adds the tree's counts and baseline
+/// (the last three sections); a reader reads version 1 too, and derives
+/// them from the clusters.
+pub const VERSION: u32 = 2;
+/// The sections of the newest version; version 1 has the first ten.
+const SECTIONS: usize = 13;
 /// The value of a `u32` field that names nothing.
 pub(crate) const NONE: u32 = u32::MAX;
 
@@ -51,18 +51,80 @@ const HASHES: usize = 6;
 const OBJECTS: usize = 7;
 const STRING_STARTS: usize = 8;
 const STRINGS: usize = 9;
-const SECTION_NAMES: [&str; SECTIONS] = [
-    "nodes",
-    "node_of",
-    "order",
-    "steps",
-    "clusters",
-    "keyframes",
-    "hashes",
-    "objects",
-    "string_starts",
-    "strings",
-];
+const COUNTS: usize = 10;
+const LEVELS: usize = 11;
+const BASELINE: usize = 12;
+/// The header's 20..24 word is the root's id, its count the clusters.
+const LAYOUT: Layout<SECTIONS> = Layout {
+    magic: MAGIC,
+    what: "an hdlod cluster index",
+    short: "the index",
+    versions: &[(1, 10), (VERSION, SECTIONS)],
+    names: [
+        "nodes",
+        "node_of",
+        "order",
+        "steps",
+        "clusters",
+        "keyframes",
+        "hashes",
+        "objects",
+        "string_starts",
+        "strings",
+        "counts",
+        "levels",
+        "baseline",
+    ],
+    sizes: [
+        size_of::<Node>(),
+        4,
+        4,
+        size_of::<Step>(),
+        size_of::<Record>(),
+        size_of::<Key>(),
+        32,
+        4,
+        4,
+        1,
+        size_of::<Counts>(),
+        size_of::<Level>(),
+        size_of::<Change>(),
+    ],
+    counted: &[NODES, NODE_OF, ORDER, CLUSTERS],
+    items: "clusters",
+};
+
+/// The tree's counts ([`TreeSummary`] but its levels).
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+struct Counts {
+    leaves: u64,
+    leaf_triangles: u64,
+    /// Clusters per class, in the order of `ClusterClass::ALL`.
+    classes: [u64; 4],
+}
+
+/// A [`LevelSummary`].
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+struct Level {
+    level: u32,
+    _pad: u32,
+    clusters: u64,
+    triangles: u64,
+    max_eps: f64,
+    max_gamma: f64,
+}
+
+/// One step of the [`Baseline`]: what is present from `t` on.
+#[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
+#[repr(C)]
+struct Change {
+    t: f64,
+    triangles: u64,
+    objects: u64,
+    draws: u64,
+}
 
 /// What a cluster has beside its node record, by id.
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
@@ -200,6 +262,35 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
             object_count: c.objects.len() as u32,
         });
     }
+    let summary = tree.summary();
+    let class_count = |class: ClusterClass| summary.classes[class.name()] as u64;
+    let counts = Counts {
+        leaves: summary.leaves as u64,
+        leaf_triangles: summary.leaf_triangles,
+        classes: ClusterClass::ALL.map(class_count),
+    };
+    let levels: Vec<Level> = summary
+        .levels
+        .iter()
+        .map(|l| Level {
+            level: l.level,
+            _pad: 0,
+            clusters: l.clusters as u64,
+            triangles: l.triangles,
+            max_eps: l.max_eps,
+            max_gamma: l.max_gamma,
+        })
+        .collect();
+    let baseline: Vec<Change> = tree
+        .baseline()
+        .steps()
+        .map(|(t, p)| Change {
+            t,
+            triangles: p.triangles,
+            objects: p.objects,
+            draws: p.draws,
+        })
+        .collect();
     let sections: [&[u8]; SECTIONS] = [
         bytemuck::cast_slice(&nodes.nodes),
         bytemuck::cast_slice(&nodes.node_of),
@@ -211,33 +302,13 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
         bytemuck::cast_slice(&objects),
         bytemuck::cast_slice(&string_starts),
         &strings,
+        bytemuck::bytes_of(&counts),
+        bytemuck::cast_slice(&levels),
+        bytemuck::cast_slice(&baseline),
     ];
-    let mut out = vec![0u8; BODY];
-    out[..8].copy_from_slice(&MAGIC);
-    out[8..12].copy_from_slice(&VERSION.to_le_bytes());
-    out[12..16].copy_from_slice(&(SECTIONS as u32).to_le_bytes());
-    out[16..20].copy_from_slice(&(n as u32).to_le_bytes());
-    out[20..24].copy_from_slice(&tree.root.to_le_bytes());
-    out[24..32].copy_from_slice(&json_len.to_le_bytes());
-    for (k, bytes) in sections.iter().enumerate() {
-        out.resize(out.len().next_multiple_of(8), 0);
-        let (at, offset) = (HEADER + 16 * k, out.len() as u64);
-        out[at..at + 8].copy_from_slice(&offset.to_le_bytes());
-        out[at + 8..at + 16].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
-        out.extend_from_slice(bytes);
-    }
-    let sum = checksum(&out);
-    out[32..64].copy_from_slice(&sum);
+    let mut out = sections::write(MAGIC, VERSION, n as u32, tree.root, json_len, &sections);
+    sections::seal(&mut out);
     out
-}
-
-/// The blake3 hash of the file but its checksum field.
-fn checksum(bytes: &[u8]) -> [u8; 32] {
-    *blake3::Hasher::new()
-        .update(&bytes[..32])
-        .update(&bytes[HEADER..])
-        .finalize()
-        .as_bytes()
 }
 
 /// A checked, memory-mapped `clusters.bin`.
@@ -247,6 +318,7 @@ pub struct Index {
     path: PathBuf,
     sections: [(usize, usize); SECTIONS],
     root: u32,
+    version: u32,
 }
 
 impl std::fmt::Debug for Index {
@@ -274,8 +346,14 @@ impl Index {
     /// invariant of the tree.
     pub fn open(path: &Path) -> Result<Index> {
         let index = Index::parse(map(path)?, path)?;
-        index.check_checksum()?;
-        index.validate()?;
+        // Both read the whole file: on two threads where there are two.
+        let (sum, valid) = rayon::join(
+            || sections::check_checksum(&LAYOUT, &index.map, path),
+            || index.validate(),
+        );
+        // A damaged file is named as such before anything it fails.
+        sum?;
+        valid?;
         Ok(index)
     }
 
@@ -296,127 +374,73 @@ impl Index {
 
     /// The length of the `clusters.json` the index was made from.
     pub fn json_len(&self) -> u64 {
-        u64::from_le_bytes(self.map[24..32].try_into().expect("8 bytes"))
+        sections::json_len(&self.map)
     }
 
     /// The header and the section table, checked against the file's size.
     fn parse(map: Mmap, path: &Path) -> Result<Index> {
-        let bad = |at: &str, message: String| Error::invalid(path, at, message);
-        let len = map.len();
-        if len < 8 || map[..8] != MAGIC {
-            return Err(bad(
-                "header",
-                format!(
-                    "does not start with {:?}: not an hdlod cluster index",
-                    std::str::from_utf8(&MAGIC).expect("ASCII")
-                ),
-            ));
-        }
-        if len < BODY {
-            return Err(bad(
-                "header",
-                format!("is {len} bytes, shorter than its {BODY}-byte header (truncated)"),
-            ));
-        }
-        let u32_at = |at: usize| u32::from_le_bytes(map[at..at + 4].try_into().expect("4 bytes"));
-        let u64_at = |at: usize| u64::from_le_bytes(map[at..at + 8].try_into().expect("8 bytes"));
-        let version = u32_at(8);
-        if version != VERSION {
-            return Err(bad(
-                "header.version",
-                format!(
-                    "version {version}, this reader reads version {VERSION}: write the index \
-                     again with `hdlod index TREE`"
-                ),
-            ));
-        }
-        if u32_at(12) as usize != SECTIONS {
-            return Err(bad(
-                "header.sections",
-                format!("{} sections, version {VERSION} has {SECTIONS}", u32_at(12)),
-            ));
-        }
-        let (n, root) = (u32_at(16) as usize, u32_at(20));
-        let mut sections = [(0usize, 0usize); SECTIONS];
-        for (k, section) in sections.iter_mut().enumerate() {
-            let (offset, length) = (u64_at(HEADER + 16 * k), u64_at(HEADER + 16 * k + 8));
-            let name = SECTION_NAMES[k];
-            let end = offset.checked_add(length).filter(|&e| e <= len as u64);
-            let Some(end) = end else {
-                return Err(bad(
-                    &format!("sections.{name}"),
-                    format!(
-                        "bytes {offset} to {offset}+{length} lie beyond the file's {len} bytes \
-                         (truncated)"
-                    ),
-                ));
-            };
-            if offset % 8 != 0 || (offset as usize) < BODY {
-                return Err(bad(
-                    &format!("sections.{name}"),
-                    format!("offset {offset} is not a multiple of 8 after the header"),
-                ));
-            }
-            *section = (offset as usize, end as usize);
-        }
-        let sizes = [
-            size_of::<Node>(),
-            4,
-            4,
-            size_of::<Step>(),
-            size_of::<Record>(),
-            size_of::<Key>(),
-            32,
-            4,
-            4,
-            1,
-        ];
-        for (k, &(a, b)) in sections.iter().enumerate() {
-            if (b - a) % sizes[k] != 0 {
-                return Err(bad(
-                    &format!("sections.{}", SECTION_NAMES[k]),
-                    format!(
-                        "{} bytes is not a whole number of {}-byte records",
-                        b - a,
-                        sizes[k]
-                    ),
-                ));
-            }
-        }
-        let index = Index {
+        let header = sections::read(&LAYOUT, &map, path)?;
+        Ok(Index {
             map: Arc::new(map),
             path: path.to_owned(),
-            sections,
-            root,
-        };
-        for k in [NODES, NODE_OF, ORDER, CLUSTERS] {
-            let count = (sections[k].1 - sections[k].0) / sizes[k];
-            if count != n {
-                return Err(bad(
-                    &format!("sections.{}", SECTION_NAMES[k]),
-                    format!("{count} records for the header's {n} clusters"),
-                ));
-            }
-        }
-        Ok(index)
+            sections: header.sections,
+            root: header.word,
+            version: header.version,
+        })
     }
 
-    fn check_checksum(&self) -> Result<()> {
-        if checksum(&self.map) != self.checksum() {
-            return Err(Error::invalid(
-                &self.path,
-                "header.checksum",
-                "does not match the file's contents: the index is corrupt (write it again with \
-                 `hdlod index TREE`)",
-            ));
-        }
-        Ok(())
+    /// The layout version of the file.
+    pub fn version(&self) -> u32 {
+        self.version
     }
 
     /// The stored checksum of the file but that field: it names the
     /// index's contents.
     pub fn checksum(&self) -> [u8; 32] {
-        self.map[32..64].try_into().expect("32 bytes")
+        sections::stored_checksum(&self.map)
+    }
+
+    /// The tree's counts as the file stores them (version 2 on).
+    pub(crate) fn summary(&self) -> Option<TreeSummary> {
+        if self.version < 2 {
+            return None;
+        }
+        let counts = self.section::<Counts>(COUNTS).first()?;
+        Some(TreeSummary {
+            clusters: self.len(),
+            leaves: counts.leaves as usize,
+            leaf_triangles: counts.leaf_triangles,
+            classes: ClusterClass::ALL
+                .iter()
+                .zip(counts.classes)
+                .map(|(c, n)| (c.name(), n as usize))
+                .collect(),
+            levels: self
+                .section::<Level>(LEVELS)
+                .iter()
+                .map(|l| LevelSummary {
+                    level: l.level,
+                    clusters: l.clusters as usize,
+                    triangles: l.triangles,
+                    max_eps: l.max_eps,
+                    max_gamma: l.max_gamma,
+                })
+                .collect(),
+        })
+    }
+
+    /// The baseline as the file stores it (version 2 on).
+    pub(crate) fn baseline(&self) -> Option<Baseline> {
+        (self.version >= 2).then(|| {
+            Baseline::from_steps(self.section::<Change>(BASELINE).iter().map(|c| {
+                let present = Present {
+                    triangles: c.triangles,
+                    objects: c.objects,
+                    draws: c.draws,
+                };
+                (c.t, present)
+            }))
+        })
     }
 
     fn section<T: Pod>(&self, k: usize) -> &[T] {
@@ -663,7 +687,7 @@ impl Index {
                 let first = node.first_child as usize;
                 if let Some(child) = order[first..first + node.child_count as usize]
                     .iter()
-                    .find(|&&c| records[c as usize].parent != id)
+                    .find(|&&c| records.get(c as usize).is_none_or(|r| r.parent != id))
                 {
                     return Err(bad(
                         at("children"),
@@ -772,6 +796,41 @@ impl Index {
                 "nodes".into(),
                 format!("{next} of {n} clusters hang under the root"),
             ));
+        }
+        if self.version >= 2 {
+            self.validate_derived()?;
+        }
+        Ok(())
+    }
+
+    /// What version 2 stores beside the clusters: that it is whole. Its
+    /// values are the writer's, from the clusters, and the checksum says
+    /// they are what it wrote; they are not derived again here, which is
+    /// what storing them saves.
+    fn validate_derived(&self) -> Result<()> {
+        let n = self.len() as u64;
+        let bad = |at: &str, message: &str| Error::invalid(&self.path, at, message);
+        let counts = self.section::<Counts>(COUNTS);
+        let sum = |xs: &mut dyn Iterator<Item = u64>| xs.fold(0u64, u64::saturating_add);
+        if counts.len() != 1 || sum(&mut counts[0].classes.iter().copied()) != n {
+            return Err(bad(
+                "counts",
+                "must be one record whose classes add up to the clusters",
+            ));
+        }
+        let levels = self.section::<Level>(LEVELS);
+        if levels.windows(2).any(|w| w[0].level >= w[1].level)
+            || sum(&mut levels.iter().map(|l| l.clusters)) != n
+        {
+            return Err(bad(
+                "levels",
+                "must be in increasing order and add up to the clusters",
+            ));
+        }
+        let changes = self.section::<Change>(BASELINE);
+        if changes.iter().any(|c| !c.t.is_finite()) || changes.windows(2).any(|w| w[0].t >= w[1].t)
+        {
+            return Err(bad("baseline", "times must be finite and increasing"));
         }
         Ok(())
     }

@@ -16,6 +16,7 @@ mod nodes;
 pub mod object_index;
 pub mod objects;
 pub mod presence;
+mod sections;
 pub mod store;
 
 use std::borrow::Cow;
@@ -211,6 +212,9 @@ pub struct Tree {
 /// The clusters of a tree: built (or read from `clusters.json`) as
 /// records, or mapped from the serving index (`clusters.bin`) and decoded
 /// on demand.
+// One per tree, read on every cut: the mapped index's section table
+// inline (no box to follow) is worth the bytes the built form leaves unused.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone)]
 enum Clusters {
     Built(Vec<Cluster>),
@@ -385,6 +389,19 @@ impl Tree {
         }
     }
 
+    /// Whether some cluster's geometry is the GLB of hash `hash` (hex).
+    /// A scan of the clusters or the index's distinct hashes: for the rare
+    /// request whose file is missing, not for every one.
+    pub fn names_geometry(&self, hash: &str) -> bool {
+        let Some(bytes) = index::hash_bytes(hash) else {
+            return false;
+        };
+        match &self.clusters {
+            Clusters::Built(v) => v.iter().any(|c| c.geometry.as_deref() == Some(hash)),
+            Clusters::Mapped(index) => index.hashes().contains(&bytes),
+        }
+    }
+
     /// The first object a leaf names.
     fn first_object(&self, id: u32) -> Option<&str> {
         match &self.clusters {
@@ -511,9 +528,19 @@ impl Tree {
     }
 
     /// What every present original object costs over time
-    /// ([`Baseline::of`]), made once.
+    /// ([`Baseline::of`]), made once, or as the index stores it.
     pub fn baseline(&self) -> &Baseline {
-        self.baseline.0.get_or_init(|| Baseline::of(self))
+        self.baseline.0.get_or_init(|| {
+            self.index()
+                .and_then(index::Index::baseline)
+                .unwrap_or_else(|| Baseline::of(self))
+        })
+    }
+
+    /// The counts made from the clusters, whether or not an index stores
+    /// them.
+    pub fn counted_summary(&self) -> TreeSummary {
+        self.count()
     }
 }
 
@@ -577,9 +604,16 @@ impl Tree {
         self.cluster(self.root)
     }
 
-    /// The tree's counts, made once.
+    /// The tree's counts, made once, or as the index stores them.
     pub fn summary(&self) -> TreeSummary {
-        self.summary.0.get_or_init(|| self.count()).clone()
+        self.summary
+            .0
+            .get_or_init(|| {
+                self.index()
+                    .and_then(index::Index::summary)
+                    .unwrap_or_else(|| self.count())
+            })
+            .clone()
     }
 
     fn count(&self) -> TreeSummary {

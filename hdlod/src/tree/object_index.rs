@@ -22,6 +22,7 @@ use memmap2::Mmap;
 
 use super::index::NONE;
 use super::objects::{ObjectEntry, Page, open_presence, push_lowercase, search_rows};
+use super::sections::{self, HEADER, Layout};
 use crate::error::{Error, Result};
 use crate::scene::{Class, Visibility};
 
@@ -29,10 +30,8 @@ use crate::scene::{Class, Visibility};
 pub const MAGIC: [u8; 8] = *b"HDLODOBJ";
 /// The layout's version; a reader refuses any other.
 pub const VERSION: u32 = 1;
-/// Bytes before the section table: magic, version, section count, object
-/// count, a reserved word, the length of the `objects.json` it was made
-/// from, checksum.
-const HEADER: usize = 64;
+/// The header (`sections::HEADER`: its 20..24 word is reserved, 0) and
+/// the section table.
 const SECTIONS: usize = 11;
 const BODY: usize = HEADER + SECTIONS * 16;
 
@@ -63,6 +62,16 @@ const SECTION_NAMES: [&str; SECTIONS] = [
     "rest",
 ];
 const SIZES: [usize; SECTIONS] = [size_of::<Row>(), 8, 4, 16, 4, 4, 8, 1, 8, 1, 1];
+const LAYOUT: Layout<SECTIONS> = Layout {
+    magic: MAGIC,
+    what: "an hdlod object index",
+    short: "the object index",
+    versions: &[(VERSION, SECTIONS)],
+    names: SECTION_NAMES,
+    sizes: SIZES,
+    counted: &[ROWS, BY_ID, TEXT_ENDS],
+    items: "objects",
+};
 
 /// One object; lists are ranges of the flat sections, strings indices of
 /// the string table ([`NONE`]: no name, no class).
@@ -216,19 +225,7 @@ pub(crate) fn encode<'a>(objects: &'a [ObjectEntry]) -> Vec<u8> {
         &strings,
         &[],
     ];
-    let mut out = vec![0u8; BODY];
-    out[..8].copy_from_slice(&MAGIC);
-    out[8..12].copy_from_slice(&VERSION.to_le_bytes());
-    out[12..16].copy_from_slice(&(SECTIONS as u32).to_le_bytes());
-    out[16..20].copy_from_slice(&(objects.len() as u32).to_le_bytes());
-    for (k, bytes) in sections.iter().enumerate() {
-        out.resize(out.len().next_multiple_of(8), 0);
-        let (at, offset) = (HEADER + 16 * k, out.len() as u64);
-        out[at..at + 8].copy_from_slice(&offset.to_le_bytes());
-        out[at + 8..at + 16].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
-        out.extend_from_slice(bytes);
-    }
-    out
+    sections::write(MAGIC, VERSION, objects.len() as u32, 0, 0, &sections)
 }
 
 /// The file of `rows` with `rest` as its last section, the length of the
@@ -239,19 +236,9 @@ pub(crate) fn file(rows: &ObjectRows, rest: &[u8], json_len: u64) -> Vec<u8> {
     let at = HEADER + 16 * REST;
     bytes[at + 8..at + 16].copy_from_slice(&(rest.len() as u64).to_le_bytes());
     bytes.extend_from_slice(rest);
-    bytes[24..32].copy_from_slice(&json_len.to_le_bytes());
-    let sum = checksum(&bytes);
-    bytes[32..64].copy_from_slice(&sum);
+    sections::set_json_len(&mut bytes, json_len);
+    sections::seal(&mut bytes);
     bytes
-}
-
-/// The blake3 hash of the file but its checksum field.
-fn checksum(bytes: &[u8]) -> [u8; 32] {
-    *blake3::Hasher::new()
-        .update(&bytes[..32])
-        .update(&bytes[HEADER..])
-        .finalize()
-        .as_bytes()
 }
 
 impl ObjectRows {
@@ -273,94 +260,18 @@ impl ObjectRows {
         // place (as the cluster index, `index::map`).
         let map = unsafe { Mmap::map(&file) }.map_err(|e| Error::io(path, e))?;
         let rows = ObjectRows::parse(Bytes::Mapped(Arc::new(map)), path)?;
-        if checksum(&rows.bytes) != rows.checksum() {
-            return Err(Error::invalid(
-                path,
-                "header.checksum",
-                "does not match the file's contents: the object index is corrupt (write it \
-                 again with `hdlod index TREE`)",
-            ));
-        }
+        sections::check_checksum(&LAYOUT, &rows.bytes, path)?;
         rows.validate(path)?;
         Ok(rows)
     }
 
     /// The header and the section table, checked against the file's size.
     fn parse(bytes: Bytes, path: &Path) -> Result<ObjectRows> {
-        let bad = |at: &str, message: String| Error::invalid(path, at, message);
-        let len = bytes.len();
-        if len < 8 || bytes[..8] != MAGIC {
-            return Err(bad(
-                "header",
-                "does not start with \"HDLODOBJ\": not an hdlod object index".into(),
-            ));
-        }
-        if len < BODY {
-            return Err(bad(
-                "header",
-                format!("is {len} bytes, shorter than its {BODY}-byte header (truncated)"),
-            ));
-        }
-        let u32_at = |at: usize| u32::from_le_bytes(bytes[at..at + 4].try_into().expect("4"));
-        let u64_at = |at: usize| u64::from_le_bytes(bytes[at..at + 8].try_into().expect("8"));
-        let version = u32_at(8);
-        if version != VERSION {
-            return Err(bad(
-                "header.version",
-                format!(
-                    "version {version}, this reader reads version {VERSION}: write the index \
-                     again with `hdlod index TREE`"
-                ),
-            ));
-        }
-        if u32_at(12) as usize != SECTIONS {
-            return Err(bad(
-                "header.sections",
-                format!("{} sections, version {VERSION} has {SECTIONS}", u32_at(12)),
-            ));
-        }
-        let mut sections = [(0usize, 0usize); SECTIONS];
-        for (k, section) in sections.iter_mut().enumerate() {
-            let (offset, length) = (u64_at(HEADER + 16 * k), u64_at(HEADER + 16 * k + 8));
-            let name = SECTION_NAMES[k];
-            let Some(end) = offset.checked_add(length).filter(|&e| e <= len as u64) else {
-                return Err(bad(
-                    &format!("sections.{name}"),
-                    format!(
-                        "bytes {offset} to {offset}+{length} lie beyond the file's {len} bytes \
-                         (truncated)"
-                    ),
-                ));
-            };
-            if offset % 8 != 0 || (offset as usize) < BODY {
-                return Err(bad(
-                    &format!("sections.{name}"),
-                    format!("offset {offset} is not a multiple of 8 after the header"),
-                ));
-            }
-            if length % SIZES[k] as u64 != 0 {
-                return Err(bad(
-                    &format!("sections.{name}"),
-                    format!(
-                        "{length} bytes is not a whole number of {}-byte records",
-                        SIZES[k]
-                    ),
-                ));
-            }
-            *section = (offset as usize, end as usize);
-        }
-        let n = u32_at(16) as usize;
-        let rows = ObjectRows { bytes, sections };
-        for k in [ROWS, BY_ID, TEXT_ENDS] {
-            let count = (sections[k].1 - sections[k].0) / SIZES[k];
-            if count != n {
-                return Err(bad(
-                    &format!("sections.{}", SECTION_NAMES[k]),
-                    format!("{count} records for the header's {n} objects"),
-                ));
-            }
-        }
-        Ok(rows)
+        let header = sections::read(&LAYOUT, &bytes, path)?;
+        Ok(ObjectRows {
+            bytes,
+            sections: header.sections,
+        })
     }
 
     /// Every invariant the accessors rely on: ranges within their
@@ -474,12 +385,12 @@ impl ObjectRows {
 
     /// The stored checksum of the file but that field.
     pub fn checksum(&self) -> [u8; 32] {
-        self.bytes[32..64].try_into().expect("32 bytes")
+        sections::stored_checksum(&self.bytes)
     }
 
     /// The length of the `objects.json` the file was made from.
     pub fn json_len(&self) -> u64 {
-        u64::from_le_bytes(self.bytes[24..32].try_into().expect("8 bytes"))
+        sections::json_len(&self.bytes)
     }
 
     /// Whether the rows are mapped from a file.

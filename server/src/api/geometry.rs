@@ -76,12 +76,30 @@ fn only(pairs: &[(String, String)], allowed: &[&str]) -> Result<(), ApiError> {
 /// The GLB `hash` of scene `s` in the asked form.
 async fn read(s: &Arc<LoadedScene>, hash: &str, form: Form) -> Result<Vec<u8>, ApiError> {
     let path = s.dir.join("geometry").join(format!("{hash}.glb"));
-    let bytes = tokio::fs::read(&path).await.map_err(|_| {
-        ApiError::not_found(
-            "hash",
-            format!("no geometry {hash} in scene {}", quote(&s.tree.scene)),
-        )
-    })?;
+    let bytes = match tokio::fs::read(&path).await {
+        Ok(bytes) => bytes,
+        // The load does not list the geometry directory (docs/formats.md,
+        // "Loading"): a file the tree names but that is not there is found
+        // here, a damaged tree on this server, not a wrong request.
+        Err(e) if s.tree.names_geometry(hash) => {
+            tracing::error!("{}: {e}: the tree is incomplete", path.display());
+            return Err(ApiError::new(
+                StatusCode::INTERNAL_SERVER_ERROR,
+                Some("hash".into()),
+                format!(
+                    "geometry {hash} of scene {} cannot be read ({e}): the tree on the server \
+                     is incomplete",
+                    quote(&s.tree.scene)
+                ),
+            ));
+        }
+        Err(_) => {
+            return Err(ApiError::not_found(
+                "hash",
+                format!("no geometry {hash} in scene {}", quote(&s.tree.scene)),
+            ));
+        }
+    };
     if form == Form::Stored {
         return Ok(bytes);
     }

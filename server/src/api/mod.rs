@@ -82,6 +82,18 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
             dir.display()
         );
     }
+    if let Some(index) = tree
+        .index()
+        .filter(|i| i.version() < hdlod::tree::index::VERSION)
+    {
+        tracing::info!(
+            "{}: its index is of version {}, whose counts and baseline are made at every \
+             load: `hdlod index {}` writes the current version",
+            dir.display(),
+            index.version(),
+            dir.display()
+        );
+    }
     let summary = tree.summary();
     let baseline = tree.baseline().clone();
     let fragments = Fragments::of(&tree);
@@ -154,6 +166,24 @@ impl AppState {
         }))
     }
 
+    /// Checks that every geometry file of every tree served is present
+    /// (`store::check_geometry`, one listing of each geometry directory),
+    /// and returns the errors. The start does not wait for it: a server
+    /// runs it beside its first requests, and a GLB found missing is also
+    /// answered as such by the request for it.
+    pub fn check_geometry(&self) -> Vec<String> {
+        let errors = self
+            .scenes()
+            .values()
+            .filter_map(|s| hdlod::tree::store::check_geometry(&s.dir, &s.tree).err())
+            .map(|e| format!("{e:#}"))
+            .collect();
+        // The listing's names (120,000 at paper scale) are freed: the
+        // server goes on at the size it started with.
+        memory::loaded();
+        errors
+    }
+
     /// A place for one more WebSocket stream, if the cap leaves one.
     pub fn stream_place(&self) -> Option<OwnedSemaphorePermit> {
         self.streams.clone().try_acquire_owned().ok()
@@ -183,7 +213,13 @@ impl AppState {
         let mut next = Scenes::new();
         let mut errors = Vec::new();
         for dir in &self.sources {
-            match load_one(dir) {
+            // A tree replaced under a running server is checked whole
+            // before it is served: one missing GLB keeps the previous tree.
+            let checked = load_one(dir).and_then(|scene| {
+                hdlod::tree::store::check_geometry(dir, &scene.tree)?;
+                Ok(scene)
+            });
+            match checked {
                 Ok(scene) => {
                     next.insert(scene.tree.scene.clone(), Arc::new(scene));
                 }

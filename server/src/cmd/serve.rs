@@ -128,6 +128,12 @@ fn serve_trees(
             );
         }
         println!("listening on http://{addr}");
+        let checker = state.clone();
+        tokio::task::spawn_blocking(move || {
+            for e in checker.check_geometry() {
+                tracing::error!("{e}: requests for that geometry will fail");
+            }
+        });
         let reloader = state.clone();
         tokio::spawn(async move {
             let Ok(mut hup) =
