@@ -491,7 +491,7 @@ fn reloads_without_dropping_requests(hangup: bool) {
 }
 
 /// The load does not list the geometry directory: a GLB the served tree
-/// names whose file is gone is answered 500, saying that the tree is
+/// names whose file is gone is answered 503, saying that the tree is
 /// incomplete (a hash the tree does not name stays a 404). A reload checks
 /// every file: a replacement with a GLB missing keeps the previous tree
 /// served, a whole one is served.
@@ -510,7 +510,7 @@ fn a_missing_glb_is_a_server_error_and_keeps_a_replacement_out() {
     let file = url.rsplit('/').next().unwrap();
     std::fs::remove_file(server.tree.join("geometry").join(file)).unwrap();
     let response = http.get(server.url(&url)).send().unwrap();
-    assert_eq!(response.status(), StatusCode::INTERNAL_SERVER_ERROR);
+    assert_eq!(response.status(), StatusCode::SERVICE_UNAVAILABLE);
     let body: Value = response.json().unwrap();
     let message = body["error"]["message"].as_str().unwrap();
     assert!(message.contains("is incomplete"), "{message}");

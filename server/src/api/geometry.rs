@@ -80,11 +80,13 @@ async fn read(s: &Arc<LoadedScene>, hash: &str, form: Form) -> Result<Vec<u8>, A
         Ok(bytes) => bytes,
         // The load does not list the geometry directory (docs/formats.md,
         // "Loading"): a file the tree names but that is not there is found
-        // here, a damaged tree on this server, not a wrong request.
+        // here, a damaged tree on this server, not a wrong request. 503,
+        // not 404 (the request is right) nor 500: a load balancer retries
+        // a 503 on another replica (docs/deploy.md).
         Err(e) if s.tree.names_geometry(hash) => {
             tracing::error!("{}: {e}: the tree is incomplete", path.display());
             return Err(ApiError::new(
-                StatusCode::INTERNAL_SERVER_ERROR,
+                StatusCode::SERVICE_UNAVAILABLE,
                 Some("hash".into()),
                 format!(
                     "geometry {hash} of scene {} cannot be read ({e}): the tree on the server \
