@@ -606,13 +606,14 @@ impl<'a> Surface<'a> {
     }
 
     /// Fills the block `[i, j, w, h]` of a chart's texels (rows `row`
-    /// long). A block whose centre is `d` from the surface and whose texel
-    /// centres lie within `r` of its centre finds each of their nearest
-    /// points within `d + 2 r` of the centre (the distance to a surface is
-    /// 1-Lipschitz): when every triangle that near is of one colour, so is
-    /// the block. Otherwise it is split in four, down to single texels,
-    /// each sampled at its centre. Large plain areas cost a few queries,
-    /// and only colour borders are sampled texel by texel.
+    /// long). A block whose centre is `d` from the surface and whose
+    /// texels' samples lie within `r` of its centre finds each of their
+    /// nearest points within `d + 2 r` of the centre (the distance to a
+    /// surface is 1-Lipschitz): when every triangle that near is of one
+    /// colour, so is the block. Otherwise it is split in four, down to
+    /// single texels, each the mean of its samples (`texel_average`).
+    /// Large plain areas cost a few queries, and only colour borders are
+    /// sampled texel by texel.
     fn fill(
         &self,
         at: &Sampling,
@@ -645,7 +646,13 @@ impl<'a> Surface<'a> {
             return;
         };
         *hint = Some(n.triangle);
-        let r = 0.5 * texel * (((w - 1).pow(2) + (h - 1).pow(2)) as f32).sqrt();
+        // The samples of its texels (`texel_average`) lie within this of
+        // its centre: half the span of their centres, and the outermost
+        // samples' offset from a centre, `(SUBSAMPLES - 1) / (2 SUBSAMPLES)`
+        // of a texel, on each side.
+        let spread = (SUBSAMPLES - 1) as f32 / SUBSAMPLES as f32;
+        let (sw, sh) = ((w - 1) as f32 + spread, (h - 1) as f32 + spread);
+        let r = 0.5 * texel * (sw * sw + sh * sh).sqrt();
         // Nearest points lie within `d + 2 r` of the centre, surfaces met
         // in front or behind within `r + reach`; a little more for the
         // rounding of the distances.
