@@ -31,7 +31,10 @@ fn built() -> &'static Built {
 fn build(config: &BuildConfig) -> Built {
     let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
     let scene = format::load(&fixture).expect("the tiny fixture loads");
-    let tmp = tempfile::tempdir().unwrap();
+    // The tree of `built()` lives in a static, which is never dropped: in
+    // cargo's temporary directory for tests, not the system's, so what a
+    // run leaves goes with `cargo clean`.
+    let tmp = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
     let dir = tmp.path().join("tree");
     build_to(&scene, config, &dir, &Silent).expect("the build succeeds");
     let tree = load(&dir).expect("the written tree loads");

@@ -31,7 +31,9 @@ fn tree() -> &'static Tree {
         .get_or_init(|| {
             let fixture = common::repo().join("fixtures/skyscraper-tiny");
             let scene = format::load(&fixture).expect("the tiny fixture loads");
-            let tmp = tempfile::tempdir().unwrap();
+            // A static is never dropped: in cargo's temporary directory
+            // for tests, which `cargo clean` empties, not the system's.
+            let tmp = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
             let dir = tmp.path().join("tree");
             build_to(&scene, &BuildConfig::default(), &dir, &Silent).expect("the build succeeds");
             Built {
