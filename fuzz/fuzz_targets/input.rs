@@ -7,7 +7,9 @@
 use std::path::PathBuf;
 use std::sync::OnceLock;
 
-/// The fuzzing process's directory.
+/// The fuzzing process's directory. A static is never dropped and
+/// libFuzzer ends the process with `exit`, so it stays: `scripts/fuzz`
+/// points `TMPDIR` at a directory it empties.
 pub fn dir() -> &'static std::path::Path {
     static DIR: OnceLock<tempfile::TempDir> = OnceLock::new();
     DIR.get_or_init(|| {
