@@ -516,13 +516,13 @@ fn a_missing_glb_is_a_server_error_and_keeps_a_replacement_out() {
     assert!(message.contains("is incomplete"), "{message}");
 
     let hangup = |server: &Server| {
-        let reloaded = reloads(server);
+        let reloaded = server.reloads();
         let status = Command::new("kill")
             .args(["-HUP", &server.pid().to_string()])
             .status()
             .unwrap();
         assert!(status.success());
-        await_reloads(server, reloaded + 1);
+        server.await_reloads(reloaded + 1);
     };
     // A bigger tree, one of its GLBs missing, renamed into place.
     let next = server.tree.with_file_name("next");
@@ -541,30 +541,6 @@ fn a_missing_glb_is_a_server_error_and_keeps_a_replacement_out() {
     hdlod_fixtures::sample::write_sample_tree(&server.tree, 1, 6).unwrap();
     hangup(&server);
     assert!(clusters() > before);
-}
-
-/// `hdlod_reloads_total` of the server's metrics.
-fn reloads(server: &Server) -> u64 {
-    let text = client()
-        .get(server.url("/metrics"))
-        .send()
-        .unwrap()
-        .text()
-        .unwrap();
-    text.lines()
-        .find_map(|l| l.strip_prefix("hdlod_reloads_total "))
-        .and_then(|n| n.trim().parse().ok())
-        .expect("a reload count")
-}
-
-/// Waits (up to 10 s) until the file watch has reloaded the trees `count`
-/// times.
-fn await_reloads(server: &Server, count: u64) {
-    let deadline = Instant::now() + Duration::from_secs(10);
-    while reloads(server) < count {
-        assert!(Instant::now() < deadline, "no reload after the change");
-        std::thread::sleep(Duration::from_millis(20));
-    }
 }
 
 /// The index of a served tree replaced by a damaged one (renamed into
@@ -592,16 +568,16 @@ fn a_corrupt_index_keeps_the_previous_tree_served() {
     let mut bytes = std::fs::read(&index).unwrap();
     let middle = bytes.len() / 2;
     bytes[middle] ^= 0xff;
-    let reloaded = reloads(&server);
+    let reloaded = server.reloads();
     let damaged = server.tree.join(".clusters.bin.damaged");
     std::fs::write(&damaged, &bytes).unwrap();
     std::fs::rename(&damaged, &index).unwrap();
-    await_reloads(&server, reloaded + 1);
+    server.await_reloads(reloaded + 1);
     assert_eq!(answer(&http), before);
 
     let out = common::hdlod(&["index".as_ref(), server.tree.as_os_str()]);
     common::assert_success(&out);
-    await_reloads(&server, reloaded + 2);
+    server.await_reloads(reloaded + 2);
     assert_eq!(answer(&http), before);
 }
 

@@ -272,32 +272,6 @@ fn dynamic_clusters_name_their_object() {
     assert!(named > 0, "no dynamic cluster in any cut");
 }
 
-fn reloads(server: &Server) -> u64 {
-    let text = client()
-        .get(server.url("/metrics"))
-        .send()
-        .unwrap()
-        .text()
-        .unwrap();
-    text.lines()
-        .find_map(|l| l.strip_prefix("hdlod_reloads_total "))
-        .and_then(|n| n.trim().parse().ok())
-        .expect("a reload count")
-}
-
-/// Waits (up to 10 s) until the file watch has reloaded the trees `count`
-/// times.
-fn await_reloads(server: &Server, count: u64) {
-    let deadline = std::time::Instant::now() + std::time::Duration::from_secs(10);
-    while reloads(server) < count {
-        assert!(
-            std::time::Instant::now() < deadline,
-            "no reload after the change"
-        );
-        std::thread::sleep(std::time::Duration::from_millis(20));
-    }
-}
-
 /// The object index of a served tree replaced by a damaged one (renamed
 /// into place): the reload fails and the previous tree and its tables stay served; once
 /// the indexes are written again (`hdlod index`), the reload serves them.
@@ -313,17 +287,17 @@ fn a_corrupt_object_index_keeps_the_previous_tables_served() {
     let mut bytes = std::fs::read(&path).unwrap();
     let middle = bytes.len() / 2;
     bytes[middle] ^= 0xff;
-    let reloaded = reloads(&server);
+    let reloaded = server.reloads();
     let damaged = tree.join(".objects.bin.damaged");
     std::fs::write(&damaged, &bytes).unwrap();
     std::fs::rename(&damaged, &path).unwrap();
-    await_reloads(&server, reloaded + 1);
+    server.await_reloads(reloaded + 1);
     assert_eq!(server.get_json(&object), before);
 
     let out = common::hdlod(&["index".as_ref(), tree.as_os_str()]);
     common::assert_success(&out);
     let stdout = String::from_utf8_lossy(&out.stdout);
     assert!(stdout.contains("objects.bin"), "{stdout}");
-    await_reloads(&server, reloaded + 2);
+    server.await_reloads(reloaded + 2);
     assert_eq!(server.get_json(&object), before);
 }

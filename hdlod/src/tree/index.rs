@@ -628,22 +628,7 @@ impl Index {
         );
         let starts = self.section::<u32>(STRING_STARTS);
         let strings = self.section::<u8>(STRINGS);
-        // The strings: increasing offsets within the bytes, each UTF-8.
-        if starts.first() != Some(&0)
-            || starts.windows(2).any(|w| w[0] > w[1])
-            || starts.last().map(|&e| e as usize) != Some(strings.len())
-        {
-            return Err(bad(
-                "string_starts".into(),
-                "offsets must increase from 0 to the strings' length".into(),
-            ));
-        }
-        if let Some(s) = starts
-            .windows(2)
-            .position(|w| std::str::from_utf8(&strings[w[0] as usize..w[1] as usize]).is_err())
-        {
-            return Err(bad(format!("strings[{s}]"), "is not UTF-8".into()));
-        }
+        sections::check_strings(starts, strings, path)?;
         let range = |first: u32, count: u32, len: usize| {
             (first as usize)
                 .checked_add(count as usize)

@@ -536,12 +536,6 @@ impl Tree {
                 .unwrap_or_else(|| Baseline::of(self))
         })
     }
-
-    /// The counts made from the clusters, whether or not an index stores
-    /// them.
-    pub fn counted_summary(&self) -> TreeSummary {
-        self.count()
-    }
 }
 
 /// What is read of a cluster for the tree's counts and baseline.
@@ -611,12 +605,14 @@ impl Tree {
             .get_or_init(|| {
                 self.index()
                     .and_then(index::Index::summary)
-                    .unwrap_or_else(|| self.count())
+                    .unwrap_or_else(|| self.counted_summary())
             })
             .clone()
     }
 
-    fn count(&self) -> TreeSummary {
+    /// The counts made from the clusters, whether or not an index stores
+    /// them.
+    pub fn counted_summary(&self) -> TreeSummary {
         let mut classes: BTreeMap<&'static str, usize> =
             ClusterClass::ALL.iter().map(|c| (c.name(), 0)).collect();
         let mut levels: BTreeMap<u32, LevelSummary> = BTreeMap::new();

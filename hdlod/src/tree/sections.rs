@@ -111,6 +111,37 @@ pub(crate) fn json_len(bytes: &[u8]) -> u64 {
     u64::from_le_bytes(bytes[24..32].try_into().expect("8 bytes"))
 }
 
+/// An error unless `starts` are offsets increasing from 0 to the length of
+/// `strings` and each string between two of them is UTF-8: the string
+/// table both indexes keep (each string once, named by its index).
+pub(crate) fn check_strings<T: Copy + Into<u64>>(
+    starts: &[T],
+    strings: &[u8],
+    path: &Path,
+) -> Result<()> {
+    let at = |i: usize| starts[i].into() as usize;
+    if starts.first().map(|&s| s.into()) != Some(0)
+        || (1..starts.len()).any(|i| at(i - 1) > at(i))
+        || starts.last().map(|&e| e.into() as usize) != Some(strings.len())
+    {
+        return Err(Error::invalid(
+            path,
+            "string_starts",
+            "offsets must increase from 0 to the strings' length",
+        ));
+    }
+    if let Some(s) =
+        (1..starts.len()).position(|i| std::str::from_utf8(&strings[at(i - 1)..at(i)]).is_err())
+    {
+        return Err(Error::invalid(
+            path,
+            format!("strings[{s}]"),
+            "is not UTF-8",
+        ));
+    }
+    Ok(())
+}
+
 /// An error unless the checksum matches the contents.
 pub(crate) fn check_checksum<const N: usize>(
     layout: &Layout<N>,

@@ -413,25 +413,36 @@ fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     Ok(tree)
 }
 
+/// An error unless `json`, described as `what`, is as long as the JSON
+/// file the binary index at `index_path` was made from: an index left
+/// behind by an edit of its JSON is stale.
+fn check_made_from(index_path: &Path, json: &Path, what: &str, made_from: u64) -> Result<()> {
+    let json_len = fs::metadata(json).map_err(|e| Error::io(json, e))?.len();
+    if json_len != made_from {
+        return Err(Error::invalid(
+            index_path,
+            "header",
+            format!(
+                "was made from {what} of {made_from} bytes, this one has {json_len}: write it \
+                 again with `hdlod index TREE`"
+            ),
+        ));
+    }
+    Ok(())
+}
+
 /// The manifest and the clusters, from the index or from `clusters.json`.
 fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
     let index_path = dir.join(INDEX_FILE);
     let tree = if use_index && index_path.exists() {
         let index = Index::open(&index_path)?;
-        let json = dir.join(CLUSTERS_FILE);
-        let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
-        if json_len != index.json_len() {
-            return Err(Error::invalid(
-                &index_path,
-                "header",
-                format!(
-                    "was made from a clusters.json of {} bytes, this one has {json_len}: write \
-                     it again with `hdlod index TREE`",
-                    index.json_len()
-                ),
-            ));
-        }
+        check_made_from(
+            &index_path,
+            &dir.join(CLUSTERS_FILE),
+            "a clusters.json",
+            index.json_len(),
+        )?;
         if index.root() != manifest.root {
             return Err(Error::invalid(
                 &index_path,
@@ -578,18 +589,7 @@ fn load_objects_from(dir: &Path, tree: &Tree, use_index: bool) -> Result<Option<
     let index_path = dir.join(OBJECTS_INDEX_FILE);
     if use_index && index_path.exists() {
         let rows = ObjectRows::open(&index_path)?;
-        let json_len = fs::metadata(&path).map_err(|e| Error::io(&path, e))?.len();
-        if json_len != rows.json_len() {
-            return Err(Error::invalid(
-                &index_path,
-                "header",
-                format!(
-                    "was made from an objects.json of {} bytes, this one has {json_len}: write \
-                     it again with `hdlod index TREE`",
-                    rows.json_len()
-                ),
-            ));
-        }
+        check_made_from(&index_path, &path, "an objects.json", rows.json_len())?;
         return ObjectTables::from_index(rows, tree, &index_path).map(Some);
     }
     let record: ObjectsRecord = read_json(&path)?;

@@ -131,6 +131,33 @@ pub struct Server {
 }
 
 impl Server {
+    /// `hdlod_reloads_total` of the server's metrics.
+    pub fn reloads(&self) -> u64 {
+        let text = client()
+            .get(self.url("/metrics"))
+            .send()
+            .unwrap()
+            .text()
+            .unwrap();
+        text.lines()
+            .find_map(|l| l.strip_prefix("hdlod_reloads_total "))
+            .and_then(|n| n.trim().parse().ok())
+            .expect("a reload count")
+    }
+
+    /// Waits (up to 10 s) until the file watch has reloaded the trees
+    /// `count` times.
+    pub fn await_reloads(&self, count: u64) {
+        let deadline = std::time::Instant::now() + Duration::from_secs(10);
+        while self.reloads() < count {
+            assert!(
+                std::time::Instant::now() < deadline,
+                "no reload after the change"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        }
+    }
+
     /// `hdlod serve --addr 127.0.0.1:0 TREE`.
     pub fn start(tree: &Path) -> Server {
         Server::start_with(tree, &[])
