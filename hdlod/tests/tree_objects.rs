@@ -26,7 +26,9 @@ fn built() -> &'static Built {
     BUILT.get_or_init(|| {
         let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
         let scene = format::load(&fixture).expect("the tiny fixture loads");
-        let tmp = tempfile::tempdir().unwrap();
+        // A static is never dropped: in cargo's temporary directory for
+        // tests, which `cargo clean` empties, not the system's.
+        let tmp = tempfile::tempdir_in(env!("CARGO_TARGET_TMPDIR")).unwrap();
         let dir = tmp.path().join("tree");
         let (tree, _) =
             build_to(&scene, &BuildConfig::default(), &dir, &Silent).expect("the build succeeds");
