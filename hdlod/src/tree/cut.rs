@@ -141,21 +141,25 @@ pub fn cut_into(
             continue;
         }
         let transform = pose(tree, c, t, &mut sampled);
+        let moved;
         let bounds = match transform {
-            Some(m) => c.bounds().transformed(&m.as_dmat4()),
-            None => c.bounds(),
+            Some(m) => {
+                moved = c.bounds.transformed(&m.as_dmat4());
+                &moved
+            }
+            None => &c.bounds,
         };
-        if view.outside(&bounds) {
+        if view.outside(bounds) {
             continue;
         }
         let delta = c.delta(v);
         let leaf = c.child_count == 0;
-        let refine = !leaf
-            && (c.has_geometry == 0 || v < split_below || delta >= r * view.distance(&bounds));
+        let refine =
+            !leaf && (c.has_geometry == 0 || v < split_below || delta >= r * view.distance(bounds));
         if refine {
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
-            emit(tree, out, c.id, transform, v, delta);
+            emit(out, c, transform, v, delta, c.triangles(tree));
         }
     }
 }
@@ -185,7 +189,7 @@ pub fn present_leaves_into(
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
             let transform = pose(tree, c, t, &mut sampled);
-            emit(tree, out, c.id, transform, v, c.delta(v));
+            emit(out, c, transform, v, c.delta(v), c.triangles(tree));
         }
     }
 }
@@ -236,11 +240,18 @@ fn pose(tree: &Tree, c: &super::nodes::Node, t: f64, sampled: &mut (u32, Mat4)) 
     Some(sampled.1)
 }
 
-fn emit(tree: &Tree, out: &mut Cut, id: u32, transform: Option<Mat4>, visibility: f32, error: f64) {
+fn emit(
+    out: &mut Cut,
+    c: &super::nodes::Node,
+    transform: Option<Mat4>,
+    visibility: f32,
+    error: f64,
+    triangles: u64,
+) {
     out.stats.clusters += 1;
-    out.stats.triangles += tree.triangles_of(id);
+    out.stats.triangles += triangles;
     out.items.push(CutItem {
-        id,
+        id: c.id,
         transform,
         visibility,
         error,

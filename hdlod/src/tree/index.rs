@@ -1,4 +1,4 @@
-//! The binary serving index of a tree, `clusters.bin` (`hdlod-index/2`,
+//! The binary serving index of a tree, `clusters.bin` (`hdlod-index/3`,
 //! docs/formats.md): the clusters as fixed-size little-endian records and
 //! flat arrays for their variable parts, and the tree's counts and
 //! baseline, memory-mapped. The cut reads its node records in place, so a
@@ -7,7 +7,7 @@
 //!
 //! `clusters.json` stays the primary form; this file is derived from it in
 //! the same atomic write (or by `hdlod index TREE` for a tree written
-//! without it, or with version 1 of it). The loader checks the header, the
+//! without it, or with an earlier version of it). The loader checks the header, the
 //! section table (`sections.rs`, shared with `objects.bin`), a blake3
 //! checksum of the whole file and every invariant the JSON loader checks,
 //! on a mapping it then drops: the mapping served afterwards starts with
@@ -23,18 +23,19 @@ use glam::{Quat, Vec3};
 use memmap2::Mmap;
 
 use super::baseline::{Baseline, Present};
-use super::nodes::{Node, Nodes, Step};
+use super::nodes::{Node, Nodes, Step, triangle_count};
 use super::sections::{self, Layout};
-use super::{Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary};
+use super::{Aabb, Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary};
 use crate::error::{Error, Result};
 use crate::scene::{Keyframe, Motion};
 
 /// The first eight bytes of the file.
 pub const MAGIC: [u8; 8] = *b"HDLODIDX";
 /// The layout's version. Version 2 adds the tree's counts and baseline
-/// (the last three sections); a reader reads version 1 too, and derives
-/// them from the clusters.
-pub const VERSION: u32 = 2;
+/// (the last three sections); version 3 the clusters' triangles to the node
+/// records (their padding before). A reader reads versions 1 and 2 too,
+/// and derives what they lack from the clusters.
+pub const VERSION: u32 = 3;
 /// The sections of the newest version; version 1 has the first ten.
 const SECTIONS: usize = 13;
 /// The value of a `u32` field that names nothing.
@@ -59,7 +60,7 @@ const LAYOUT: Layout<SECTIONS> = Layout {
     magic: MAGIC,
     what: "an hdlod cluster index",
     short: "the index",
-    versions: &[(1, 10), (VERSION, SECTIONS)],
+    versions: &[(1, 10), (2, SECTIONS), (VERSION, SECTIONS)],
     names: [
         "nodes",
         "node_of",
@@ -468,6 +469,10 @@ impl Index {
         self.section(NODE_OF)
     }
 
+    pub(crate) fn order(&self) -> &[u32] {
+        self.section(ORDER)
+    }
+
     pub(crate) fn steps(&self) -> &[Step] {
         self.section(STEPS)
     }
@@ -589,7 +594,7 @@ impl Index {
             children: self.children(id).to_vec(),
             level: r.level,
             class: self.class(id),
-            bounds: node.bounds(),
+            bounds: node.bounds,
             w: node.w,
             eps: node.eps,
             gamma: r.gamma,
@@ -693,7 +698,8 @@ impl Index {
             if (r.parent == NONE) != is_root {
                 return Err(bad(at("parent"), "only the root has no parent".into()));
             }
-            if !node.min.is_finite() || !node.max.is_finite() || node.min.cmpgt(node.max).any() {
+            let Aabb { min, max } = node.bounds;
+            if !min.is_finite() || !max.is_finite() || min.cmpgt(max).any() {
                 return Err(bad(
                     at("bounds"),
                     "bounds must be finite with min <= max".into(),
@@ -757,6 +763,15 @@ impl Index {
                 return Err(bad(
                     format!("nodes[{k}].motion"),
                     "a node names a motion exactly when its cluster has one".into(),
+                ));
+            }
+            if self.version >= 3 && node.triangles != triangle_count(r.triangles) {
+                return Err(bad(
+                    format!("nodes[{k}].triangles"),
+                    format!(
+                        "{} are not the cluster's {} triangles",
+                        node.triangles, r.triangles
+                    ),
                 ));
             }
             if is_root != (r.geometry == NONE)

@@ -37,8 +37,9 @@ pub use format::ClusterClass;
 pub use objects::ObjectTables;
 pub use store::{TreeWriter, load};
 
-/// An axis-aligned box.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// An axis-aligned box. Plain old data: the cut's node records hold one.
+#[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
+#[repr(C)]
 pub struct Aabb {
     pub min: DVec3,
     pub max: DVec3,
@@ -203,7 +204,8 @@ pub struct Tree {
     /// must not change after it).
     pub(crate) presence: Derived<presence::Presence>,
     /// The cut's compact copy of the clusters of a tree not mapped from
-    /// its index, made on the first cut.
+    /// its index, or mapped from an index older than version 3 (whose node
+    /// records lack the triangle counts), made on the first cut.
     pub(crate) nodes: Derived<nodes::Nodes>,
     summary: Derived<TreeSummary>,
     baseline: Derived<Baseline>,
@@ -514,11 +516,16 @@ impl Tree {
 
     pub(crate) fn nodes(&self) -> nodes::NodesRef<'_> {
         match &self.clusters {
-            Clusters::Mapped(index) => nodes::NodesRef {
+            Clusters::Mapped(index) if index.version() >= 3 => nodes::NodesRef {
                 nodes: index.nodes(),
                 node_of: index.node_of(),
                 steps: index.steps(),
             },
+            Clusters::Mapped(index) => self
+                .nodes
+                .0
+                .get_or_init(|| nodes::Nodes::of_index(index))
+                .as_ref(),
             Clusters::Built(_) => self
                 .nodes
                 .0

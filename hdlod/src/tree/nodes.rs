@@ -8,17 +8,14 @@
 //! plain old data: the serving index (`index.rs`) stores them as they are,
 //! and a mapped tree's cut reads them in place.
 
-use bytemuck::{Pod, Zeroable};
-use glam::DVec3;
-
-use super::index::NONE;
+use super::index::{Index, NONE};
 use super::{Aabb, Tree, delta};
+use bytemuck::{Pod, Zeroable};
 
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 #[repr(C)]
 pub(crate) struct Node {
-    pub min: DVec3,
-    pub max: DVec3,
+    pub bounds: Aabb,
     pub eps: f64,
     pub w: f64,
     /// The cluster's id in the tree.
@@ -35,7 +32,11 @@ pub(crate) struct Node {
     /// the top of its LOD chain, whose levels all share one motion, so that
     /// the cut samples it once per chain. `u32::MAX` for the others.
     pub motion: u32,
-    _pad: u32,
+    /// The cluster's triangles, which the cut adds up for every cluster it
+    /// draws: here rather than read from the cluster's record, a second
+    /// random read per drawn cluster. [`NONE`] when they do not fit (then
+    /// read from the record). Version 3 of the index on; padding before.
+    pub triangles: u32,
 }
 
 /// One visibility step: `v` from `t` on.
@@ -48,10 +49,13 @@ pub(crate) struct Step {
 }
 
 impl Node {
-    pub fn bounds(&self) -> Aabb {
-        Aabb {
-            min: self.min,
-            max: self.max,
+    /// The cluster's triangles.
+    #[inline]
+    pub fn triangles(&self, tree: &Tree) -> u64 {
+        if self.triangles == NONE {
+            tree.triangles_of(self.id)
+        } else {
+            u64::from(self.triangles)
         }
     }
 
@@ -107,8 +111,7 @@ impl Nodes {
                         .map(|&(t, v)| Step { t, v, _pad: 0 }),
                 );
                 Node {
-                    min: c.bounds.min,
-                    max: c.bounds.max,
+                    bounds: c.bounds,
                     eps: c.eps,
                     w: c.w,
                     id,
@@ -118,7 +121,7 @@ impl Nodes {
                     step_count: c.visibility.steps().len() as u32,
                     has_geometry: u32::from(c.geometry.is_some()),
                     motion: motion_source(tree, id),
-                    _pad: 0,
+                    triangles: triangle_count(c.triangles),
                 }
             })
             .collect();
@@ -127,6 +130,25 @@ impl Nodes {
             node_of,
             order,
             steps,
+        }
+    }
+
+    /// The records of an index older than version 3, whose nodes lack the
+    /// triangle counts: copied, with the counts from the clusters' records.
+    pub fn of_index(index: &Index) -> Nodes {
+        let nodes = index
+            .nodes()
+            .iter()
+            .map(|node| Node {
+                triangles: triangle_count(index.triangles(node.id)),
+                ..*node
+            })
+            .collect();
+        Nodes {
+            nodes,
+            node_of: index.node_of().to_vec(),
+            order: index.order().to_vec(),
+            steps: index.steps().to_vec(),
         }
     }
 
@@ -148,6 +170,11 @@ impl NodesRef<'_> {
         let i = steps.partition_point(|s| s.t <= t);
         if i == 0 { 0.0 } else { steps[i - 1].v }
     }
+}
+
+/// A cluster's triangles as a node stores them.
+pub(crate) fn triangle_count(triangles: u64) -> u32 {
+    u32::try_from(triangles).unwrap_or(NONE)
 }
 
 /// The highest ancestor of `id` (itself included) with the same motion as

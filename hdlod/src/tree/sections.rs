@@ -206,7 +206,11 @@ pub(crate) fn read<const N: usize>(
                 } else {
                     "version"
                 },
-                read.join(" and ")
+                match read.split_last() {
+                    Some((last, [])) => last.clone(),
+                    Some((last, rest)) => format!("{} and {last}", rest.join(", ")),
+                    None => String::new(),
+                }
             ),
         ));
     };

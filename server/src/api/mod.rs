@@ -86,9 +86,14 @@ fn load_one(dir: &PathBuf) -> anyhow::Result<LoadedScene> {
         .index()
         .filter(|i| i.version() < hdlod::tree::index::VERSION)
     {
+        let made = if index.version() < 2 {
+            "counts, baseline and node records are"
+        } else {
+            "node records (the clusters' triangles added) are"
+        };
         tracing::info!(
-            "{}: its index is of version {}, whose counts and baseline are made at every \
-             load: `hdlod index {}` writes the current version",
+            "{}: its index is of version {}, whose {made} made at every load: `hdlod index {}` \
+             writes the current version",
             dir.display(),
             index.version(),
             dir.display()

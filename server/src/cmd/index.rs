@@ -1,8 +1,9 @@
 //! `hdlod index TREE`: writes the serving indexes of a tree from its JSON
 //! files (`clusters.bin` from `clusters.json`; `objects.bin` from
 //! `objects.json` when it has object tables): for trees built before the
-//! indexes, whose cluster index is of version 1 (the migration to version
-//! 2, which stores the counts and baseline), or whose indexes are damaged.
+//! indexes, whose cluster index is of an earlier version (the migration
+//! to version 3, which stores the counts and baseline and the clusters'
+//! triangles in the node records), or whose indexes are damaged.
 //! A running server reloads the tree when they appear.
 
 use std::path::PathBuf;
