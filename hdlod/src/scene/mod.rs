@@ -24,6 +24,7 @@ use crate::time::TimeSpan;
 pub use appearance::Profile;
 pub use georef::{Geographic, Georeference, Projected, epsg_code};
 pub use links::{LinkType, Predecessor};
+pub(crate) use motion::keys_until;
 pub use motion::{Keyframe, Motion};
 pub use schedule::{Action, Instant, NamedType, ScheduleOptions, TaskType, compose};
 pub use status::{Actual, Dates, Span, TaskDates};

@@ -27,7 +27,7 @@ use super::nodes::{Node, Nodes, Step, triangle_count};
 use super::sections::{self, Layout};
 use super::{Aabb, Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary};
 use crate::error::{Error, Result};
-use crate::scene::{Keyframe, Motion};
+use crate::scene::{Keyframe, Motion, keys_until};
 
 /// The first eight bytes of the file.
 pub const MAGIC: [u8; 8] = *b"HDLODIDX";
@@ -564,7 +564,7 @@ impl Index {
     /// `Motion::sample` gives it, from the mapped keyframes.
     pub(crate) fn sample(&self, id: u32, t: f64) -> Keyframe {
         let keys = self.keys(id);
-        let i = keys.partition_point(|k| k.t <= t);
+        let i = keys_until(keys.len(), t, |k| keys[k].t);
         if i == 0 {
             return keys[0].keyframe();
         }
