@@ -126,7 +126,7 @@ pub(crate) fn keys_until(n: usize, t: f64, time: impl Fn(usize) -> f64) -> usize
     }
     let (first, last) = (time(0), time(n - 1));
     // NaN is before every keyframe, as the comparison says.
-    if !(first <= t) {
+    if t < first || t.is_nan() {
         return 0;
     }
     if last <= t {
