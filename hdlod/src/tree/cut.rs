@@ -141,6 +141,8 @@ pub fn cut_into(
             continue;
         }
         let transform = pose(tree, c, t, &mut sampled);
+        // A static node's box is tested where it lies: copied out first, it
+        // was read back across the copy's two stores, which stalled.
         let moved;
         let bounds = match transform {
             Some(m) => {

@@ -8,9 +8,10 @@
 //! plain old data: the serving index (`index.rs`) stores them as they are,
 //! and a mapped tree's cut reads them in place.
 
+use bytemuck::{Pod, Zeroable};
+
 use super::index::{Index, NONE};
 use super::{Aabb, Tree, delta};
-use bytemuck::{Pod, Zeroable};
 
 #[derive(Debug, Clone, Copy, PartialEq, Pod, Zeroable)]
 #[repr(C)]
@@ -165,10 +166,11 @@ impl Nodes {
 const LINEAR_STEPS: usize = 32;
 
 impl NodesRef<'_> {
-    /// `v_c(t)`, as `Steps::at`. The steps at or before `t` are counted
-    /// one by one when there are few (nine clusters in ten have one to
-    /// three, the paper tree's have at most 32): the comparisons do not
-    /// wait on each other as a binary search's do.
+    /// `v_c(t)`, as `Steps::at`. The steps at or before `t` (increasing
+    /// times: a prefix) are counted one by one when there are few (nine
+    /// clusters in ten have one to three, the paper tree's have at most
+    /// 32): the comparisons do not wait on each other as a binary
+    /// search's do.
     #[inline]
     pub fn visibility(&self, node: &Node, t: f64) -> f32 {
         let steps =
