@@ -7,11 +7,11 @@
 //!
 //! `clusters.json` stays the primary form; this file is derived from it in
 //! the same atomic write (or by `hdlod index TREE` for a tree written
-//! without it, or with an earlier version of it). The loader checks the header, the
-//! section table (`sections.rs`, shared with `objects.bin`), a blake3
-//! checksum of the whole file and every invariant the JSON loader checks,
-//! on a mapping it then drops: the mapping served afterwards starts with
-//! no page resident.
+//! without it, or with an earlier version of it). The loader checks the
+//! header, the section table (`sections.rs`, shared with `objects.bin`), a
+//! blake3 checksum of the whole file and every invariant the JSON loader
+//! checks, on a mapping it then drops: the mapping served afterwards starts
+//! with no page resident.
 
 use std::collections::HashMap;
 use std::fs::File;
