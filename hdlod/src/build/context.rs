@@ -7,6 +7,7 @@ use std::sync::Arc;
 use glam::Vec3;
 
 use super::config::BuildConfig;
+use super::instances::Instance;
 use super::outputs::GeometrySink;
 use super::steps::StepFunction;
 use crate::geometry::Mesh;
@@ -20,6 +21,8 @@ pub(super) struct Context<'a> {
     /// Distinct 0/1 visibility functions of the leaves.
     pub leaf_steps: Vec<StepFunction>,
     pub sink: &'a dyn GeometrySink,
+    /// The leaves' repeated shapes, at the origin (`instances`).
+    pub shapes: Vec<Arc<Mesh>>,
 }
 
 /// A cluster while its level is being built: what the next level needs.
@@ -44,6 +47,8 @@ pub(super) struct Active {
     /// The original objects' geometry below, while it has at most
     /// `parent::DIRECT_MAX_TRIANGLES` triangles.
     pub originals: Option<Vec<Arc<Mesh>>>,
+    /// A leaf's shape and place, when other leaves share the shape.
+    pub instance: Option<Instance>,
 }
 
 impl Active {

@@ -9,6 +9,7 @@ use glam::{Mat4, Vec3};
 use rayon::prelude::*;
 
 use super::context::{Active, Context, Node, add};
+use super::instances::shapes_of;
 use super::outputs::Progress;
 use super::parent::DIRECT_MAX_TRIANGLES;
 use super::steps::StepFunction;
@@ -119,10 +120,21 @@ pub(super) fn leaves(
             Ok((mesh, hash))
         })
         .collect();
+    let (shapes, instances) = shapes_of(
+        &scene.meshes,
+        &members
+            .iter()
+            .map(|&(p, _)| {
+                let o = &scene.objects[p.object];
+                (o.mesh, p.transform, o.color)
+            })
+            .collect::<Vec<_>>(),
+    );
+    ctx.shapes = shapes;
     // Objects of one task share one visibility: the temporal error is a
     // maximum over the distinct ones.
     let mut vis_ids: HashMap<Vec<(u64, u64)>, u32> = HashMap::new();
-    for (&(p, tree), made) in members.iter().zip(leaf_meshes) {
+    for ((&(p, tree), made), instance) in members.iter().zip(leaf_meshes).zip(instances) {
         let (mesh, hash) = made?;
         let o = &scene.objects[p.object];
         let steps = StepFunction::of_visibility(&p.visibility, span);
@@ -160,6 +172,7 @@ pub(super) fn leaves(
             originals: (mesh.triangle_count() <= DIRECT_MAX_TRIANGLES).then(|| vec![mesh.clone()]),
             mesh,
             baked: None,
+            instance,
         });
     }
     Ok(leaves)

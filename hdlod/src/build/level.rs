@@ -18,12 +18,11 @@ use rayon::prelude::*;
 use super::config::{Thresholds, thresholds};
 use super::context::{Active, Context, Node, add};
 use super::hilbert::hilbert_key;
+use super::instances::single_parents;
 use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE};
-use super::parent::{Parent, make_parent, single_parent};
+use super::parent::{Parent, Single, make_parent};
 use super::steps::StepFunction;
 use crate::Result;
-use crate::geometry::Mesh;
-use crate::geometry::bake::Baked;
 use crate::tree::{Cluster, ClusterClass};
 
 /// Clusters one class level by level; answers the ids of the clusters left
@@ -54,6 +53,7 @@ pub(super) fn cluster_class(
             }
         );
         progress.phase(&name, groups.len() as u64);
+        let clock = std::time::Instant::now();
         let parents: Vec<Result<Parent>> = groups
             .par_iter()
             .map(|g| {
@@ -116,20 +116,27 @@ pub(super) fn cluster_class(
                 originals,
                 mesh: Arc::new(mesh),
                 baked: baked.map(Arc::new),
+                instance: None,
             });
         }
+        let grouped = clock.elapsed();
         let alone: Vec<usize> = (0..active.len()).filter(|&i| !taken[i]).collect();
-        let singles: Vec<Option<(Mesh, f64, Option<Baked>)>> = alone
-            .par_iter()
-            .map(|&i| single_parent(ctx, &active[i], &th))
-            .collect();
+        let singles = single_parents(ctx, &active, &alone, &th);
+        tracing::debug!(
+            "{name}: {} groups in {:.2} s, {} lone clusters of which {} reduced in {:.2} s",
+            groups.len(),
+            grouped.as_secs_f64(),
+            alone.len(),
+            singles.iter().filter(|s| s.is_some()).count(),
+            (clock.elapsed() - grouped).as_secs_f64()
+        );
         let mut singles = alone.into_iter().zip(singles).peekable();
         for (i, (a, t)) in active.into_iter().zip(taken).enumerate() {
             if t {
                 continue;
             }
             let single = singles.next_if(|(j, _)| *j == i).and_then(|(_, s)| s);
-            let Some((mesh, eps, baked)) = single else {
+            let Some(Single { mesh, eps, baked }) = single else {
                 next.push(a);
                 continue;
             };
@@ -165,6 +172,7 @@ pub(super) fn cluster_class(
                 eps,
                 mesh: Arc::new(mesh),
                 baked: baked.map(Arc::new),
+                instance: None,
                 ..a
             });
         }

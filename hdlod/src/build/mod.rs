@@ -14,6 +14,7 @@ mod config;
 mod context;
 mod dynamic;
 mod hilbert;
+mod instances;
 mod leaves;
 mod level;
 mod outputs;
@@ -71,6 +72,7 @@ pub fn build(
         span,
         leaf_steps: Vec::new(),
         sink,
+        shapes: Vec::new(),
     };
 
     let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();

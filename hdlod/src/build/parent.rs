@@ -141,7 +141,9 @@ fn stored_eps(
 ) -> f64 {
     let recursive = f64::from(h) + child_eps;
     // Nothing removed: no direct bound could go below the children's.
-    if h == 0.0 {
+    // Children without error are the originals: `h` already measured the
+    // distance to them.
+    if h == 0.0 || child_eps == 0.0 {
         return recursive;
     }
     originals.map_or(recursive, |o| {
@@ -170,7 +172,22 @@ fn direct_eps(
         })
         .collect();
     let union = geometry::merge(&parts, 0.0);
-    geometry::bound_within(mesh, &union, tolerance, budget as f32, metric).map(f64::from)
+    let whole = geometry::bound_within(mesh, &union, tolerance, budget as f32, metric)?;
+    // The recursive bound holds object by object as well (each object's
+    // triangles come from that object's below), and a viewer picks and
+    // hides objects inside a cluster: the direct bound stands in for it
+    // only where it does too (docs/method.md, "Object identity").
+    let originals: Vec<&Mesh> = originals.iter().map(|m| m.as_ref()).collect();
+    let own = geometry::feature_bound_within(mesh, &originals, tolerance, budget as f32, metric)?;
+    Some(f64::from(whole.max(own)))
+}
+
+/// A parent of its own for a lone cluster: its geometry, error and baked
+/// colour.
+pub(super) struct Single {
+    pub mesh: Mesh,
+    pub eps: f64,
+    pub baked: Option<Baked>,
 }
 
 /// The paper's loop moves a cluster with no neighbours up unchanged; an
@@ -178,30 +195,17 @@ fn direct_eps(
 /// may be more than one pixel where the cut reaches it, so the cut draws
 /// the leaf. Instead it gets a parent of its own: its geometry reduced
 /// within `eps(l)`, when that keeps at most `min_reduction` of its
-/// triangles. Answers the parent's geometry, error and baked colour.
-pub(super) fn single_parent(
-    ctx: &Context,
-    child: &Active,
-    th: &Thresholds,
-) -> Option<(Mesh, f64, Option<Baked>)> {
-    let triangles = child.mesh.triangle_count();
-    if (triangles as f64) * ctx.config.min_reduction < QUAD_TRIANGLES {
-        return None;
-    }
-    let budget = (th.eps - child.eps) as f32;
+/// triangles.
+pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<Single> {
+    let (mesh, h) = reduce_lone(ctx, &child.mesh, child.eps, th)?;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
-    let metric = ctx.config.error_metric;
-    let (mesh, h) = reduce_within(&child.mesh, budget, tolerance, metric)?;
-    if mesh.triangle_count() as f64 > triangles as f64 * ctx.config.min_reduction {
-        return None;
-    }
     let eps = stored_eps(
         &mesh,
         h,
         child.eps,
         child.originals.as_deref(),
         tolerance,
-        metric,
+        ctx.config.error_metric,
     );
     let baked = bake_colour(
         ctx,
@@ -210,7 +214,27 @@ pub(super) fn single_parent(
         &[child.source()],
         child.originals.as_deref(),
     );
-    Some((mesh, eps, baked))
+    Some(Single { mesh, eps, baked })
+}
+
+/// A lone cluster's `mesh` (of error `child_eps`) reduced within the
+/// level's budget and the measured bound, when that keeps at most
+/// `min_reduction` of its triangles.
+pub(super) fn reduce_lone(
+    ctx: &Context,
+    mesh: &Mesh,
+    child_eps: f64,
+    th: &Thresholds,
+) -> Option<(Mesh, f32)> {
+    let triangles = mesh.triangle_count();
+    if (triangles as f64) * ctx.config.min_reduction < QUAD_TRIANGLES {
+        return None;
+    }
+    let budget = (th.eps - child_eps) as f32;
+    let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
+    let (reduced, h) = reduce_within(mesh, budget, tolerance, ctx.config.error_metric)?;
+    (reduced.triangle_count() as f64 <= triangles as f64 * ctx.config.min_reduction)
+        .then_some((reduced, h))
 }
 
 /// The fewest triangles a part is reduced to (a quad): a cluster with fewer
@@ -237,8 +261,12 @@ pub(super) fn reduce_within(
         return None;
     }
     let mut candidates: Vec<(Mesh, f32)> = Vec::new();
+    // Half the budget first: a part's stand-in that fits it (measured to
+    // half the tolerance) fits the whole budget as well, and is not
+    // measured again.
+    let mut parts = geometry::Parts::new(mesh);
     for share in [0.5, 1.0] {
-        let r = geometry::reduce_parts(mesh, budget * share, tolerance * share, metric);
+        let r = parts.reduce(budget * share, tolerance * share, metric);
         if share == 1.0
             && let Some((m, h)) = simplified_within(&r.mesh, budget - r.bound, tolerance, metric)
         {

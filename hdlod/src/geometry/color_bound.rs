@@ -32,6 +32,7 @@ use serde::{Deserialize, Serialize};
 use super::Mesh;
 use super::closest::TriangleSet;
 use super::hausdorff::{self, one_way_within, search_scale};
+use super::proxy::push_triangles;
 use super::union_find::UnionFind;
 
 /// What the builder's error bounds measure.
@@ -214,6 +215,45 @@ impl ColoredSet {
         let bound = self.one_sided(&a, tolerance, budget - slack)? + slack;
         (bound <= budget).then_some(bound)
     }
+}
+
+/// A bound of how far each object's triangles in `mesh` lie from that
+/// object's own geometry among `originals` (by feature id), if at most
+/// `budget`: the largest over the objects of `sup_{p in mesh_f} e(p,
+/// originals_f)`. `None` also when an object of `mesh` has no original.
+/// A mesh without feature ids is one object.
+pub fn feature_bound_within(
+    mesh: &Mesh,
+    originals: &[&Mesh],
+    tolerance: f32,
+    budget: f32,
+    metric: ErrorMetric,
+) -> Option<f32> {
+    let feature_of = |m: &Mesh, k: usize| m.features.get(m.indices[k * 3] as usize).copied();
+    let mut triangles: HashMap<Option<u32>, Vec<usize>> = HashMap::new();
+    for k in 0..mesh.triangle_count() {
+        triangles.entry(feature_of(mesh, k)).or_default().push(k);
+    }
+    if triangles.len() <= 1 {
+        // One object: the whole mesh's bound is its own.
+        return Some(0.0);
+    }
+    let mut bound = 0.0f32;
+    for (feature, ks) in triangles {
+        let own: Vec<&Mesh> = originals
+            .iter()
+            .copied()
+            .filter(|o| o.triangle_count() > 0 && feature_of(o, 0) == feature)
+            .collect();
+        if own.is_empty() {
+            return None;
+        }
+        let mut part = Mesh::default();
+        push_triangles(&mut part, mesh, &ks);
+        let set = ColoredSet::new(own, metric);
+        bound = bound.max(set.one_sided_within(&part, tolerance, budget)?);
+    }
+    Some(bound)
 }
 
 /// A bound of the distance `metric` between `a` and `b` (under

@@ -18,12 +18,12 @@ mod union_find;
 mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
-pub use color_bound::{ErrorMetric, bound_within};
+pub use color_bound::{ErrorMetric, bound_within, feature_bound_within};
 pub use distance::distance;
 pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff, one_sided_bound};
 pub use merge::{Part, merge};
 pub use mesh::Mesh;
-pub use reduce::{Reduced, reduce_parts};
+pub use reduce::{Parts, Reduced, reduce_parts};
 pub use simplify::{
     Method, Simplified, SimplifyOptions, Strategy, clustering, edge_collapse,
     edge_collapse_in_parts, edge_collapse_placed, simplify,

@@ -44,8 +44,8 @@ pub struct Reduced {
 }
 
 /// One part of the input and what stands for it.
-struct Piece {
-    input: Mesh,
+struct Piece<'p> {
+    input: &'p Mesh,
     output: Mesh,
     /// Measured `D_H(output, input)`.
     error: f32,
@@ -57,96 +57,329 @@ struct Piece {
 /// `tolerance` is the gap allowed between the measured bounds and the
 /// true distances. Never returns more triangles than it was given.
 pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
-    let mut pieces: Vec<Piece> = parts(mesh)
-        .into_iter()
-        .map(|triangles| {
-            let mut input = Mesh::default();
-            push_triangles(&mut input, mesh, &triangles);
-            let (lo, hi) = part_bounds(mesh, &triangles);
-            let size = (hi - lo).length();
-            let look = part_look(mesh, &triangles);
-            let proxy = |push: fn(&mut Mesh, Vec3, Vec3, Look)| {
+    Parts::new(mesh).reduce(budget, tolerance, metric)
+}
+
+/// A mesh split into its parts once, with every stand-in measured for a
+/// part so far: reducing it at several budgets (largest first) measures
+/// each candidate once. A builder reduces every cluster at two shares of
+/// its budget, and the Hausdorff bounds of the candidates are most of a
+/// build's time.
+pub struct Parts<'a> {
+    mesh: &'a Mesh,
+    parts: Vec<PartState>,
+}
+
+struct PartState {
+    triangles: Vec<usize>,
+    input: Mesh,
+    welded: Option<Mesh>,
+    lo: Vec3,
+    hi: Vec3,
+    look: Look,
+    tried: Vec<Tried>,
+}
+
+/// A stand-in of one part, made and measured once.
+#[derive(Clone, Copy, PartialEq)]
+enum Candidate {
+    Quad,
+    Box,
+    /// meshoptimizer at this `max_error` (its bits).
+    Simplified(u32),
+    /// Edge collapse with vertex placement to this many triangles.
+    Placed(usize),
+}
+
+struct Tried {
+    candidate: Candidate,
+    mesh: Mesh,
+    /// The measured bound, or `None` when it was over `budget`.
+    error: Option<f32>,
+    budget: f32,
+}
+
+impl Tried {
+    /// What the measurement says at `budget`: `Some(fits)`, or `None` when
+    /// it must be measured again (it failed at a smaller budget). A bound
+    /// measured with a looser tolerance than `budget`'s call would use is
+    /// still a bound; a candidate that failed a larger budget is taken to
+    /// fail a smaller one, which at worst keeps more triangles.
+    fn fits(&self, budget: f32) -> Option<bool> {
+        match self.error {
+            Some(e) => Some(e <= budget),
+            None => (budget <= self.budget).then_some(false),
+        }
+    }
+}
+
+impl PartState {
+    /// What an earlier measurement of `candidate` says at `budget`:
+    /// `Some(stand-in or None)`, or `None` when it must be measured.
+    fn known(&self, candidate: Candidate, budget: f32) -> Option<Option<(Mesh, f32)>> {
+        let t = self.tried.iter().find(|t| t.candidate == candidate)?;
+        match t.fits(budget)? {
+            true => Some(t.error.map(|e| (t.mesh.clone(), e))),
+            false => Some(None),
+        }
+    }
+
+    /// `mesh`, the stand-in `candidate`, measured against the part within
+    /// `budget` and remembered; `None` for a mesh that cannot stand in
+    /// (empty, or no fewer triangles), which never will.
+    fn measure(
+        &mut self,
+        candidate: Candidate,
+        mesh: Option<Mesh>,
+        budget: f32,
+        tolerance: f32,
+        metric: ErrorMetric,
+    ) -> Option<(Mesh, f32)> {
+        let (mesh, error, budget) = match mesh {
+            Some(m) => {
+                let error = bound_within(&m, &self.input, tolerance, budget, metric);
+                (m, error, budget)
+            }
+            None => (Mesh::default(), None, f32::INFINITY),
+        };
+        let found = error.map(|e| (mesh.clone(), e));
+        self.tried.retain(|t| t.candidate != candidate);
+        self.tried.push(Tried {
+            candidate,
+            mesh,
+            error,
+            budget,
+        });
+        found
+    }
+
+    /// `candidate` as earlier measured, or made by `make` and measured.
+    fn try_candidate(
+        &mut self,
+        candidate: Candidate,
+        make: impl FnOnce(&mut PartState) -> Option<Mesh>,
+        budget: f32,
+        tolerance: f32,
+        metric: ErrorMetric,
+    ) -> Option<(Mesh, f32)> {
+        if let Some(known) = self.known(candidate, budget) {
+            return known;
+        }
+        let mesh = make(self);
+        self.measure(candidate, mesh, budget, tolerance, metric)
+    }
+
+    fn welded(&mut self) -> &Mesh {
+        self.welded.get_or_insert_with(|| self.input.welded())
+    }
+
+    /// The part's stand-in within `budget`: the first of its quad, its
+    /// box and its simplification that fits, or the part itself.
+    fn stand_in(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> (Mesh, f32) {
+        let (lo, hi, look) = (self.lo, self.hi, self.look);
+        let n = self.triangles.len();
+        let proxy = |push: fn(&mut Mesh, Vec3, Vec3, Look)| {
+            move |_: &mut PartState| {
                 let mut proxy = Mesh::default();
                 push(&mut proxy, lo, hi, look);
-                bound_within(&proxy, &input, tolerance, budget, metric).map(|error| (proxy, error))
+                Some(proxy)
+            }
+        };
+        // Half the thickness is how far the quad's plane is from the
+        // part's outer faces: no quad fits a budget below it.
+        let quad = budget > 0.0 && n > QUAD_TRIANGLES && (hi - lo).min_element() / 2.0 <= budget;
+        let mut reduced = quad
+            .then(|| {
+                self.try_candidate(Candidate::Quad, proxy(push_quad), budget, tolerance, metric)
+            })
+            .flatten();
+        if reduced.is_none() && budget > 0.0 && n > BOX_TRIANGLES {
+            reduced = self
+                .try_candidate(Candidate::Box, proxy(push_box), budget, tolerance, metric)
+                .or_else(|| self.simplified_within(budget, tolerance, metric));
+        }
+        reduced.unwrap_or_else(|| (self.input.clone(), 0.0))
+    }
+
+    /// The part simplified (welded, then flat-shaded again) and its
+    /// measured bound: the fewer triangles of vertex selection at the
+    /// first request within `budget` and of vertex placement at the fewest
+    /// triangles within it.
+    fn simplified_within(
+        &mut self,
+        budget: f32,
+        tolerance: f32,
+        metric: ErrorMetric,
+    ) -> Option<(Mesh, f32)> {
+        let n = self.triangles.len();
+        let mut best: Option<(Mesh, f32)> = None;
+        for request in REQUESTS {
+            let max_error = budget * request;
+            let candidate = Candidate::Simplified(max_error.to_bits());
+            let simplified = |part: &mut PartState| {
+                let s = simplify(
+                    part.welded(),
+                    &SimplifyOptions {
+                        max_error,
+                        target_triangles: None,
+                        prune: false,
+                    },
+                );
+                (s.strategy != Strategy::Unchanged && s.triangles < n).then_some(s.mesh)
             };
-            // Half the thickness is how far the quad's plane is from the
-            // part's outer faces: no quad fits a budget below it.
-            let quad = budget > 0.0
-                && triangles.len() > QUAD_TRIANGLES
-                && (hi - lo).min_element() / 2.0 <= budget;
-            let reduced = quad.then(|| proxy(push_quad)).flatten().or_else(|| {
-                (budget > 0.0 && triangles.len() > BOX_TRIANGLES)
-                    .then(|| {
-                        proxy(push_box)
-                            .or_else(|| simplified_within(&input, budget, tolerance, metric))
-                    })
-                    .flatten()
-            });
-            let (output, error) = reduced.unwrap_or_else(|| (input.clone(), 0.0));
-            Piece {
-                input,
+            let known = self.known(candidate, budget);
+            // A request that changes nothing stops the search: smaller
+            // ones would not either.
+            let unusable = |part: &PartState| {
+                part.tried
+                    .iter()
+                    .any(|t| t.candidate == candidate && t.budget == f32::INFINITY)
+            };
+            let found = match known {
+                Some(found) => found,
+                None => {
+                    let mesh = simplified(self);
+                    self.measure(candidate, mesh, budget, tolerance, metric)
+                }
+            };
+            if unusable(self) {
+                break;
+            }
+            if found.is_some() {
+                best = found;
+                break;
+            }
+        }
+        let (mut share, mut step) = (0.5, 0.25);
+        for _ in 0..PLACED_STEPS {
+            let target = (n as f64 * share) as usize;
+            let fewer = best.as_ref().is_none_or(|b| target < b.0.triangle_count());
+            let fits = (target > 0 && fewer)
+                .then(|| {
+                    let placed = |part: &mut PartState| {
+                        Some(edge_collapse_placed(part.welded(), target))
+                            .filter(|m| !m.is_empty() && m.triangle_count() < n)
+                    };
+                    self.try_candidate(Candidate::Placed(target), placed, budget, tolerance, metric)
+                })
+                .flatten();
+            // Fewer triangles when this fits (or was not worth trying,
+            // being no fewer than the best), more when it does not.
+            match fits {
+                Some(found) => {
+                    best = Some(found);
+                    share -= step;
+                }
+                None if !fewer => share -= step,
+                None => share += step,
+            }
+            step /= 2.0;
+        }
+        best.map(|(mesh, error)| (flat_shaded(&mesh), error))
+    }
+}
+
+impl<'a> Parts<'a> {
+    pub fn new(mesh: &'a Mesh) -> Self {
+        let parts = parts(mesh)
+            .into_iter()
+            .map(|triangles| {
+                let mut input = Mesh::default();
+                push_triangles(&mut input, mesh, &triangles);
+                let (lo, hi) = part_bounds(mesh, &triangles);
+                let look = part_look(mesh, &triangles);
+                PartState {
+                    triangles,
+                    input,
+                    welded: None,
+                    lo,
+                    hi,
+                    look,
+                    tried: Vec::new(),
+                }
+            })
+            .collect();
+        Parts { mesh, parts }
+    }
+
+    /// The mesh reduced part by part within `budget` (scene units) of
+    /// `metric`; `tolerance` is the gap allowed between the measured
+    /// bounds and the true distances. Never returns more triangles than it
+    /// was given.
+    pub fn reduce(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
+        let mesh = self.mesh;
+        let stand_ins: Vec<(Mesh, f32)> = self
+            .parts
+            .iter_mut()
+            .map(|part| part.stand_in(budget, tolerance, metric))
+            .collect();
+        let mut pieces: Vec<Piece> = self
+            .parts
+            .iter()
+            .zip(stand_ins)
+            .map(|(part, (output, error))| Piece {
+                input: &part.input,
                 output,
                 error,
-                size,
-            }
-        })
-        .collect();
-    pieces.sort_by(|a, b| b.size.total_cmp(&a.size));
-
-    // The greedy cover. Kept outputs are searched through a set rebuilt
-    // whenever the outputs kept since outnumber it (so O(n log n) in all);
-    // a part tested against the older set alone is only kept more often.
-    let mut kept: Vec<usize> = Vec::new();
-    let mut indexed = 0usize;
-    let mut set = ColoredSet::new([], metric);
-    let mut set_triangles = 0usize;
-    let mut pending_triangles = 0usize;
-    let mut bound = 0.0f32;
-    for (i, piece) in pieces.iter().enumerate() {
-        if pending_triangles > 0 && pending_triangles >= set_triangles {
-            set = ColoredSet::new(kept.iter().map(|&k| &pieces[k].output), metric);
-            indexed = kept.len();
-            set_triangles += pending_triangles;
-            pending_triangles = 0;
-        }
-        // Any surface near every vertex first: a cheap test that most
-        // parts which are not covered fail.
-        let covered = indexed > 0
-            && piece.input.positions.iter().all(|p| {
-                set.nearest_squared(*p)
-                    .is_some_and(|d| d <= budget * budget)
+                size: (part.hi - part.lo).length(),
             })
-            && match set.one_sided_within(&piece.input, tolerance, budget) {
-                Some(d) => {
-                    bound = bound.max(d);
-                    true
-                }
-                None => false,
-            };
-        if !covered {
-            bound = bound.max(piece.error);
-            pending_triangles += piece.output.triangle_count();
-            kept.push(i);
-        }
-    }
+            .collect();
+        pieces.sort_by(|a, b| b.size.total_cmp(&a.size));
 
-    let mut out = Mesh::default();
-    for &k in &kept {
-        let o = &pieces[k].output;
-        let all: Vec<usize> = (0..o.triangle_count()).collect();
-        push_triangles(&mut out, o, &all);
+        // The greedy cover. Kept outputs are searched through a set rebuilt
+        // whenever the outputs kept since outnumber it (so O(n log n) in all);
+        // a part tested against the older set alone is only kept more often.
+        let mut kept: Vec<usize> = Vec::new();
+        let mut indexed = 0usize;
+        let mut set = ColoredSet::new([], metric);
+        let mut set_triangles = 0usize;
+        let mut pending_triangles = 0usize;
+        let mut bound = 0.0f32;
+        for (i, piece) in pieces.iter().enumerate() {
+            if pending_triangles > 0 && pending_triangles >= set_triangles {
+                set = ColoredSet::new(kept.iter().map(|&k| &pieces[k].output), metric);
+                indexed = kept.len();
+                set_triangles += pending_triangles;
+                pending_triangles = 0;
+            }
+            // Any surface near every vertex first: a cheap test that most
+            // parts which are not covered fail.
+            let covered = indexed > 0
+                && piece.input.positions.iter().all(|p| {
+                    set.nearest_squared(*p)
+                        .is_some_and(|d| d <= budget * budget)
+                })
+                && match set.one_sided_within(&piece.input, tolerance, budget) {
+                    Some(d) => {
+                        bound = bound.max(d);
+                        true
+                    }
+                    None => false,
+                };
+            if !covered {
+                bound = bound.max(piece.error);
+                pending_triangles += piece.output.triangle_count();
+                kept.push(i);
+            }
+        }
+
+        let mut out = Mesh::default();
+        for &k in &kept {
+            let o = &pieces[k].output;
+            let all: Vec<usize> = (0..o.triangle_count()).collect();
+            push_triangles(&mut out, o, &all);
+        }
+        if mesh.colors.is_empty() {
+            out.colors.clear();
+        }
+        if out.triangle_count() >= mesh.triangle_count() {
+            return Reduced {
+                mesh: mesh.clone(),
+                bound: 0.0,
+            };
+        }
+        Reduced { mesh: out, bound }
     }
-    if mesh.colors.is_empty() {
-        out.colors.clear();
-    }
-    if out.triangle_count() >= mesh.triangle_count() {
-        return Reduced {
-            mesh: mesh.clone(),
-            bound: 0.0,
-        };
-    }
-    Reduced { mesh: out, bound }
 }
 
 /// Requests tried, as fractions of the budget: meshoptimizer's error is a
@@ -158,61 +391,6 @@ const REQUESTS: [f32; 3] = [1.0, 0.5, 0.25];
 /// vertex placement keeps within the budget (shares 1/2, then 1/4 or 3/4,
 /// ... of the part's triangles): each costs one measured bound.
 const PLACED_STEPS: usize = 4;
-
-/// The part simplified (welded, then flat-shaded again) and its measured
-/// bound: the fewer triangles of vertex selection at the first request
-/// within `budget` and of vertex placement at the fewest triangles within
-/// it.
-fn simplified_within(
-    input: &Mesh,
-    budget: f32,
-    tolerance: f32,
-    metric: ErrorMetric,
-) -> Option<(Mesh, f32)> {
-    let welded = input.welded();
-    let n = input.triangle_count();
-    let mut best: Option<(Mesh, f32)> = None;
-    for request in REQUESTS {
-        let s = simplify(
-            &welded,
-            &SimplifyOptions {
-                max_error: budget * request,
-                target_triangles: None,
-                prune: false,
-            },
-        );
-        if s.strategy == Strategy::Unchanged || s.triangles >= n {
-            break;
-        }
-        if let Some(error) = bound_within(&s.mesh, input, tolerance, budget, metric) {
-            best = Some((s.mesh, error));
-            break;
-        }
-    }
-    let (mut share, mut step) = (0.5, 0.25);
-    for _ in 0..PLACED_STEPS {
-        let target = (n as f64 * share) as usize;
-        let fewer = best.as_ref().is_none_or(|b| target < b.0.triangle_count());
-        let placed = (target > 0 && fewer)
-            .then(|| edge_collapse_placed(&welded, target))
-            .filter(|m| !m.is_empty() && m.triangle_count() < n);
-        let fits = placed.and_then(|m| {
-            bound_within(&m, input, tolerance, budget, metric).map(|error| (m, error))
-        });
-        // Fewer triangles when this fits (or was not worth trying, being
-        // no fewer than the best), more when it does not.
-        match fits {
-            Some(found) => {
-                best = Some(found);
-                share -= step;
-            }
-            None if !fewer => share -= step,
-            None => share += step,
-        }
-        step /= 2.0;
-    }
-    best.map(|(mesh, error)| (flat_shaded(&mesh), error))
-}
 
 /// `mesh` with a vertex per triangle corner and the triangle's normal: the
 /// look of the flat-shaded input.
