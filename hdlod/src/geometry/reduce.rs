@@ -349,7 +349,7 @@ impl<'a> Parts<'a> {
                     set.nearest_squared(*p)
                         .is_some_and(|d| d <= budget * budget)
                 })
-                && match set.one_sided_within(&piece.input, tolerance, budget) {
+                && match set.one_sided_within(piece.input, tolerance, budget) {
                     Some(d) => {
                         bound = bound.max(d);
                         true
