@@ -61,9 +61,11 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32, metric: ErrorMetri
 }
 
 /// A mesh split into its parts once, with every stand-in measured for a
-/// part so far: reducing it at several budgets (largest first) measures
-/// each candidate once. A builder reduces every cluster at two shares of
-/// its budget, and the Hausdorff bounds of the candidates are most of a
+/// part so far: reducing it at several budgets measures a candidate again
+/// only where no earlier measurement answers (a stand-in that fit a
+/// smaller budget fits a larger one; one over a larger budget is over a
+/// smaller one). A builder reduces every cluster at two shares of its
+/// budget, and the Hausdorff bounds of the candidates are most of a
 /// build's time.
 pub struct Parts<'a> {
     mesh: &'a Mesh,
@@ -169,6 +171,13 @@ impl PartState {
         self.measure(candidate, mesh, budget, tolerance, metric)
     }
 
+    /// Whether `candidate` was found unable to stand in (`measure`).
+    fn unusable(&self, candidate: Candidate) -> bool {
+        self.tried
+            .iter()
+            .any(|t| t.candidate == candidate && t.budget == f32::INFINITY)
+    }
+
     fn welded(&mut self) -> &Mesh {
         self.welded.get_or_insert_with(|| self.input.welded())
     }
@@ -227,22 +236,10 @@ impl PartState {
                 );
                 (s.strategy != Strategy::Unchanged && s.triangles < n).then_some(s.mesh)
             };
-            let known = self.known(candidate, budget);
+            let found = self.try_candidate(candidate, simplified, budget, tolerance, metric);
             // A request that changes nothing stops the search: smaller
             // ones would not either.
-            let unusable = |part: &PartState| {
-                part.tried
-                    .iter()
-                    .any(|t| t.candidate == candidate && t.budget == f32::INFINITY)
-            };
-            let found = match known {
-                Some(found) => found,
-                None => {
-                    let mesh = simplified(self);
-                    self.measure(candidate, mesh, budget, tolerance, metric)
-                }
-            };
-            if unusable(self) {
+            if self.unusable(candidate) {
                 break;
             }
             if found.is_some() {
@@ -466,6 +463,36 @@ mod tests {
         let truth = measured(&r.mesh, &m);
         assert!(truth <= r.bound + 1e-3, "{truth} > {}", r.bound);
         assert!(r.bound <= 0.5);
+    }
+
+    #[test]
+    fn a_larger_budget_measures_only_what_the_smaller_one_did_not_answer() {
+        let m = joined(&[tube(16, 0.02, 4.0, 0.0, 0.0), tube(16, 0.3, 4.0, 3.0, 0.0)]);
+        let mut parts = Parts::new(&m);
+        let half = parts.reduce(0.25, 5e-4, ErrorMetric::Geometry);
+        let tried: Vec<usize> = parts.parts.iter().map(|p| p.tried.len()).collect();
+        // The thin tube's quad fits a quarter: nothing of it is measured
+        // again at a half. The thick one (0.6 across) has no quad within a
+        // quarter: its quad is measured at a half.
+        let whole = parts.reduce(0.5, 1e-3, ErrorMetric::Geometry);
+        let again: Vec<usize> = parts.parts.iter().map(|p| p.tried.len()).collect();
+        assert_eq!(again[0], tried[0], "{tried:?} then {again:?}");
+        assert!(again[1] > tried[1], "{tried:?} then {again:?}");
+        assert!(whole.mesh.triangle_count() <= half.mesh.triangle_count());
+        assert_eq!(
+            whole.mesh.triangle_count(),
+            4,
+            "both tubes are quads within 0.5"
+        );
+        for r in [&half, &whole] {
+            assert!(
+                measured(&r.mesh, &m) <= r.bound + 1e-3,
+                "{} > {}",
+                measured(&r.mesh, &m),
+                r.bound
+            );
+        }
+        assert!(whole.bound <= 0.5 && half.bound <= 0.25);
     }
 
     #[test]
