@@ -19,7 +19,7 @@ use super::config::{Thresholds, thresholds};
 use super::context::{Active, Context, Node, add};
 use super::hilbert::hilbert_key;
 use super::instances::single_parents;
-use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE};
+use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE, Stored};
 use super::parent::{Parent, Single, make_parent};
 use super::steps::StepFunction;
 use crate::Result;
@@ -121,7 +121,21 @@ pub(super) fn cluster_class(
         }
         let grouped = clock.elapsed();
         let alone: Vec<usize> = (0..active.len()).filter(|&i| !taken[i]).collect();
-        let singles = single_parents(ctx, &active, &alone, &th);
+        // Stored on every core: a level may give tens of thousands of lone
+        // clusters a parent, each a GLB to encode and write.
+        let singles: Vec<Option<(Single, Stored)>> = single_parents(ctx, &active, &alone, &th)
+            .into_par_iter()
+            .map(|single| {
+                single
+                    .map(|s| {
+                        let stored =
+                            ctx.sink
+                                .put(&s.mesh, s.baked.as_ref(), s.eps * QUANTIZATION_SHARE)?;
+                        Ok((s, stored))
+                    })
+                    .transpose()
+            })
+            .collect::<Result<_>>()?;
         tracing::debug!(
             "{name}: {} groups in {:.2} s, {} lone clusters of which {} reduced in {:.2} s",
             groups.len(),
@@ -136,13 +150,10 @@ pub(super) fn cluster_class(
                 continue;
             }
             let single = singles.next_if(|(j, _)| *j == i).and_then(|(_, s)| s);
-            let Some(Single { mesh, eps, baked }) = single else {
+            let Some((Single { mesh, eps, baked }, stored)) = single else {
                 next.push(a);
                 continue;
             };
-            let stored = ctx
-                .sink
-                .put(&mesh, baked.as_ref(), eps * QUANTIZATION_SHARE)?;
             // The stored positions lie up to `moved` from the mesh's.
             let eps = eps + stored.moved;
             let child = &clusters[a.id as usize];
