@@ -38,14 +38,14 @@ pub(super) struct Instance {
 /// What makes two leaves one shape: the scene mesh, the linear part of the
 /// transform and the colour, as bits.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
-pub(super) struct ShapeKey {
+struct ShapeKey {
     mesh: usize,
     linear: [u32; 9],
     color: [u32; 4],
 }
 
 impl ShapeKey {
-    pub fn new(mesh: usize, transform: &Mat4, color: [f32; 4]) -> ShapeKey {
+    fn new(mesh: usize, transform: &Mat4, color: [f32; 4]) -> ShapeKey {
         let cols = [transform.x_axis, transform.y_axis, transform.z_axis];
         let linear = std::array::from_fn(|k| cols[k / 3][k % 3].to_bits());
         ShapeKey {
@@ -59,7 +59,7 @@ impl ShapeKey {
 /// The shape of `transform`'s linear part: the leaf's mesh as `merge`
 /// makes it, without the translation. The feature id is a placeholder:
 /// each instance's own replaces it.
-pub(super) fn canonical(mesh: &Mesh, transform: &Mat4, color: [f32; 4]) -> Mesh {
+fn canonical(mesh: &Mesh, transform: &Mat4, color: [f32; 4]) -> Mesh {
     let linear = Mat4::from_cols(
         transform.x_axis,
         transform.y_axis,
