@@ -20,7 +20,7 @@
 use std::collections::HashMap;
 use std::sync::Arc;
 
-use glam::{DVec3, Mat4, Vec3, Vec4};
+use glam::{Mat4, Vec3, Vec4};
 use rayon::prelude::*;
 
 use super::config::Thresholds;
@@ -128,24 +128,12 @@ fn moved(leaf: &Mesh, shape: &Mesh, reduced: &Mesh, h: f32, t: Vec3) -> Option<(
     if leaf.indices != shape.indices || leaf.positions.len() != shape.positions.len() {
         return None;
     }
-    let td = DVec3::from(t);
-    let apart = |at: Vec3, from: Vec3| (at.as_dvec3() - (from.as_dvec3() + td)).length();
-    let leaf_moved = leaf
-        .positions
-        .iter()
-        .zip(&shape.positions)
-        .map(|(x, c)| apart(*x, *c))
-        .fold(0.0, f64::max);
     let mut out = reduced.clone();
     for p in &mut out.positions {
         *p += t;
     }
-    let rounded = out
-        .positions
-        .iter()
-        .zip(&reduced.positions)
-        .map(|(x, r)| apart(*x, *r))
-        .fold(0.0, f64::max);
+    let leaf_moved = farthest(&leaf.positions, &shape.positions, t);
+    let rounded = farthest(&out.positions, &reduced.positions, t);
     match leaf.features.first() {
         Some(&f) => out.features.iter_mut().for_each(|g| *g = f),
         None => out.features.clear(),
@@ -156,51 +144,53 @@ fn moved(leaf: &Mesh, shape: &Mesh, reduced: &Mesh, h: f32, t: Vec3) -> Option<(
     Some((out, eps))
 }
 
+/// The largest distance, in `f64`, of a point of `at` from its match in
+/// `from` moved by `t`.
+fn farthest(at: &[Vec3], from: &[Vec3], t: Vec3) -> f64 {
+    let t = t.as_dvec3();
+    at.iter()
+        .zip(from)
+        .map(|(a, f)| (a.as_dvec3() - (f.as_dvec3() + t)).length())
+        .fold(0.0, f64::max)
+}
+
 /// The distinct shapes of `leaves` (mesh, transform, colour) used by more
 /// than one leaf, made at the origin, and each leaf's instance of one.
 pub(super) fn shapes_of(
     scene_meshes: &[Mesh],
     leaves: &[(usize, Mat4, [f32; 4])],
 ) -> (Vec<Arc<Mesh>>, Vec<Option<Instance>>) {
-    let mut count: HashMap<ShapeKey, (u32, usize)> = HashMap::new();
     let keys: Vec<ShapeKey> = leaves
         .iter()
         .map(|(mesh, transform, color)| ShapeKey::new(*mesh, transform, *color))
         .collect();
-    let mut first: Vec<usize> = Vec::new();
-    for (i, k) in keys.iter().enumerate() {
-        let entry = count.entry(*k).or_insert_with(|| {
-            first.push(i);
-            ((first.len() - 1) as u32, 0)
-        });
-        entry.1 += 1;
+    let mut count: HashMap<ShapeKey, usize> = HashMap::new();
+    for k in &keys {
+        *count.entry(*k).or_default() += 1;
     }
     // Only shapes that repeat: a unique leaf's shape would be reduced
-    // once either way, and held twice.
-    let mut index = vec![u32::MAX; first.len()];
-    let mut shared: Vec<usize> = Vec::new();
-    for (s, &i) in first.iter().enumerate() {
-        if count[&keys[i]].1 > 1 {
-            index[s] = shared.len() as u32;
-            shared.push(i);
-        }
-    }
-    let shapes: Vec<Arc<Mesh>> = shared
+    // once either way, and held twice. Numbered in order of first use.
+    let mut shape_of: HashMap<ShapeKey, u32> = HashMap::new();
+    let mut first: Vec<usize> = Vec::new();
+    let instances = leaves
+        .iter()
+        .zip(&keys)
+        .enumerate()
+        .map(|(i, ((_, transform, _), k))| {
+            (count[k] > 1).then(|| Instance {
+                shape: *shape_of.entry(*k).or_insert_with(|| {
+                    first.push(i);
+                    first.len() as u32 - 1
+                }),
+                translation: transform.w_axis.truncate(),
+            })
+        })
+        .collect();
+    let shapes: Vec<Arc<Mesh>> = first
         .par_iter()
         .map(|&i| {
             let (mesh, transform, color) = &leaves[i];
             Arc::new(canonical(&scene_meshes[*mesh], transform, *color))
-        })
-        .collect();
-    let instances = leaves
-        .iter()
-        .zip(&keys)
-        .map(|((_, transform, _), k)| {
-            let shape = index[count[k].0 as usize];
-            (shape != u32::MAX).then(|| Instance {
-                shape,
-                translation: transform.w_axis.truncate(),
-            })
         })
         .collect();
     (shapes, instances)

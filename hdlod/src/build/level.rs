@@ -125,15 +125,13 @@ pub(super) fn cluster_class(
         // clusters a parent, each a GLB to encode and write.
         let singles: Vec<Option<(Single, Stored)>> = single_parents(ctx, &active, &alone, &th)
             .into_par_iter()
-            .map(|single| {
-                single
-                    .map(|s| {
-                        let stored =
-                            ctx.sink
-                                .put(&s.mesh, s.baked.as_ref(), s.eps * QUANTIZATION_SHARE)?;
-                        Ok((s, stored))
-                    })
-                    .transpose()
+            .map(|single| match single {
+                Some(s) => {
+                    let allowance = s.eps * QUANTIZATION_SHARE;
+                    let stored = ctx.sink.put(&s.mesh, s.baked.as_ref(), allowance)?;
+                    Ok(Some((s, stored)))
+                }
+                None => Ok(None),
             })
             .collect::<Result<_>>()?;
         tracing::debug!(

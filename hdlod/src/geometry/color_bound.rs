@@ -238,16 +238,13 @@ pub fn feature_bound_within(
         // One object: the whole mesh's bound is its own.
         return Some(0.0);
     }
+    let mut by_feature: HashMap<Option<u32>, Vec<&Mesh>> = HashMap::new();
+    for o in originals.iter().filter(|o| o.triangle_count() > 0) {
+        by_feature.entry(feature_of(o, 0)).or_default().push(o);
+    }
     let mut bound = 0.0f32;
     for (feature, ks) in triangles {
-        let own: Vec<&Mesh> = originals
-            .iter()
-            .copied()
-            .filter(|o| o.triangle_count() > 0 && feature_of(o, 0) == feature)
-            .collect();
-        if own.is_empty() {
-            return None;
-        }
+        let own = by_feature.remove(&feature)?;
         let mut part = Mesh::default();
         push_triangles(&mut part, mesh, &ks);
         let set = ColoredSet::new(own, metric);

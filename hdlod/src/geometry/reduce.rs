@@ -73,7 +73,6 @@ pub struct Parts<'a> {
 }
 
 struct PartState {
-    triangles: Vec<usize>,
     input: Mesh,
     welded: Option<Mesh>,
     lo: Vec3,
@@ -93,69 +92,40 @@ enum Candidate {
     Placed(usize),
 }
 
-struct Tried {
-    candidate: Candidate,
-    mesh: Mesh,
-    /// The measured bound, or `None` when it was over `budget`.
-    error: Option<f32>,
-    budget: f32,
+/// What measuring a candidate found.
+enum Outcome {
+    /// Within this measured bound of the part.
+    Fits(Mesh, f32),
+    /// Farther than this budget.
+    Over(f32),
+    /// It cannot stand in (empty, or no fewer triangles), at any budget.
+    Unusable,
 }
 
-impl Tried {
+impl Outcome {
     /// What the measurement says at `budget`: `Some(fits)`, or `None` when
     /// it must be measured again (it failed at a smaller budget). A bound
     /// measured with a looser tolerance than `budget`'s call would use is
     /// still a bound; a candidate that failed a larger budget is taken to
     /// fail a smaller one, which at worst keeps more triangles.
-    fn fits(&self, budget: f32) -> Option<bool> {
-        match self.error {
-            Some(e) => Some(e <= budget),
-            None => (budget <= self.budget).then_some(false),
+    fn at(&self, budget: f32) -> Option<Option<(Mesh, f32)>> {
+        match self {
+            Outcome::Fits(mesh, e) => Some((*e <= budget).then(|| (mesh.clone(), *e))),
+            Outcome::Over(over) => (budget <= *over).then_some(None),
+            Outcome::Unusable => Some(None),
         }
     }
 }
 
+struct Tried {
+    candidate: Candidate,
+    outcome: Outcome,
+}
+
 impl PartState {
-    /// What an earlier measurement of `candidate` says at `budget`:
-    /// `Some(stand-in or None)`, or `None` when it must be measured.
-    fn known(&self, candidate: Candidate, budget: f32) -> Option<Option<(Mesh, f32)>> {
-        let t = self.tried.iter().find(|t| t.candidate == candidate)?;
-        match t.fits(budget)? {
-            true => Some(t.error.map(|e| (t.mesh.clone(), e))),
-            false => Some(None),
-        }
-    }
-
-    /// `mesh`, the stand-in `candidate`, measured against the part within
-    /// `budget` and remembered; `None` for a mesh that cannot stand in
-    /// (empty, or no fewer triangles), which never will.
-    fn measure(
-        &mut self,
-        candidate: Candidate,
-        mesh: Option<Mesh>,
-        budget: f32,
-        tolerance: f32,
-        metric: ErrorMetric,
-    ) -> Option<(Mesh, f32)> {
-        let (mesh, error, budget) = match mesh {
-            Some(m) => {
-                let error = bound_within(&m, &self.input, tolerance, budget, metric);
-                (m, error, budget)
-            }
-            None => (Mesh::default(), None, f32::INFINITY),
-        };
-        let found = error.map(|e| (mesh.clone(), e));
-        self.tried.retain(|t| t.candidate != candidate);
-        self.tried.push(Tried {
-            candidate,
-            mesh,
-            error,
-            budget,
-        });
-        found
-    }
-
-    /// `candidate` as earlier measured, or made by `make` and measured.
+    /// `candidate` as earlier measured (`Outcome::at`), or made by `make`
+    /// (`None`: it cannot stand in), measured against the part within
+    /// `budget` and remembered.
     fn try_candidate(
         &mut self,
         candidate: Candidate,
@@ -164,18 +134,31 @@ impl PartState {
         tolerance: f32,
         metric: ErrorMetric,
     ) -> Option<(Mesh, f32)> {
-        if let Some(known) = self.known(candidate, budget) {
-            return known;
+        let known = self.tried.iter().position(|t| t.candidate == candidate);
+        if let Some(found) = known.and_then(|k| self.tried[k].outcome.at(budget)) {
+            return found;
         }
-        let mesh = make(self);
-        self.measure(candidate, mesh, budget, tolerance, metric)
+        let outcome = match make(self) {
+            Some(m) => match bound_within(&m, &self.input, tolerance, budget, metric) {
+                Some(e) => Outcome::Fits(m, e),
+                None => Outcome::Over(budget),
+            },
+            None => Outcome::Unusable,
+        };
+        let found = outcome.at(budget).flatten();
+        let tried = Tried { candidate, outcome };
+        match known {
+            Some(k) => self.tried[k] = tried,
+            None => self.tried.push(tried),
+        }
+        found
     }
 
-    /// Whether `candidate` was found unable to stand in (`measure`).
+    /// Whether `candidate` was found unable to stand in.
     fn unusable(&self, candidate: Candidate) -> bool {
         self.tried
             .iter()
-            .any(|t| t.candidate == candidate && t.budget == f32::INFINITY)
+            .any(|t| t.candidate == candidate && matches!(t.outcome, Outcome::Unusable))
     }
 
     fn welded(&mut self) -> &Mesh {
@@ -186,7 +169,7 @@ impl PartState {
     /// box and its simplification that fits, or the part itself.
     fn stand_in(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> (Mesh, f32) {
         let (lo, hi, look) = (self.lo, self.hi, self.look);
-        let n = self.triangles.len();
+        let n = self.input.triangle_count();
         let proxy = |push: fn(&mut Mesh, Vec3, Vec3, Look)| {
             move |_: &mut PartState| {
                 let mut proxy = Mesh::default();
@@ -220,7 +203,7 @@ impl PartState {
         tolerance: f32,
         metric: ErrorMetric,
     ) -> Option<(Mesh, f32)> {
-        let n = self.triangles.len();
+        let n = self.input.triangle_count();
         let mut best: Option<(Mesh, f32)> = None;
         for request in REQUESTS {
             let max_error = budget * request;
@@ -286,7 +269,6 @@ impl<'a> Parts<'a> {
                 let (lo, hi) = part_bounds(mesh, &triangles);
                 let look = part_look(mesh, &triangles);
                 PartState {
-                    triangles,
                     input,
                     welded: None,
                     lo,

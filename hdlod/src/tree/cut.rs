@@ -161,7 +161,7 @@ pub fn cut_into(
         if refine {
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
-            emit(out, c, transform, v, delta, c.triangles(tree));
+            emit(tree, out, c, transform, v, delta);
         }
     }
 }
@@ -191,7 +191,7 @@ pub fn present_leaves_into(
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
             let transform = pose(tree, c, t, &mut sampled);
-            emit(out, c, transform, v, c.delta(v), c.triangles(tree));
+            emit(tree, out, c, transform, v, c.delta(v));
         }
     }
 }
@@ -243,15 +243,15 @@ fn pose(tree: &Tree, c: &super::nodes::Node, t: f64, sampled: &mut (u32, Mat4)) 
 }
 
 fn emit(
+    tree: &Tree,
     out: &mut Cut,
     c: &super::nodes::Node,
     transform: Option<Mat4>,
     visibility: f32,
     error: f64,
-    triangles: u64,
 ) {
     out.stats.clusters += 1;
-    out.stats.triangles += triangles;
+    out.stats.triangles += c.triangles(tree);
     out.items.push(CutItem {
         id: c.id,
         transform,
