@@ -18,6 +18,7 @@ use gltf::mesh::Mode;
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
 use crate::io::texture::Texture;
+use crate::scene::rig::{Channel, Clip, Interpolation, Rig, Trs, Values};
 
 /// The meshes of a glTF file and the nodes that place them.
 #[derive(Debug, Clone, Default)]
@@ -26,6 +27,8 @@ pub(crate) struct Model {
     /// Each mesh's colour texture, when it has one ([`read_textured_mesh`]).
     pub textures: Vec<Option<Texture>>,
     pub nodes: Vec<ModelNode>,
+    /// The node hierarchy and the animations.
+    pub rig: Rig,
 }
 
 /// A node with a mesh.
@@ -141,7 +144,10 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
         .map_err(|e| Error::invalid(path, "buffers", e.to_string()))?;
     let worlds = world_transforms(&document).map_err(|(at, m)| Error::invalid(path, at, m))?;
 
-    let mut model = Model::default();
+    let mut model = Model {
+        rig: read_rig(&document, &buffers).map_err(|(at, m)| Error::invalid(path, at, m))?,
+        ..Model::default()
+    };
     let mut shared: HashMap<MeshKey, usize> = HashMap::new();
     for node in document.nodes() {
         let Some(mesh) = node.mesh() else { continue };
@@ -292,6 +298,123 @@ fn node_id(node: &gltf::Node) -> Result<Option<String>, String> {
         }
     }
     Ok(node.name().map(str::to_owned))
+}
+
+/// The node hierarchy (checked by [`world_transforms`] first) and the
+/// animations: each channel's keys and values, checked against each other.
+/// Morph-target weights are not animated here (the scene has no morph
+/// targets) and are left out.
+fn read_rig(
+    document: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Rig, (String, String)> {
+    let n = document.nodes().len();
+    let mut rig = Rig {
+        parent: vec![None; n],
+        ..Rig::default()
+    };
+    for node in document.nodes() {
+        for child in node.children() {
+            rig.parent[child.index()] = Some(node.index());
+        }
+        rig.rest
+            .push(Mat4::from_cols_array_2d(&node.transform().matrix()));
+        let (t, r, s) = node.transform().decomposed();
+        rig.rest_trs.push(Trs {
+            translation: Vec3::from(t),
+            rotation: glam::Quat::from_array(r),
+            scale: Vec3::from(s),
+        });
+    }
+    for animation in document.animations() {
+        let mut clip = Clip {
+            name: animation.name().map(str::to_owned),
+            channels: Vec::new(),
+        };
+        for channel in animation.channels() {
+            let at = format!(
+                "animations[{}].channels[{}]",
+                animation.index(),
+                channel.index()
+            );
+            let reader = channel.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+            let times: Vec<f32> = reader
+                .read_inputs()
+                .ok_or_else(|| (at.clone(), "its sampler's input cannot be read".to_owned()))?
+                .collect();
+            if times.is_empty() {
+                return Err((at, "its sampler has no keys".into()));
+            }
+            if !times.iter().all(|t| t.is_finite()) {
+                return Err((at, "a key time is not finite".into()));
+            }
+            if let Some(k) = (1..times.len()).find(|&k| times[k] <= times[k - 1]) {
+                return Err((
+                    at,
+                    format!(
+                        "key {k} at {} s is not after key {} at {} s",
+                        times[k],
+                        k - 1,
+                        times[k - 1]
+                    ),
+                ));
+            }
+            let interpolation = match channel.sampler().interpolation() {
+                gltf::animation::Interpolation::Linear => Interpolation::Linear,
+                gltf::animation::Interpolation::Step => Interpolation::Step,
+                gltf::animation::Interpolation::CubicSpline => Interpolation::CubicSpline,
+            };
+            use gltf::animation::util::ReadOutputs;
+            let values = match reader.read_outputs() {
+                Some(ReadOutputs::Translations(v)) => {
+                    Values::Translation(v.map(Vec3::from).collect())
+                }
+                Some(ReadOutputs::Scales(v)) => Values::Scale(v.map(Vec3::from).collect()),
+                Some(ReadOutputs::Rotations(v)) => {
+                    Values::Rotation(v.into_f32().map(glam::Quat::from_array).collect())
+                }
+                Some(ReadOutputs::MorphTargetWeights(_)) => continue,
+                None => return Err((at, "its sampler's output cannot be read".into())),
+            };
+            let (count, finite) = match &values {
+                Values::Translation(v) | Values::Scale(v) => {
+                    (v.len(), v.iter().all(|x| x.is_finite()))
+                }
+                Values::Rotation(v) => (v.len(), v.iter().all(|x| x.is_finite())),
+            };
+            let per_key = if interpolation == Interpolation::CubicSpline {
+                3
+            } else {
+                1
+            };
+            if count != per_key * times.len() {
+                return Err((
+                    at,
+                    format!(
+                        "{count} output values for {} keys (expected {})",
+                        times.len(),
+                        per_key * times.len()
+                    ),
+                ));
+            }
+            if !finite {
+                return Err((at, "an output value is not finite".into()));
+            }
+            if let Values::Rotation(v) = &values
+                && v.iter().any(|q| q.length_squared() < 1e-12)
+            {
+                return Err((at, "a rotation is a zero quaternion".into()));
+            }
+            clip.channels.push(Channel {
+                node: channel.target().node().index(),
+                interpolation,
+                times,
+                values,
+            });
+        }
+        rig.clips.push(clip);
+    }
+    Ok(rig)
 }
 
 /// World transform of every node: its local transform after its parents'.

@@ -16,6 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use super::appearance::{Profile, ProfileFile};
 use super::links::{LinkType, find_cycle, show_cycle};
+use super::rig::{Placed, Segment, Timeline};
 use super::{
     Actual, Georeference, Keyframe, Motion, NamedType, Object, Predecessor, Scene, ScheduleOptions,
     Span, Task, TaskType, Up, Visibility,
@@ -58,6 +59,64 @@ struct SceneFile {
     /// Its place on Earth.
     #[serde(default, skip_serializing_if = "Option::is_none")]
     georeference: Option<Georeference>,
+    /// The models' animations placed on the timeline.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    clips: Vec<ClipFile>,
+}
+
+/// A model's animation placed on the timeline: played at given times,
+/// looped over an interval, or driven by keyframes of its clip time.
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClipFile {
+    /// The model (an entry of `models`) whose animation this is; needed
+    /// only when several models have an animation of that name.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    model: Option<String>,
+    /// The glTF animation's name, or its index.
+    animation: AnimationRef,
+    /// Clip seconds per scene second, for `play` and `loop`.
+    #[serde(default = "one", skip_serializing_if = "is_one")]
+    speed: f64,
+    /// Times at which the clip plays once from its start.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    play: Vec<TimeValue>,
+    /// An interval over which the clip plays again and again.
+    #[serde(rename = "loop", default, skip_serializing_if = "Option::is_none")]
+    repeat: Option<LoopFile>,
+    /// The clip time at scene times, interpolated linearly between them.
+    #[serde(default, skip_serializing_if = "Vec::is_empty")]
+    keys: Vec<ClipKeyFile>,
+}
+
+#[derive(Debug, Clone, Serialize, Deserialize)]
+#[serde(untagged)]
+enum AnimationRef {
+    Index(usize),
+    Name(String),
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LoopFile {
+    from: TimeValue,
+    to: TimeValue,
+}
+
+#[derive(Debug, Serialize, Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ClipKeyFile {
+    t: TimeValue,
+    /// Seconds into the clip.
+    clip_time: f64,
+}
+
+fn one() -> f64 {
+    1.0
+}
+
+fn is_one(x: &f64) -> bool {
+    *x == 1.0
 }
 
 #[derive(Debug, Serialize, Deserialize)]
@@ -283,7 +342,7 @@ impl Loader<'_> {
             ));
         }
 
-        let (meshes, mut objects) = self.objects(&f)?;
+        let (meshes, mut objects, rigs) = self.objects(&f)?;
         let index: HashMap<String, usize> = objects
             .iter()
             .enumerate()
@@ -503,6 +562,8 @@ impl Loader<'_> {
             );
         }
 
+        self.clips(&f.clips, &f.models, &time, &rigs, &meshes, &mut objects)?;
+
         let mut scene = Scene {
             name: f.name,
             up: f.up,
@@ -518,9 +579,221 @@ impl Loader<'_> {
         Ok(scene)
     }
 
+    /// Places the models' animations on the timeline (`clips`): every
+    /// object whose node or a node above it is animated moves with its
+    /// composed world transform (`rig`).
+    fn clips(
+        &self,
+        clips: &[ClipFile],
+        models: &[String],
+        time: &TimeSpan,
+        rigs: &Rigs,
+        meshes: &[crate::geometry::Mesh],
+        objects: &mut [Object],
+    ) -> Result<()> {
+        if clips.is_empty() {
+            return Ok(());
+        }
+        // The placed clips of each model.
+        let mut placed: Vec<Vec<Placed>> = vec![Vec::new(); rigs.rigs.len()];
+        for (i, c) in clips.iter().enumerate() {
+            let at = format!("clips[{i}]");
+            let models: Vec<usize> = match &c.model {
+                Some(name) => vec![models.iter().position(|m| m == name).ok_or_else(|| {
+                    self.err(
+                        format!("{at}.model"),
+                        format!("{:?} is not one of models", name),
+                    )
+                })?],
+                None => (0..models.len()).collect(),
+            };
+            let found: Vec<(usize, usize)> = models
+                .iter()
+                .flat_map(|&m| {
+                    let clips = &rigs.rigs[m].clips;
+                    let k = match &c.animation {
+                        AnimationRef::Index(k) => (*k < clips.len()).then_some(*k),
+                        AnimationRef::Name(name) => {
+                            clips.iter().position(|a| a.name.as_deref() == Some(name))
+                        }
+                    };
+                    k.map(|k| (m, k))
+                })
+                .collect();
+            let animation = match &c.animation {
+                AnimationRef::Index(k) => format!("animation {k}"),
+                AnimationRef::Name(name) => format!("animation {name:?}"),
+            };
+            let (m, k) = match found[..] {
+                [one] => one,
+                [] => {
+                    return Err(self.err(
+                        format!("{at}.animation"),
+                        format!("no model has {animation}"),
+                    ));
+                }
+                _ => {
+                    return Err(self.err(
+                        format!("{at}.model"),
+                        format!("{} models have {animation}: name the model", found.len()),
+                    ));
+                }
+            };
+            let clip = &rigs.rigs[m].clips[k];
+            let timeline = self.timeline(c, time, clip.duration(), &at)?;
+            placed[m].push(Placed { clip, timeline });
+        }
+        // Two placements animating one node at once cannot both hold.
+        for (m, list) in placed.iter().enumerate() {
+            for (a, first) in list.iter().enumerate() {
+                for second in &list[a + 1..] {
+                    let shared = first
+                        .clip
+                        .channels
+                        .iter()
+                        .find(|x| second.clip.channels.iter().any(|y| y.node == x.node));
+                    let overlap = first.timeline.segments().iter().any(|s| {
+                        second
+                            .timeline
+                            .segments()
+                            .iter()
+                            .any(|r| r.start < s.end && s.start < r.end)
+                    });
+                    if let (Some(channel), true) = (shared, overlap) {
+                        return Err(self.err(
+                            "clips",
+                            format!(
+                                "two clips of {:?} animate node {} at the same time",
+                                models[m], channel.node
+                            ),
+                        ));
+                    }
+                }
+            }
+        }
+        for (o, &(m, node)) in objects.iter_mut().zip(&rigs.nodes) {
+            let rig = &rigs.rigs[m];
+            if placed[m].is_empty() || !rig.moves(node, &placed[m]) {
+                continue;
+            }
+            let at = format!("object {:?}", o.id);
+            if o.motion.is_some() {
+                return Err(self.err(
+                    format!("motion.{:?}", o.id),
+                    "the object also moves with a clip: give it one or the other",
+                ));
+            }
+            let bounds = meshes[o.mesh]
+                .bounds()
+                .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ZERO));
+            let keys = rig
+                .keyframes(node, &placed[m], bounds, time.seconds)
+                .map_err(|m| self.err(&at, m))?;
+            o.motion = Some(Motion::new(keys).map_err(|e| self.err(&at, e.to_string()))?);
+        }
+        Ok(())
+    }
+
+    /// The timeline of clip placement `c` (at `at`) for a clip of
+    /// `duration` seconds.
+    fn timeline(&self, c: &ClipFile, time: &TimeSpan, duration: f64, at: &str) -> Result<Timeline> {
+        let given = [!c.play.is_empty(), c.repeat.is_some(), !c.keys.is_empty()];
+        if given.iter().filter(|g| **g).count() != 1 {
+            return Err(self.err(at.to_owned(), "give exactly one of play, loop and keys"));
+        }
+        if !(c.speed.is_finite() && c.speed > 0.0) {
+            return Err(self.err(format!("{at}.speed"), format!("{} is not above 0", c.speed)));
+        }
+        let length = duration / c.speed;
+        let mut segments = Vec::new();
+        if !c.play.is_empty() {
+            if duration <= 0.0 {
+                return Err(self.err(
+                    format!("{at}.animation"),
+                    "the animation has no length: it can only be placed by keys",
+                ));
+            }
+            for (k, t) in c.play.iter().enumerate() {
+                let start = self.time(time, t, &format!("{at}.play[{k}]"))?;
+                segments.push(Segment {
+                    start,
+                    end: start + length,
+                    tau: (0.0, duration),
+                });
+            }
+        } else if let Some(l) = &c.repeat {
+            let from = self.time(time, &l.from, &format!("{at}.loop.from"))?;
+            let to = self.time(time, &l.to, &format!("{at}.loop.to"))?;
+            if to <= from {
+                return Err(self.err(format!("{at}.loop.to"), "is not after loop.from"));
+            }
+            if duration <= 0.0 {
+                return Err(self.err(
+                    format!("{at}.animation"),
+                    "the animation has no length: it can only be placed by keys",
+                ));
+            }
+            let cycles = ((to - from) / length).ceil();
+            if cycles > MAX_CYCLES as f64 {
+                return Err(self.err(
+                    format!("{at}.loop"),
+                    format!(
+                        "plays the {duration} s clip {cycles} times; at most {MAX_CYCLES} \
+                         (a longer loop is a motion of its own: give keys)"
+                    ),
+                ));
+            }
+            let mut start = from;
+            while start < to {
+                let end = (start + length).min(to);
+                segments.push(Segment {
+                    start,
+                    end,
+                    tau: (0.0, (end - start) * c.speed),
+                });
+                start = end;
+            }
+        } else {
+            let mut keys: Vec<(f64, f64)> = Vec::with_capacity(c.keys.len());
+            for (k, key) in c.keys.iter().enumerate() {
+                let t = self.time(time, &key.t, &format!("{at}.keys[{k}].t"))?;
+                if !key.clip_time.is_finite() {
+                    return Err(self.err(format!("{at}.keys[{k}].clip_time"), "is not finite"));
+                }
+                if let Some(&(before, _)) = keys.last()
+                    && t <= before
+                {
+                    return Err(self.err(
+                        format!("{at}.keys[{k}].t"),
+                        "is not after the key before: keys go forward in time",
+                    ));
+                }
+                keys.push((t, key.clip_time));
+            }
+            if let [(t, tau)] = keys[..] {
+                // One key: the pose at that clip time, throughout.
+                segments.push(Segment {
+                    start: t,
+                    end: t + 1.0,
+                    tau: (tau, tau),
+                });
+            }
+            for w in keys.windows(2) {
+                segments.push(Segment {
+                    start: w[0].0,
+                    end: w[1].0,
+                    tau: (w[0].1, w[1].1),
+                });
+            }
+        }
+        Timeline::new(segments).map_err(|m| self.err(at.to_owned(), m))
+    }
+
     /// Reads the models: the meshes (only those some object uses, in order
-    /// of first use) and one object per mesh node not skipped.
-    fn objects(&self, f: &SceneFile) -> Result<(Vec<crate::geometry::Mesh>, Vec<Object>)> {
+    /// of first use), one object per mesh node not skipped, and the models'
+    /// node hierarchies and animations.
+    fn objects(&self, f: &SceneFile) -> Result<(Vec<crate::geometry::Mesh>, Vec<Object>, Rigs)> {
+        let mut rigs = Rigs::default();
         let mut meshes = Vec::new();
         let mut objects: Vec<Object> = Vec::new();
         let mut seen: HashMap<String, String> = HashMap::new();
@@ -541,6 +814,7 @@ impl Loader<'_> {
             let mut remap: Vec<Option<usize>> = vec![None; model.meshes.len()];
             let mut model_meshes: Vec<Option<crate::geometry::Mesh>> =
                 model.meshes.into_iter().map(Some).collect();
+            rigs.rigs.push(model.rig);
             for node in model.nodes {
                 let id = node.id.clone().ok_or_else(|| {
                     Error::invalid(
@@ -566,6 +840,7 @@ impl Loader<'_> {
                     meshes.push(model_meshes[node.mesh].take().expect("taken once"));
                     meshes.len() - 1
                 });
+                rigs.nodes.push((m, node.index));
                 objects.push(Object {
                     id,
                     mesh,
@@ -584,9 +859,19 @@ impl Loader<'_> {
                 "names no mesh node in the models",
             ));
         }
-        Ok((meshes, objects))
+        Ok((meshes, objects, rigs))
     }
 }
+
+/// The models' rigs, and each object's model and node.
+#[derive(Default)]
+struct Rigs {
+    rigs: Vec<crate::scene::rig::Rig>,
+    nodes: Vec<(usize, usize)>,
+}
+
+/// A loop plays its clip at most this many times.
+const MAX_CYCLES: usize = 100_000;
 
 /// A time as the user wrote it, for messages.
 fn show(value: &TimeValue) -> String {
@@ -898,5 +1183,7 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
         schedule_options: Some(scene.schedule_options),
         appearance: scene.appearance.as_ref().map(Profile::to_file),
         georeference: scene.georeference,
+        // Saved as the motions they make, above.
+        clips: Vec::new(),
     }
 }
