@@ -338,9 +338,10 @@ fn read_rig(
                 channel.index()
             );
             let reader = channel.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
-            let times: Vec<f32> = reader
+            let times: Vec<f64> = reader
                 .read_inputs()
                 .ok_or_else(|| (at.clone(), "its sampler's input cannot be read".to_owned()))?
+                .map(f64::from)
                 .collect();
             if times.is_empty() {
                 return Err((at, "its sampler has no keys".into()));

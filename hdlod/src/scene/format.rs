@@ -16,7 +16,7 @@ use serde::{Deserialize, Serialize};
 
 use super::appearance::{Profile, ProfileFile};
 use super::links::{LinkType, find_cycle, show_cycle};
-use super::rig::{Placed, Segment, Timeline};
+use super::rig::{Placed, Segment, TOLERANCE, Timeline};
 use super::{
     Actual, Georeference, Keyframe, Motion, NamedType, Object, Predecessor, Scene, ScheduleOptions,
     Span, Task, TaskType, Up, Visibility,
@@ -641,7 +641,7 @@ impl Loader<'_> {
             };
             let clip = &rigs.rigs[m].clips[k];
             let timeline = self.timeline(c, time, clip.duration(), &at)?;
-            placed[m].push(Placed { clip, timeline });
+            placed[m].push(Placed::new(clip, timeline));
         }
         // Two placements animating one node at once cannot both hold.
         for (m, list) in placed.iter().enumerate() {
@@ -687,7 +687,7 @@ impl Loader<'_> {
                 .bounds()
                 .unwrap_or((glam::Vec3::ZERO, glam::Vec3::ZERO));
             let keys = rig
-                .keyframes(node, &placed[m], bounds, time.seconds)
+                .keyframes(node, &placed[m], bounds, (0.0, time.seconds), TOLERANCE)
                 .map_err(|m| self.err(&at, m))?;
             o.motion = Some(Motion::new(keys).map_err(|e| self.err(&at, e.to_string()))?);
         }

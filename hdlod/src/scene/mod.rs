@@ -8,7 +8,7 @@ pub mod format;
 mod georef;
 pub mod links;
 mod motion;
-pub(crate) mod rig;
+pub mod rig;
 mod schedule;
 pub mod status;
 mod summary;

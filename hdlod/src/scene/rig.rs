@@ -24,11 +24,14 @@ use super::Keyframe;
 
 /// The largest distance, in scene units (metres), between a resampled
 /// keyframe motion and the exact composed transform, at the corners of the
-/// part's mesh box.
+/// part's mesh box, for clips placed by `scene.json`.
 pub const TOLERANCE: f32 = 1e-3;
 
-/// Halvings of one interval between key times at most: 2^16 samples.
-const MAX_DEPTH: u32 = 16;
+/// Cuts of one interval between key times at most, one inside another.
+const MAX_DEPTH: u32 = 8;
+
+/// One cut makes at most this many pieces.
+const MAX_PIECES: usize = 64;
 
 /// A resampled motion has at most this many keyframes.
 pub const MAX_KEYFRAMES: usize = 1_000_000;
@@ -61,8 +64,9 @@ pub enum Values {
 pub struct Channel {
     pub node: usize,
     pub interpolation: Interpolation,
-    /// Clip seconds, increasing.
-    pub times: Vec<f32>,
+    /// Clip seconds, increasing (`f32` in glTF; a clip made in code may
+    /// run in scene seconds over years).
+    pub times: Vec<f64>,
     pub values: Values,
 }
 
@@ -79,7 +83,7 @@ impl Clip {
         self.channels
             .iter()
             .filter_map(|c| c.times.last())
-            .fold(0.0, |a, &b| a.max(f64::from(b)))
+            .fold(0.0, |a, &b| a.max(b))
     }
 }
 
@@ -163,22 +167,26 @@ impl Timeline {
         s.tau.0 + (s.tau.1 - s.tau.0) * (t - s.start) / (s.end - s.start)
     }
 
-    /// The scene times at which the clip time is one of `times` (inside a
-    /// segment), with the segments' ends: where a composed motion must
-    /// have a keyframe.
-    fn breakpoints(&self, times: &[f32], out: &mut Vec<f64>) {
+    /// The scene times within `window` at which the clip time is one of
+    /// `times` (sorted; inside a segment), with the segments' ends: where
+    /// a composed motion must have a keyframe.
+    fn breakpoints(&self, times: &[f64], (from, to): (f64, f64), out: &mut Vec<f64>) {
         for s in &self.segments {
+            if s.end < from || s.start > to {
+                continue;
+            }
             out.push(s.start);
             out.push(s.end);
-            let (lo, hi) = (s.tau.0.min(s.tau.1), s.tau.0.max(s.tau.1));
+            let (a, b) = (s.start.max(from), s.end.min(to));
+            let at = |t: f64| s.tau.0 + (s.tau.1 - s.tau.0) * (t - s.start) / (s.end - s.start);
+            let (lo, hi) = (at(a).min(at(b)), at(a).max(at(b)));
             if hi <= lo {
                 continue;
             }
-            for &k in times {
-                let k = f64::from(k);
-                if k > lo && k < hi {
-                    out.push(s.start + (s.end - s.start) * (k - s.tau.0) / (s.tau.1 - s.tau.0));
-                }
+            let first = times.partition_point(|&k| k <= lo);
+            let last = times.partition_point(|&k| k < hi);
+            for &k in &times[first..last] {
+                out.push(s.start + (s.end - s.start) * (k - s.tau.0) / (s.tau.1 - s.tau.0));
             }
         }
     }
@@ -189,25 +197,50 @@ impl Timeline {
 pub struct Placed<'a> {
     pub clip: &'a Clip,
     pub timeline: Timeline,
+    /// The clip's channels of each node it animates.
+    by_node: std::collections::HashMap<usize, Vec<usize>>,
+}
+
+impl<'a> Placed<'a> {
+    pub fn new(clip: &'a Clip, timeline: Timeline) -> Placed<'a> {
+        let mut by_node: std::collections::HashMap<usize, Vec<usize>> = Default::default();
+        for (k, c) in clip.channels.iter().enumerate() {
+            by_node.entry(c.node).or_default().push(k);
+        }
+        Placed {
+            clip,
+            timeline,
+            by_node,
+        }
+    }
+
+    /// The channels that animate `node`.
+    fn channels(&self, node: usize) -> impl Iterator<Item = &Channel> {
+        self.by_node
+            .get(&node)
+            .into_iter()
+            .flatten()
+            .map(|&k| &self.clip.channels[k])
+    }
 }
 
 impl Channel {
     /// The channel's value at clip time `tau`, clamped to its keys.
     fn sample(&self, tau: f64) -> Sampled {
         let n = self.times.len();
-        let i = self.times.partition_point(|&k| f64::from(k) <= tau);
+        let i = self.times.partition_point(|&k| k <= tau);
         let (a, b, s) = if i == 0 {
             (0, 0, 0.0)
         } else if i == n {
             (n - 1, n - 1, 0.0)
         } else {
-            let (t0, t1) = (f64::from(self.times[i - 1]), f64::from(self.times[i]));
+            let (t0, t1) = (self.times[i - 1], self.times[i]);
             (i - 1, i, ((tau - t0) / (t1 - t0)) as f32)
         };
         let dt = if a == b {
             0.0
         } else {
-            self.times[b] - self.times[a]
+            (self.times[b] - self.times[a]) as f32
         };
         match &self.values {
             Values::Translation(v) => Sampled::Translation(self.vec(v, a, b, s, dt)),
@@ -273,7 +306,7 @@ impl Rig {
         let chain = self.chain(node);
         placed
             .iter()
-            .any(|p| p.clip.channels.iter().any(|c| chain.contains(&c.node)))
+            .any(|p| chain.iter().any(|&n| p.channels(n).next().is_some()))
     }
 
     /// The world transform of `node` at scene time `t`.
@@ -283,7 +316,7 @@ impl Rig {
             let mut trs: Option<Trs> = None;
             for p in placed {
                 let tau = p.timeline.tau(t);
-                for c in p.clip.channels.iter().filter(|c| c.node == n) {
+                for c in p.channels(n) {
                     let v = trs.get_or_insert(self.rest_trs[n]);
                     match c.sample(tau) {
                         Sampled::Translation(x) => v.translation = x,
@@ -300,27 +333,31 @@ impl Rig {
         world
     }
 
-    /// The keyframes of `node`'s world transform under the clips `placed`,
-    /// within [`TOLERANCE`] of it at the corners of `(lo, hi)` (the node's
-    /// mesh box), over the scene times `[0, span]`.
+    /// The keyframes of `node`'s world transform under the clips `placed`
+    /// over the scene times `window`, within `tolerance` of it at the
+    /// corners of `(lo, hi)` (the node's mesh box). Before and after the
+    /// window, a motion made of them holds its first and last pose.
     pub fn keyframes(
         &self,
         node: usize,
         placed: &[Placed],
         (lo, hi): (Vec3, Vec3),
-        span: f64,
+        window: (f64, f64),
+        tolerance: f32,
     ) -> Result<Vec<Keyframe>, String> {
         let chain = self.chain(node);
-        let mut times = vec![0.0, span];
+        let mut times = vec![window.0, window.1];
         for p in placed {
-            let mut keys: Vec<f32> = Vec::new();
-            for c in p.clip.channels.iter().filter(|c| chain.contains(&c.node)) {
-                keys.extend_from_slice(&c.times);
+            let mut animated = false;
+            for &n in &chain {
+                for c in p.channels(n) {
+                    p.timeline.breakpoints(&c.times, window, &mut times);
+                    animated = true;
+                }
             }
-            if keys.is_empty() {
+            if !animated {
                 continue;
             }
-            p.timeline.breakpoints(&keys, &mut times);
             // A jump of the clip time between two segments: the pose held
             // until just before the next one starts.
             for w in p.timeline.segments.windows(2) {
@@ -329,7 +366,7 @@ impl Rig {
                 }
             }
         }
-        times.retain(|t| (0.0..=span).contains(t));
+        times.retain(|t| (window.0..=window.1).contains(t));
         times.sort_by(f64::total_cmp);
         times.dedup_by(|a, b| (*a - *b).abs() < JUMP / 2.0);
 
@@ -352,7 +389,7 @@ impl Rig {
                 scale,
             };
             let off = far(&corners, &m, &k.matrix());
-            if off.is_nan() || off > TOLERANCE {
+            if off.is_nan() || off > tolerance {
                 return Err(format!(
                     "its world transform at {t} s is not a translation, rotation and scale \
                      (a non-uniform scale above a rotation shears it {off} m): it cannot move \
@@ -361,23 +398,21 @@ impl Rig {
             }
             Ok(k)
         };
+        let fit = Fit {
+            chain: &chain,
+            placed,
+            corners: &corners,
+            tolerance,
+        };
         let mut out = vec![key(times[0])?];
         for w in times.windows(2) {
             let end = key(w[1])?;
-            self.refine(
-                &chain,
-                placed,
-                &corners,
-                *out.last().expect("not empty"),
-                end,
-                0,
-                &mut out,
-            )?;
+            self.refine(&fit, *out.last().expect("not empty"), end, 0, &mut out);
             out.push(end);
             if out.len() > MAX_KEYFRAMES {
                 return Err(format!(
                     "its motion needs more than {MAX_KEYFRAMES} keyframes to stay within \
-                     {TOLERANCE} m"
+                     {tolerance} m"
                 ));
             }
         }
@@ -385,41 +420,57 @@ impl Rig {
     }
 
     /// Adds the keyframes between `a` and `b` that keep the interpolation
-    /// within [`TOLERANCE`] of the composed transform, halving the interval.
-    #[allow(clippy::too_many_arguments)]
-    fn refine(
-        &self,
-        chain: &[usize],
-        placed: &[Placed],
-        corners: &[Vec3],
-        a: Keyframe,
-        b: Keyframe,
-        depth: u32,
-        out: &mut Vec<Keyframe>,
-    ) -> Result<(), String> {
+    /// within the tolerance of the composed transform. An interval that
+    /// strays is cut into `n` equal pieces with `n` the square root of its
+    /// error over the tolerance, rounded up: a swing's deviation from its
+    /// chord falls with the square of the piece (an arc of angle `d` and
+    /// radius `r` strays `r d^2 / 8`), so one cut usually suffices where
+    /// halving would overshoot to the next power of two.
+    fn refine(&self, fit: &Fit, a: Keyframe, b: Keyframe, depth: u32, out: &mut Vec<Keyframe>) {
         // Three probes: a motion can return to the midpoint's pose (a full
         // turn) and still stray between.
-        let fits = [0.25, 0.5, 0.75].iter().all(|s| {
-            let t = a.t + (b.t - a.t) * s;
-            let exact = self.world(chain, placed, t);
-            far(corners, &exact, &super::Motion::between(a, b, t).matrix()) <= TOLERANCE
-        });
-        if fits || depth >= MAX_DEPTH || b.t - a.t < 2.0 * JUMP {
-            return Ok(());
+        let error = [0.25, 0.5, 0.75]
+            .iter()
+            .map(|s| {
+                let t = a.t + (b.t - a.t) * s;
+                let exact = self.world(fit.chain, fit.placed, t);
+                far(fit.corners, &exact, &super::Motion::between(a, b, t).matrix())
+            })
+            .fold(0.0, f32::max);
+        if error <= fit.tolerance || depth >= MAX_DEPTH || b.t - a.t < 2.0 * JUMP {
+            return;
         }
-        let t = (a.t + b.t) * 0.5;
-        let m = self.world(chain, placed, t);
-        let (scale, rotation, translation) = m.to_scale_rotation_translation();
-        let mid = Keyframe {
-            t,
-            translation,
-            rotation,
-            scale,
-        };
-        self.refine(chain, placed, corners, a, mid, depth + 1, out)?;
-        out.push(mid);
-        self.refine(chain, placed, corners, mid, b, depth + 1, out)
+        let n = ((error / fit.tolerance).sqrt().ceil() as usize).clamp(2, MAX_PIECES);
+        let mut from = a;
+        for k in 1..=n {
+            let to = if k == n {
+                b
+            } else {
+                let t = a.t + (b.t - a.t) * k as f64 / n as f64;
+                let m = self.world(fit.chain, fit.placed, t);
+                let (scale, rotation, translation) = m.to_scale_rotation_translation();
+                Keyframe {
+                    t,
+                    translation,
+                    rotation,
+                    scale,
+                }
+            };
+            self.refine(fit, from, to, depth + 1, out);
+            if k < n {
+                out.push(to);
+            }
+            from = to;
+        }
     }
+}
+
+/// What [`Rig::refine`] holds a resampled motion to.
+struct Fit<'a> {
+    chain: &'a [usize],
+    placed: &'a [Placed<'a>],
+    corners: &'a [Vec3],
+    tolerance: f32,
 }
 
 /// The largest distance between `corners` placed by `a` and by `b`.
@@ -437,7 +488,7 @@ mod tests {
     fn channel(
         node: usize,
         interpolation: Interpolation,
-        times: &[f32],
+        times: &[f64],
         values: Values,
     ) -> Channel {
         Channel {
@@ -484,12 +535,11 @@ mod tests {
             tau: (0.0, 1.0),
         }])
         .unwrap();
-        let placed = [Placed {
-            clip: &rig.clips[0],
-            timeline,
-        }];
+        let placed = [Placed::new(&rig.clips[0], timeline)];
         let bounds = (Vec3::splat(-0.5), Vec3::splat(0.5));
-        let keys = rig.keyframes(1, &placed, bounds, 300.0).unwrap();
+        let keys = rig
+            .keyframes(1, &placed, bounds, (0.0, 300.0), TOLERANCE)
+            .unwrap();
         // Two keys would cut the arc's chord 2.9 m inside it.
         assert!(keys.len() > 8, "{}", keys.len());
         let motion = super::super::Motion::new(keys).unwrap();
@@ -612,12 +662,18 @@ mod tests {
             end: start + 10.0,
             tau: (0.0, 1.0),
         };
-        let placed = [Placed {
-            clip: &rig.clips[0],
-            timeline: Timeline::new(vec![piece(10.0), piece(50.0)]).unwrap(),
-        }];
+        let placed = [Placed::new(
+            &rig.clips[0],
+            Timeline::new(vec![piece(10.0), piece(50.0)]).unwrap(),
+        )];
         let keys = rig
-            .keyframes(1, &placed, (Vec3::ZERO, Vec3::ZERO), 100.0)
+            .keyframes(
+                1,
+                &placed,
+                (Vec3::ZERO, Vec3::ZERO),
+                (0.0, 100.0),
+                TOLERANCE,
+            )
             .unwrap();
         let motion = super::super::Motion::new(keys).unwrap();
         let at = |t: f64| motion.at(t).transform_point3(Vec3::ZERO);
