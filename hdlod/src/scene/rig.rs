@@ -434,7 +434,11 @@ impl Rig {
             .map(|s| {
                 let t = a.t + (b.t - a.t) * s;
                 let exact = self.world(fit.chain, fit.placed, t);
-                far(fit.corners, &exact, &super::Motion::between(a, b, t).matrix())
+                far(
+                    fit.corners,
+                    &exact,
+                    &super::Motion::between(a, b, t).matrix(),
+                )
             })
             .fold(0.0, f32::max);
         if error <= fit.tolerance || depth >= MAX_DEPTH || b.t - a.t < 2.0 * JUMP {
