@@ -207,7 +207,7 @@ fn a_geometry_change_a_class_change_or_full_build_in_full() {
 fn the_geometry_key_is_stable_across_releases() {
     assert_eq!(
         hdlod::build::geometry_key(&tiny(), &BuildConfig::default()),
-        "d0fee90c01e3686b8833211c822e61ae0bfbac3869c875b81345b8519a567acb"
+        "7ac6867e99202cbe592ae861c74300e1a743404cbb7f0f0e696015b32335cc7a"
     );
 }
 

@@ -21,7 +21,7 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
     assert_success(&out);
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
     common::assert_matches_schema(&summary, "build-summary.schema.json");
-    assert_eq!(summary["objects"], 628);
+    assert_eq!(summary["objects"], 632);
     assert_eq!(summary["mode"], "full");
 
     // The same scene again: its schedule is updated, no geometry made.

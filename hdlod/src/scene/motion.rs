@@ -52,8 +52,13 @@ impl Motion {
         if let Some(w) = keys.windows(2).find(|w| w[0].t == w[1].t) {
             return Err(Error::value(format!("two keyframes at t = {}", w[0].t)));
         }
+        // Only rotations off the unit sphere by more than `f32` rounding:
+        // normalising a unit quaternion again can move its last bit, and a
+        // motion read back from a file must equal the one written.
         for k in &mut keys {
-            k.rotation = k.rotation.normalize();
+            if (k.rotation.length_squared() - 1.0).abs() > 1e-6 {
+                k.rotation = k.rotation.normalize();
+            }
         }
         Ok(Motion { keys })
     }

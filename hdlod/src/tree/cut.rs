@@ -154,7 +154,10 @@ pub fn cut_into(
         if view.outside(bounds) {
             continue;
         }
-        let delta = c.delta(v);
+        // A pose that scales the cluster (a crane's cable paying out)
+        // stretches its error with it: a distance grows by at most the
+        // largest scale of a rotation and scale.
+        let delta = c.delta(v) * transform.map_or(1.0, |m| f64::from(largest_scale(&m)));
         let leaf = c.child_count == 0;
         let refine =
             !leaf && (c.has_geometry == 0 || v < split_below || delta >= r * view.distance(bounds));
@@ -191,9 +194,20 @@ pub fn present_leaves_into(
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
             let transform = pose(tree, c, t, &mut sampled);
-            emit(tree, out, c, transform, v, c.delta(v));
+            let delta = c.delta(v) * transform.map_or(1.0, |m| f64::from(largest_scale(&m)));
+            emit(tree, out, c, transform, v, delta);
         }
     }
+}
+
+/// The largest factor by which `m` (a rotation, scale and translation)
+/// stretches a distance: its longest axis.
+fn largest_scale(m: &Mat4) -> f32 {
+    m.x_axis
+        .truncate()
+        .length()
+        .max(m.y_axis.truncate().length())
+        .max(m.z_axis.truncate().length())
 }
 
 /// Clears the buffers and pushes the root; answers the least `v_c(t)` drawn.
