@@ -1,7 +1,7 @@
 //! The tree on disk: content-addressed GLB blobs under `geometry/`, in 256
 //! shards by hash prefix ([`Layout`]), an atomic write of the whole
 //! directory (docs/method.md section 8), and the migration of a tree of the
-//! previous format ([`migrate`]).
+//! previous format ([`super::migrate`]).
 //!
 //! Atomicity: everything is written into a temporary directory beside the
 //! target, then renamed into place. A failed or interrupted build leaves the
