@@ -3,7 +3,7 @@
 //! Data flows one way through the modules:
 //! [`scene`] (model, schedule, `hdlod-scene/1` files) -> [`geometry`] (merge,
 //! simplify, Hausdorff) -> [`build`] (the tree builder) -> [`tree`] (the
-//! `hdlod-tree/1` format and the cut) -> [`tiles`] (time slices as 3D Tiles).
+//! `hdlod-tree/2` format and the cut) -> [`tiles`] (time slices as 3D Tiles).
 //! [`io`] reads and writes mesh files and `import` (cargo feature `ifc`, on
 //! by default) turns BIM models and schedules into scenes. Generated test scenes, the sample tree and the
 //! paper's benchmark set-up live in the `hdlod-fixtures` crate, which this

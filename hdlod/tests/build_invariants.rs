@@ -252,12 +252,7 @@ fn an_appearance_bound_is_a_geometric_bound_that_keeps_colours() {
             .clusters()
             .filter(|c| !c.is_leaf() && c.geometry.is_some())
         {
-            let m = read_mesh(
-                &b.dir
-                    .join("geometry")
-                    .join(format!("{}.glb", c.geometry.as_ref().unwrap())),
-            )
-            .unwrap();
+            let m = read_mesh(&b.tree.geometry_file(&b.dir, c.geometry.as_ref().unwrap())).unwrap();
             let distinct: std::collections::HashSet<[u8; 4]> = m
                 .colors
                 .iter()
@@ -286,12 +281,8 @@ fn eps_bounds_the_distance(b: &Built) {
         if c.id % 5 != 0 {
             continue;
         }
-        let geometry = read_mesh(
-            &b.dir
-                .join("geometry")
-                .join(format!("{}.glb", c.geometry.as_ref().unwrap())),
-        )
-        .expect("cluster geometry reads");
+        let geometry = read_mesh(&b.tree.geometry_file(&b.dir, c.geometry.as_ref().unwrap()))
+            .expect("cluster geometry reads");
         // Each leaf's object, placed where it is at a time the leaf shows
         // it (a moving object's resting part is at its held pose).
         let parts: Vec<Part> = leaves_below(&b.tree, c.id)
@@ -411,7 +402,7 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
     let mut files = Vec::new();
     for c in b.tree.clusters() {
         let Some(hash) = &c.geometry else { continue };
-        let file = b.dir.join("geometry").join(format!("{hash}.glb"));
+        let file = b.tree.geometry_file(&b.dir, hash);
         let mesh = read_mesh(&file).unwrap();
         files.push(file.clone());
         if c.class == ClusterClass::Dynamic {
@@ -519,7 +510,7 @@ fn baked_colour_changes_colour_only() {
         ..BuildConfig::default()
     });
     assert_eq!(plain.tree.cluster_count(), baked.tree.cluster_count());
-    let path = |b: &Built, hash: &str| b.dir.join("geometry").join(format!("{hash}.glb"));
+    let path = |b: &Built, hash: &str| b.tree.geometry_file(&b.dir, hash);
     // Each triangle's corners in a fixed order: the index codec of the
     // compact GLB may rotate a triangle's corners.
     let corners = |m: &Mesh| -> Vec<(Vec3, Option<u32>)> {

@@ -3,11 +3,13 @@
 //! and anything beyond a schedule change builds in full.
 
 use std::collections::HashSet;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use hdlod::build::{BuildConfig, How, Silent, StepFunction, build_or_update_to, build_to};
 use hdlod::scene::{Scene, format};
-use hdlod::tree::{Cluster, Tree, load};
+use hdlod::tree::{Cluster, Layout, Tree, load};
+
+mod common;
 
 fn tiny() -> Scene {
     let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
@@ -104,7 +106,8 @@ fn an_update_recomputes_what_the_build_computes() {
     assert!(changed > 5, "{changed} leaves changed visibility");
     for hash in geometry(&updated).into_iter().flatten() {
         assert!(files.contains(&hash));
-        assert!(dir.join("geometry").join(format!("{hash}.glb")).is_file());
+        let shard = dir.join("geometry").join(&hash[..2]);
+        assert!(shard.join(format!("{hash}.glb")).is_file());
     }
 }
 
@@ -228,12 +231,11 @@ fn updates_share_the_geometry_store_and_a_full_build_removes_it() {
     let dir = tmp.path().join("tree");
     let store = tmp.path().join(".tree.geometry");
     build_to(&scene, &config, &dir, &Silent).unwrap();
-    let files = |dir: &Path| -> BTreeMap<String, (u64, Vec<u8>)> {
-        std::fs::read_dir(dir.join("geometry"))
-            .unwrap()
-            .map(|e| {
-                let path = e.unwrap().path();
-                let name = path.file_name().unwrap().to_string_lossy().into_owned();
+    let files = |dir: &Path| -> BTreeMap<PathBuf, (u64, Vec<u8>)> {
+        common::geometry_files(dir)
+            .into_iter()
+            .map(|path| {
+                let name = path.strip_prefix(dir).unwrap().to_owned();
                 let inode = std::fs::metadata(&path).unwrap().ino();
                 (name, (inode, std::fs::read(&path).unwrap()))
             })
@@ -269,4 +271,48 @@ fn updates_share_the_geometry_store_and_a_full_build_removes_it() {
         "the store goes with the last tree using it"
     );
     load(&dir).expect("the rebuilt tree loads");
+}
+
+/// A tree of the previous format (`hdlod-tree/1`, its geometry flat) is
+/// updated into one of the current format: its files linked one by one
+/// into the new tree's shards, not shared.
+#[test]
+fn a_flat_tree_is_updated_into_a_sharded_one() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    let (built, _) = build_to(&scene, &config, &dir, &Silent).unwrap();
+    common::flatten_tree(&dir);
+    let flat = load(&dir).expect("a flat tree loads");
+    assert_eq!(flat.layout, Layout::Flat);
+    assert_eq!(records(&flat), records(&built));
+    hdlod::tree::store::check_geometry(&dir, &flat).unwrap();
+
+    let (_, _, how) =
+        build_or_update_to(&rescheduled(&scene, 3600.0), &config, &dir, false, &Silent).unwrap();
+    assert!(matches!(how, How::ScheduleUpdate { .. }), "{how:?}");
+    assert_eq!(common::checked_manifest(&dir)["format"], "hdlod-tree/2");
+    assert!(
+        std::fs::symlink_metadata(dir.join("geometry"))
+            .unwrap()
+            .is_dir(),
+        "not shared: the layouts differ"
+    );
+    assert!(!tmp.path().join(".tree.geometry").exists());
+    let updated = load(&dir).unwrap();
+    assert_eq!(updated.layout, Layout::Sharded);
+    hdlod::tree::store::check_geometry(&dir, &updated).unwrap();
+    let want: Vec<PathBuf> = {
+        let mut files: Vec<PathBuf> = geometry(&updated)
+            .into_iter()
+            .flatten()
+            .collect::<std::collections::BTreeSet<_>>()
+            .into_iter()
+            .map(|h| updated.geometry_file(&dir, &h))
+            .collect();
+        files.sort();
+        files
+    };
+    assert_eq!(common::geometry_files(&dir), want);
 }

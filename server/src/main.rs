@@ -46,6 +46,8 @@ enum Command {
     Cut(cmd::cut::Args),
     /// Write a tree's serving indexes (clusters.bin, objects.bin) from its JSON files.
     Index(cmd::index::Args),
+    /// Bring a tree to the current format in place (hdlod-tree/1 to hdlod-tree/2).
+    Migrate(cmd::migrate::Args),
     /// Write the time slice of a tree at one date as 3D Tiles 1.1.
     ExportTiles(cmd::export_tiles::Args),
     /// Serve trees over HTTP and WebSocket.
@@ -90,6 +92,7 @@ fn main() -> ExitCode {
         Command::Demo(a) => cmd::demo::run(a),
         Command::Cut(a) => cmd::cut::run(a),
         Command::Index(a) => cmd::index::run(a),
+        Command::Migrate(a) => cmd::migrate::run(a),
         Command::ExportTiles(a) => cmd::export_tiles::run(a),
         Command::Serve(a) => cmd::serve::run(a),
         Command::Bench(b) => cmd::bench::run(b),

@@ -6,7 +6,7 @@ mod common;
 use std::process::Command;
 use std::time::{Duration, Instant};
 
-use common::{Server, assert_component, client};
+use common::{Server, assert_component, client, geometry_files};
 use reqwest::StatusCode;
 use reqwest::blocking::Client;
 use serde_json::{Value, json};
@@ -308,7 +308,14 @@ fn geometry_is_immutable_cacheable_and_compressed() {
     assert_eq!(blake3::hash(&bytes).to_hex().as_str(), hash);
     assert_eq!(
         bytes.as_ref(),
-        std::fs::read(server.tree.join("geometry").join(format!("{hash}.glb"))).unwrap()
+        std::fs::read(
+            server
+                .tree
+                .join("geometry")
+                .join(&hash[..2])
+                .join(format!("{hash}.glb"))
+        )
+        .unwrap()
     );
 
     let response = http
@@ -508,7 +515,7 @@ fn a_missing_glb_is_a_server_error_and_keeps_a_replacement_out() {
     let cut = server.post_json("/api/v1/scenes/sample-1/cut", &cut_body(json!(4e6)));
     let url = cut["clusters"][0]["geometry"].as_str().unwrap().to_owned();
     let file = url.rsplit('/').next().unwrap();
-    std::fs::remove_file(server.tree.join("geometry").join(file)).unwrap();
+    std::fs::remove_file(server.tree.join("geometry").join(&file[..2]).join(file)).unwrap();
     let response = http.get(server.url(&url)).send().unwrap();
     assert_eq!(response.status(), StatusCode::SERVICE_UNAVAILABLE);
     let body: Value = response.json().unwrap();
@@ -527,12 +534,7 @@ fn a_missing_glb_is_a_server_error_and_keeps_a_replacement_out() {
     // A bigger tree, one of its GLBs missing, renamed into place.
     let next = server.tree.with_file_name("next");
     hdlod_fixtures::sample::write_sample_tree(&next, 1, 6).unwrap();
-    let glb = std::fs::read_dir(next.join("geometry"))
-        .unwrap()
-        .next()
-        .unwrap()
-        .unwrap()
-        .path();
+    let glb = geometry_files(&next).swap_remove(0);
     std::fs::remove_file(glb).unwrap();
     std::fs::rename(&server.tree, server.tree.with_file_name("old")).unwrap();
     std::fs::rename(&next, &server.tree).unwrap();
@@ -778,4 +780,55 @@ fn geometry_comes_compact_plain_on_request_and_in_batches() {
     assert_eq!(r.status(), StatusCode::BAD_REQUEST);
     let body: Value = r.json().unwrap();
     assert_eq!(body["error"]["field"], "encoding");
+}
+
+/// A tree of the previous format (`hdlod-tree/1`, its geometry flat) is
+/// served; `hdlod migrate` makes it `hdlod-tree/2` under the running
+/// server, which serves the same geometry before and after it reloads the
+/// tree. A second run has nothing to do.
+#[test]
+fn a_flat_tree_is_served_and_migrated_under_the_server() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = common::sample_tree(tmp.path(), 3);
+    common::flatten_tree(&tree);
+    let server = Server::start(&tree);
+    let http = client();
+    let cut = server.post_json("/api/v1/scenes/sample-1/cut", &cut_body(json!(4e6)));
+    let urls: Vec<String> = cut["clusters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .filter_map(|c| c["geometry"].as_str().map(str::to_owned))
+        .collect();
+    assert!(!urls.is_empty());
+    let get = |url: &str| {
+        let response = http.get(server.url(url)).send().unwrap();
+        assert_eq!(response.status(), StatusCode::OK, "{url}");
+        response.bytes().unwrap()
+    };
+    let before: Vec<_> = urls.iter().map(|u| get(u)).collect();
+    let reloaded = server.reloads();
+    let migrate = || common::hdlod(&[std::ffi::OsStr::new("migrate"), tree.as_os_str()]);
+    let out = migrate();
+    common::assert_success(&out);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("hdlod-tree/1 -> hdlod-tree/2"), "{said}");
+    for (url, bytes) in urls.iter().zip(&before) {
+        assert_eq!(&get(url), bytes, "served from the shards before the reload");
+    }
+    server.await_reloads(reloaded + 1);
+    for (url, bytes) in urls.iter().zip(&before) {
+        assert_eq!(&get(url), bytes);
+    }
+    assert_eq!(common::checked_manifest(&tree)["format"], "hdlod-tree/2");
+    assert!(
+        geometry_files(&tree)
+            .iter()
+            .all(|f| f.parent() != Some(&tree.join("geometry")))
+    );
+
+    let out = migrate();
+    common::assert_success(&out);
+    let said = String::from_utf8_lossy(&out.stdout);
+    assert!(said.contains("nothing to do"), "{said}");
 }

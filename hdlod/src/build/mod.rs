@@ -277,9 +277,13 @@ pub fn build_or_update_to(
                                     .filter_map(|id| tree.geometry_of(id))
                                     .collect();
                             let geometry_files = files.len();
-                            if !writer.share_geometry(files.iter().map(|h| h.to_string()))? {
+                            // A flat (`hdlod-tree/1`) tree's files are linked
+                            // one by one into the new tree's shards.
+                            let shared = writer
+                                .share_geometry(old.layout, files.iter().map(|h| h.to_string()))?;
+                            if !shared {
                                 for hash in &files {
-                                    writer.reuse_geometry(out, hash)?;
+                                    writer.reuse_geometry(out, old.layout, hash)?;
                                 }
                             }
                             stats

@@ -12,7 +12,6 @@ use std::path::Path;
 use glam::Mat4;
 
 use super::Tree;
-use super::format::GEOMETRY_DIR;
 use crate::error::{Error, Result};
 use crate::geometry::{Mesh, Part, TriangleSet, merge, one_sided_bound};
 use crate::io::gltf::read_mesh;
@@ -53,7 +52,7 @@ pub fn feature_distances(
         let Some(hash) = &cluster.geometry else {
             continue;
         };
-        let file = dir.join(GEOMETRY_DIR).join(format!("{hash}.glb"));
+        let file = tree.geometry_file(dir, hash);
         let mut mesh = read_mesh(&file)?;
         let own_frame = cluster.class == ClusterClass::Dynamic;
         if mesh.features.is_empty() {

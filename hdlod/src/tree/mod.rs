@@ -1,4 +1,4 @@
-//! The HDLOD tree: the `hdlod-tree/1` format on disk ([`format`], [`store`]),
+//! The HDLOD tree: the `hdlod-tree/2` format on disk ([`format`], [`store`]),
 //! the cut ([`camera`], [`cut`]) and, apart from what the cut reads, the
 //! object and task tables ([`objects`]). [`Tree`] is the validated in-memory
 //! form the builder produces and the cut reads: clusters in a `Vec` indexed
@@ -12,6 +12,7 @@ pub mod cut;
 pub mod fidelity;
 pub mod format;
 pub mod index;
+pub mod migrate;
 mod nodes;
 pub mod object_index;
 pub mod objects;
@@ -21,7 +22,7 @@ pub mod store;
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
-use std::path::Path;
+use std::path::{Path, PathBuf};
 
 use glam::{DMat4, DVec3, Mat4, Quat, Vec3};
 use serde::Serialize;
@@ -33,7 +34,7 @@ use crate::time::{TimeSpan, format_date, parse_date};
 pub use baseline::Baseline;
 pub use camera::{CameraSpec, View, Viewport};
 pub use cut::{Cut, CutItem, CutStats, cut};
-pub use format::ClusterClass;
+pub use format::{ClusterClass, Layout};
 pub use objects::ObjectTables;
 pub use store::{TreeWriter, load};
 
@@ -195,6 +196,9 @@ pub struct Tree {
     pub root: u32,
     pub config: serde_json::Value,
     pub stats: serde_json::Value,
+    /// Where the geometry files of the tree as loaded lie (a built tree is
+    /// written [`Layout::Sharded`]).
+    pub layout: Layout,
     /// Read through [`Tree::cluster`] and [`Tree::clusters`].
     clusters: Clusters,
     /// The object and task tables (`objects.json`), when the tree has them.
@@ -292,6 +296,7 @@ impl Tree {
             root,
             config: serde_json::json!({}),
             stats: serde_json::json!({}),
+            layout: Layout::default(),
             clusters: Clusters::Built(clusters),
             objects: None,
             presence: Derived::default(),
@@ -303,6 +308,11 @@ impl Tree {
 
     /// The tree mapped from its index, with the manifest's fields of
     /// `like` (read from the JSON manifest).
+    /// The geometry file `hash` of this tree, loaded from `dir`.
+    pub fn geometry_file(&self, dir: &Path, hash: &str) -> PathBuf {
+        self.layout.geometry_file(dir, hash)
+    }
+
     pub(crate) fn mapped(like: Tree, index: index::Index) -> Tree {
         Tree {
             clusters: Clusters::Mapped(index),
@@ -807,7 +817,8 @@ impl Tree {
         (self.manifest_record(), format::ClustersRecord { clusters })
     }
 
-    /// The record of `manifest.json`.
+    /// The record of `manifest.json`, in the format the writer writes
+    /// (whatever the layout the tree was loaded from).
     pub fn manifest_record(&self) -> format::ManifestRecord {
         format::ManifestRecord {
             format: format::FORMAT.into(),
@@ -929,13 +940,18 @@ impl Tree {
     /// A tree of the manifest's fields and no clusters yet.
     pub(crate) fn from_manifest(manifest: format::ManifestRecord, dir: &Path) -> Result<Tree> {
         let mfile = dir.join(format::MANIFEST_FILE);
-        if manifest.format != format::FORMAT {
+        let Some(layout) = Layout::of_format(&manifest.format) else {
             return Err(Error::invalid(
                 &mfile,
                 "format",
-                format!("{:?} is not {:?}", manifest.format, format::FORMAT),
+                format!(
+                    "{:?} is not {:?} nor {:?}",
+                    manifest.format,
+                    format::FORMAT,
+                    format::FORMAT_FLAT
+                ),
             ));
-        }
+        };
         let start = parse_date(&manifest.time.start)
             .map_err(|m| Error::invalid(&mfile, "time.start", m.to_string()))?;
         let aabb =
@@ -952,6 +968,7 @@ impl Tree {
             Vec::new(),
         );
         tree.georeference = manifest.georeference;
+        tree.layout = layout;
         tree.config = manifest.config;
         tree.stats = manifest.stats;
         Ok(tree)

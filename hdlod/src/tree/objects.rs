@@ -4,7 +4,7 @@
 //! cluster geometry; with its properties, class, tasks, presence and leaf
 //! clusters; and every task with its times and objects.
 //!
-//! The file is optional in `hdlod-tree/1`: the builder writes it, a tree
+//! The file is optional in a tree (either format): the builder writes it, a tree
 //! without it still loads. The tables are kept apart from the clusters: the
 //! cut never reads them, they only answer what an object or task is.
 //!

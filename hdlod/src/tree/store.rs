@@ -1,5 +1,7 @@
-//! The tree on disk: content-addressed GLB blobs under `geometry/` and an
-//! atomic write of the whole directory (docs/method.md section 8).
+//! The tree on disk: content-addressed GLB blobs under `geometry/`, in 256
+//! shards by hash prefix ([`Layout`]), an atomic write of the whole
+//! directory (docs/method.md section 8), and the migration of a tree of the
+//! previous format ([`super::migrate`]).
 //!
 //! Atomicity: everything is written into a temporary directory beside the
 //! target, then renamed into place. A failed or interrupted build leaves the
@@ -28,7 +30,8 @@ use std::sync::atomic::{AtomicU64, Ordering};
 
 use super::Tree;
 use super::format::{
-    self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE, OBJECTS_INDEX_FILE,
+    self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, Layout, MANIFEST_FILE, OBJECTS_FILE,
+    OBJECTS_INDEX_FILE,
 };
 use super::index::{self, Index};
 use super::object_index::ObjectRows;
@@ -66,23 +69,24 @@ impl TreeWriter {
         }
         crate::debris::remove_stale(&target);
         let tmp = sibling(&target, "tmp");
-        let geometry = tmp.join(GEOMETRY_DIR);
-        fs::create_dir_all(&geometry).map_err(|e| Error::io(&geometry, e))?;
-        Ok(TreeWriter {
+        let writer = TreeWriter {
             target,
             tmp,
             stored: Mutex::new(HashSet::new()),
             finished: false,
-        })
+        };
+        // Made up front, so that storing a file is one create.
+        make_shards(&writer.tmp.join(GEOMETRY_DIR))?;
+        Ok(writer)
     }
 
-    /// Stores the geometry file `hash` of the tree in `from` without
-    /// reading it: a hard link where the file system allows (trees are
-    /// immutable, so sharing the file is safe), else a copy.
-    pub fn reuse_geometry(&self, from: &Path, hash: &str) -> Result<()> {
-        let name = format!("{hash}.glb");
-        let source = from.join(GEOMETRY_DIR).join(&name);
-        let path = self.tmp.join(GEOMETRY_DIR).join(&name);
+    /// Stores the geometry file `hash` of the tree in `from`, whose
+    /// geometry lies as `layout` says, without reading it: a hard link
+    /// where the file system allows (trees are immutable, so sharing the
+    /// file is safe), else a copy.
+    pub fn reuse_geometry(&self, from: &Path, layout: Layout, hash: &str) -> Result<()> {
+        let source = layout.geometry_file(from, hash);
+        let path = Layout::Sharded.geometry_file(&self.tmp, hash);
         if fs::hard_link(&source, &path).is_err() {
             fs::copy(&source, &path).map_err(|e| Error::io(&source, e))?;
         }
@@ -97,11 +101,19 @@ impl TreeWriter {
     /// now at the target, shared rather than copied: the store that tree
     /// links to, or its own directory moved into the store `.NAME.geometry`
     /// beside it by one atomic exchange with a link to it. `hashes`: the
-    /// files the new tree uses, all the old tree's. Answers false, having
-    /// changed nothing, where the exchange is not available (not Linux, or
-    /// a file system without it); the caller then reuses the files one by
-    /// one.
-    pub fn share_geometry(&self, hashes: impl IntoIterator<Item = String>) -> Result<bool> {
+    /// files the new tree uses, all the old tree's; `layout`: the old
+    /// tree's. Answers false, having changed nothing, where the exchange is
+    /// not available (not Linux, or a file system without it) or the old
+    /// tree's geometry is not sharded as the new tree's is; the caller then
+    /// reuses the files one by one.
+    pub fn share_geometry(
+        &self,
+        layout: Layout,
+        hashes: impl IntoIterator<Item = String>,
+    ) -> Result<bool> {
+        if layout != Layout::Sharded {
+            return Ok(false);
+        }
         let old = self.target.join(GEOMETRY_DIR);
         let meta = fs::symlink_metadata(&old).map_err(|e| Error::io(&old, e))?;
         let link = if meta.file_type().is_symlink() {
@@ -132,7 +144,8 @@ impl TreeWriter {
             link
         };
         let path = self.tmp.join(GEOMETRY_DIR);
-        fs::remove_dir(&path).map_err(|e| Error::io(&path, e))?;
+        // Its shards, empty.
+        fs::remove_dir_all(&path).map_err(|e| Error::io(&path, e))?;
         if !symlink(&link, &path)? {
             return Err(Error::io(
                 &path,
@@ -158,7 +171,7 @@ impl TreeWriter {
         {
             return Ok(hash);
         }
-        let path = self.tmp.join(GEOMETRY_DIR).join(format!("{hash}.glb"));
+        let path = Layout::Sharded.geometry_file(&self.tmp, &hash);
         fs::write(&path, glb).map_err(|e| Error::io(&path, e))?;
         self.stored
             .lock()
@@ -267,6 +280,22 @@ impl TreeWriter {
         );
         Ok(())
     }
+}
+
+/// Makes `geometry` and its [`format::SHARDS`] shard directories (those
+/// there already are kept).
+pub(super) fn make_shards(geometry: &Path) -> Result<()> {
+    fs::create_dir_all(geometry).map_err(|e| Error::io(geometry, e))?;
+    for name in format::shard_names() {
+        let shard = geometry.join(name);
+        match fs::create_dir(&shard) {
+            Err(e) if e.kind() != std::io::ErrorKind::AlreadyExists => {
+                return Err(Error::io(&shard, e));
+            }
+            _ => {}
+        }
+    }
+    Ok(())
 }
 
 /// The geometry store of `target` when its generations share their
@@ -432,7 +461,7 @@ fn check_made_from(index_path: &Path, json: &Path, what: &str, made_from: u64) -
 }
 
 /// The manifest and the clusters, from the index or from `clusters.json`.
-fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
+pub(super) fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
     let index_path = dir.join(INDEX_FILE);
     let tree = if use_index && index_path.exists() {
@@ -489,22 +518,104 @@ impl Hasher for Prefix {
 /// Hashes of geometry files.
 type Hashes = HashSet<[u8; 32], BuildHasherDefault<Prefix>>;
 
-/// The hashes of the geometry files in `dir`: one listing of the
-/// directory, no reads.
-fn list_geometry(dir: &Path) -> Result<Hashes> {
+/// The hashes of the geometry files of the tree in `dir`, laid out as
+/// `layout`: one listing of the directory, or of each shard (on every
+/// core), no reads. A file in a shard not its own is not counted: no
+/// reader looks for it there.
+fn list_geometry(dir: &Path, layout: Layout) -> Result<Hashes> {
+    use rayon::prelude::*;
     let geometry = dir.join(GEOMETRY_DIR);
-    let mut present = Hashes::default();
-    for entry in fs::read_dir(&geometry).map_err(|e| Error::io(&geometry, e))? {
-        let name = entry.map_err(|e| Error::io(&geometry, e))?.file_name();
+    match layout {
+        Layout::Flat => {
+            let mut present = Hashes::default();
+            list_into(&geometry, None, &mut present)?;
+            Ok(present)
+        }
+        Layout::Sharded => {
+            fs::read_dir(&geometry).map_err(|e| Error::io(&geometry, e))?;
+            let shards = format::shard_names()
+                .collect::<Vec<_>>()
+                .into_par_iter()
+                .map(|name| {
+                    let mut present = Vec::new();
+                    let shard = geometry.join(&name);
+                    // A shard with no files may be missing.
+                    if shard.exists() {
+                        list_into(&shard, Some(&name), &mut present)?;
+                    }
+                    Ok(present)
+                })
+                .collect::<Result<Vec<_>>>()?;
+            let mut present = Hashes::default();
+            present.reserve(shards.iter().map(Vec::len).sum());
+            present.extend(shards.into_iter().flatten());
+            Ok(present)
+        }
+    }
+}
+
+/// Adds the hashes of the `{hash}.glb` files in `dir` to `present`, only
+/// those starting with `prefix` when there is one.
+fn list_into(dir: &Path, prefix: Option<&str>, present: &mut impl Extend<[u8; 32]>) -> Result<()> {
+    for entry in fs::read_dir(dir).map_err(|e| Error::io(dir, e))? {
+        let name = entry.map_err(|e| Error::io(dir, e))?.file_name();
         if let Some(hash) = name
             .to_str()
             .and_then(|n| n.strip_suffix(".glb"))
+            .filter(|h| prefix.is_none_or(|p| h.starts_with(p)))
             .and_then(index::hash_bytes)
         {
-            present.insert(hash);
+            present.extend([hash]);
         }
     }
-    Ok(present)
+    Ok(())
+}
+
+/// The layout of the tree in `dir`, as its manifest's format says.
+pub fn layout_of(dir: &Path) -> Result<Layout> {
+    let path = dir.join(MANIFEST_FILE);
+    let manifest: format::ManifestRecord = read_json(&path)?;
+    Layout::of_format(&manifest.format).ok_or_else(|| {
+        Error::invalid(
+            &path,
+            "format",
+            format!(
+                "{:?} is not {:?} nor {:?}",
+                manifest.format,
+                format::FORMAT,
+                format::FORMAT_FLAT
+            ),
+        )
+    })
+}
+
+/// Every geometry file of the tree in `dir` (named by hash or not by the
+/// clusters), with its hash, where its manifest's layout puts it.
+pub fn geometry_files(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
+    let layout = layout_of(dir)?;
+    let geometry = dir.join(GEOMETRY_DIR);
+    let dirs: Vec<(PathBuf, Option<String>)> = match layout {
+        Layout::Flat => vec![(geometry, None)],
+        Layout::Sharded => format::shard_names()
+            .map(|name| (geometry.join(&name), Some(name)))
+            .filter(|(shard, _)| shard.exists())
+            .collect(),
+    };
+    let mut files = Vec::new();
+    for (listed, prefix) in dirs {
+        for entry in fs::read_dir(&listed).map_err(|e| Error::io(&listed, e))? {
+            let name = entry.map_err(|e| Error::io(&listed, e))?.file_name();
+            if let Some(hash) = name
+                .to_str()
+                .and_then(|n| n.strip_suffix(".glb"))
+                .filter(|h| prefix.as_deref().is_none_or(|p| h.starts_with(p)))
+                .filter(|h| index::hash_bytes(h).is_some())
+            {
+                files.push((hash.to_owned(), listed.join(&name)));
+            }
+        }
+    }
+    Ok(files)
 }
 
 /// Checks that every geometry file the clusters of `tree` (loaded from
@@ -512,8 +623,7 @@ fn list_geometry(dir: &Path) -> Result<Hashes> {
 /// no reads. Names are compared as hash bytes, and a mapped tree's are its
 /// index's distinct hashes, so no hex string is made per cluster.
 pub fn check_geometry(dir: &Path, tree: &Tree) -> Result<()> {
-    let present = list_geometry(dir)?;
-    let geometry = dir.join(GEOMETRY_DIR);
+    let present = list_geometry(dir, tree.layout)?;
     let missing = match tree.index() {
         Some(index) => index
             .hashes()
@@ -532,8 +642,7 @@ pub fn check_geometry(dir: &Path, tree: &Tree) -> Result<()> {
             format!("clusters[{id}].geometry"),
             format!(
                 "{} is missing",
-                geometry
-                    .join(format!("{}.glb", tree.geometry_of(id).unwrap_or_default()))
+                tree.geometry_file(dir, &tree.geometry_of(id).unwrap_or_default())
                     .display()
             ),
         )),
@@ -563,7 +672,7 @@ pub fn write_index(dir: impl AsRef<Path>) -> Result<()> {
 }
 
 /// Writes `bytes` to `target` by a rename of a temporary beside it.
-fn replace(target: &Path, bytes: &[u8]) -> Result<()> {
+pub(super) fn replace(target: &Path, bytes: &[u8]) -> Result<()> {
     let tmp = sibling(target, "tmp");
     let written = write_bytes(&tmp, bytes)
         .and_then(|()| fs::rename(&tmp, target).map_err(|e| Error::io(target, e)));

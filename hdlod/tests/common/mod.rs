@@ -383,3 +383,52 @@ pub fn assert_no_gltf_errors(files: &[PathBuf]) -> Vec<serde_json::Value> {
     }
     reports
 }
+
+/// The geometry files of the tree in `dir`, sorted: those in `geometry/`
+/// and in its shard directories (through a link to a shared store).
+pub fn geometry_files(dir: &Path) -> Vec<PathBuf> {
+    let mut files = Vec::new();
+    for entry in std::fs::read_dir(dir.join("geometry")).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_dir() {
+            for file in std::fs::read_dir(&path).unwrap() {
+                files.push(file.unwrap().path());
+            }
+        } else {
+            files.push(path);
+        }
+    }
+    files.sort();
+    files
+}
+
+/// Lays the tree in `dir` out as the previous format, `hdlod-tree/1`:
+/// each geometry file moved out of its shard into `geometry/`, the shards
+/// removed, the manifest's format `"hdlod-tree/1"`.
+pub fn flatten_tree(dir: &Path) {
+    let geometry = dir.join("geometry");
+    for entry in std::fs::read_dir(&geometry).unwrap() {
+        let shard = entry.unwrap().path();
+        if !shard.is_dir() {
+            continue;
+        }
+        for file in std::fs::read_dir(&shard).unwrap() {
+            let file = file.unwrap().path();
+            std::fs::rename(&file, geometry.join(file.file_name().unwrap())).unwrap();
+        }
+        std::fs::remove_dir(&shard).unwrap();
+    }
+    let path = dir.join("manifest.json");
+    let mut manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(&path).unwrap()).unwrap();
+    manifest["format"] = "hdlod-tree/1".into();
+    std::fs::write(&path, serde_json::to_vec_pretty(&manifest).unwrap()).unwrap();
+}
+
+/// The manifest of the tree in `dir`, checked against its schema.
+pub fn checked_manifest(dir: &Path) -> serde_json::Value {
+    let manifest: serde_json::Value =
+        serde_json::from_slice(&std::fs::read(dir.join("manifest.json")).unwrap()).unwrap();
+    assert_matches_schema(&manifest, "tree-manifest.schema.json");
+    manifest
+}

@@ -75,7 +75,7 @@ fn only(pairs: &[(String, String)], allowed: &[&str]) -> Result<(), ApiError> {
 
 /// The GLB `hash` of scene `s` in the asked form.
 async fn read(s: &Arc<LoadedScene>, hash: &str, form: Form) -> Result<Vec<u8>, ApiError> {
-    let path = s.dir.join("geometry").join(format!("{hash}.glb"));
+    let path = s.geometry_file(hash);
     let bytes = match tokio::fs::read(&path).await {
         Ok(bytes) => bytes,
         // The load does not list the geometry directory (docs/formats.md,

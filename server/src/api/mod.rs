@@ -33,7 +33,7 @@ use axum::routing::get;
 use hdlod::tree::format::{
     CLUSTERS_FILE, INDEX_FILE, MANIFEST_FILE, OBJECTS_FILE, OBJECTS_INDEX_FILE,
 };
-use hdlod::tree::{Baseline, Tree, TreeSummary};
+use hdlod::tree::{Baseline, Layout, Tree, TreeSummary};
 use tokio::sync::{OwnedSemaphorePermit, Semaphore, watch};
 use tower_http::compression::CompressionLayer;
 
@@ -57,6 +57,20 @@ pub struct LoadedScene {
     /// The schedule and appearance answers, made on first request.
     pub schedule: OnceLock<cached::Cached>,
     pub appearance: OnceLock<cached::Cached>,
+}
+
+impl LoadedScene {
+    /// Where the geometry file `hash` of the scene's tree is. A flat
+    /// (`hdlod-tree/1`) tree migrated while served has its files moved
+    /// into shards before the watcher reloads it: a file no longer at its
+    /// flat path is looked for in its shard.
+    pub fn geometry_file(&self, hash: &str) -> PathBuf {
+        let path = self.tree.geometry_file(&self.dir, hash);
+        if self.tree.layout == Layout::Flat && !path.exists() {
+            return Layout::Sharded.geometry_file(&self.dir, hash);
+        }
+        path
+    }
 }
 
 pub type Scenes = BTreeMap<String, Arc<LoadedScene>>;

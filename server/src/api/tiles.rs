@@ -193,7 +193,7 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
             "the tree has no object tables: its tiles point at geometry/",
         ));
     }
-    let path = s.dir.join("geometry").join(format!("{hash}.glb"));
+    let path = s.geometry_file(&hash);
     // Reading and writing a GLB is blocking work.
     tokio::task::spawn_blocking(move || -> Result<Vec<u8>, ApiError> {
         let (mesh, texture) = hdlod::io::read_textured_mesh(&path)?;

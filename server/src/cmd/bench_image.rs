@@ -198,22 +198,13 @@ struct GeometrySizes(std::collections::HashMap<String, (u64, u64)>);
 
 impl GeometrySizes {
     fn of(tree: &std::path::Path) -> anyhow::Result<GeometrySizes> {
-        let dir = tree.join(hdlod::tree::format::GEOMETRY_DIR);
         let mut sizes = std::collections::HashMap::new();
-        for entry in std::fs::read_dir(&dir).with_context(|| dir.display().to_string())? {
-            let path = entry?.path();
-            let Some(hash) = path
-                .file_name()
-                .and_then(|n| n.to_str())
-                .and_then(|n| n.strip_suffix(".glb"))
-            else {
-                continue;
-            };
+        for (hash, path) in hdlod::tree::store::geometry_files(tree)? {
             let bytes = std::fs::read(&path).with_context(|| path.display().to_string())?;
             let plain = hdlod::io::compact::plain(&bytes)
                 .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))?
                 .len();
-            sizes.insert(hash.to_owned(), (bytes.len() as u64, plain as u64));
+            sizes.insert(hash, (bytes.len() as u64, plain as u64));
         }
         Ok(GeometrySizes(sizes))
     }

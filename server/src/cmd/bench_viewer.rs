@@ -139,13 +139,11 @@ pub fn run(args: Args) -> anyhow::Result<()> {
 
 /// The bytes of the tree's GLB files, as stored.
 fn tree_bytes(tree: &std::path::Path) -> anyhow::Result<u64> {
-    let dir = tree.join(hdlod::tree::format::GEOMETRY_DIR);
     let mut total = 0;
-    for entry in std::fs::read_dir(&dir).map_err(|e| anyhow::anyhow!("{}: {e}", dir.display()))? {
-        let entry = entry?;
-        if entry.path().extension().is_some_and(|x| x == "glb") {
-            total += entry.metadata()?.len();
-        }
+    for (_, path) in hdlod::tree::store::geometry_files(tree)? {
+        total += std::fs::metadata(&path)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?
+            .len();
     }
     Ok(total)
 }

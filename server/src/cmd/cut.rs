@@ -10,7 +10,7 @@ use crate::protocol::{self, Flags};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A tree directory (hdlod-tree/1).
+    /// A tree directory (an hdlod tree).
     tree: PathBuf,
     /// Seconds since the scene's start, or an ISO 8601 date.
     #[arg(long)]

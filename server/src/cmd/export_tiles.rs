@@ -4,7 +4,8 @@
 //! the content: `DIR/content/{cluster}.glb` with each element's id, name,
 //! class, storey and task (and with `--status` its task status and look at
 //! T) as per-feature properties when the tree has object tables, else
-//! `DIR/geometry/{hash}.glb` copied from the tree. Written
+//! `DIR/geometry/{hash}.glb` copied from the tree (flat, whatever the
+//! tree's layout: the tileset's URIs name them so). Written
 //! into a temporary sibling directory first and renamed into place, so DIR
 //! is either the old export or the whole new one.
 
@@ -28,7 +29,7 @@ const CONTENT: &str = "content";
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// A tree directory (hdlod-tree/1).
+    /// A tree directory (an hdlod tree).
     tree: PathBuf,
     /// Seconds since the scene's start, or an ISO 8601 date.
     #[arg(long)]
@@ -107,9 +108,8 @@ fn write(
                 let hash = tree
                     .geometry_of(id)
                     .context("a tile with content has geometry")?;
-                let (mesh, texture) = hdlod::io::read_textured_mesh(
-                    &tree_dir.join(GEOMETRY_DIR).join(format!("{hash}.glb")),
-                )?;
+                let (mesh, texture) =
+                    hdlod::io::read_textured_mesh(&tree.geometry_file(tree_dir, &hash))?;
                 let state = status.then(|| content::State {
                     profile: tables.appearance().unwrap_or(&default),
                     t: slice.time,
@@ -124,7 +124,8 @@ fn write(
                 fs::write(&to, glb).with_context(|| to.display().to_string())?;
             }
             None => {
-                let from = tree_dir.join(GEOMETRY_DIR).join(file);
+                let hash = file.trim_end_matches(".glb");
+                let from = tree.geometry_file(tree_dir, hash);
                 fs::copy(&from, &to).with_context(|| from.display().to_string())?;
             }
         }

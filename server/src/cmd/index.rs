@@ -13,7 +13,7 @@ use hdlod::tree::format::{INDEX_FILE, OBJECTS_INDEX_FILE};
 
 #[derive(clap::Args)]
 pub struct Args {
-    /// The tree directory (hdlod-tree/1).
+    /// The tree directory (an hdlod tree).
     tree: PathBuf,
 }
 

@@ -18,7 +18,7 @@ pub struct Args {
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
-    // A directory with a manifest.json is a tree (hdlod-tree/1).
+    // A directory with a manifest.json is a tree (hdlod-tree/2 or /1).
     if args.path.join("manifest.json").is_file() {
         let tree = hdlod::tree::load(&args.path)
             .with_context(|| format!("cannot load the tree {}", args.path.display()))?;

@@ -18,6 +18,7 @@ pub mod import;
 pub mod index;
 pub mod inspect;
 pub mod lod;
+pub mod migrate;
 pub mod progress;
 pub mod serve;
 pub mod simplify;

@@ -24,7 +24,7 @@ pub struct Args {
     /// printed on stdout).
     #[arg(long, default_value = "127.0.0.1:8080")]
     addr: String,
-    /// Tree directories (hdlod-tree/1), one scene each.
+    /// Tree directories (hdlod trees), one scene each.
     #[arg(required = true)]
     trees: Vec<PathBuf>,
     /// Reload on SIGHUP only, not when a tree changes on disk (for file
