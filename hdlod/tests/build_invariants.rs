@@ -575,3 +575,69 @@ fn baked_colour_changes_colour_only() {
     assert!(textured > 10, "{textured} textured clusters");
     common::assert_no_gltf_errors(&files);
 }
+
+/// A LOD chain moves as one: its keyframes are written once, on the
+/// chain's top, and every other level names that cluster (`motion_from`);
+/// the JSON and the index read back the motions the builder made.
+#[test]
+fn a_lod_chain_writes_its_keyframes_once() {
+    let b = built();
+    let text = std::fs::read_to_string(b.dir.join("clusters.json")).unwrap();
+    let json: serde_json::Value = serde_json::from_str(&text).unwrap();
+    let clusters = json["clusters"].as_array().unwrap();
+    let mut shared = 0;
+    for c in clusters.iter().filter(|c| c["class"] == "dynamic") {
+        match c.get("motion_from") {
+            Some(from) => {
+                shared += 1;
+                assert!(c["motion"].is_null(), "{}", c["id"]);
+                let from = from.as_u64().unwrap();
+                assert!(clusters[from as usize]["motion"].is_array(), "{from}");
+                // The top is an ancestor: up the chain from this cluster.
+                let mut at = c["id"].as_u64().unwrap();
+                while at != from {
+                    at = clusters[at as usize]["parent"]
+                        .as_u64()
+                        .expect("reaches the top");
+                }
+            }
+            None => assert!(c["motion"].is_array(), "{}", c["id"]),
+        }
+    }
+    assert!(
+        shared > 10,
+        "{shared} clusters share their chain's keyframes"
+    );
+    let from_json = hdlod::tree::store::load_json(&b.dir).unwrap();
+    for id in 0..b.tree.cluster_count() as u32 {
+        let motion = from_json.cluster(id).motion.clone();
+        assert_eq!(motion, b.tree.cluster(id).motion, "cluster {id}");
+    }
+
+    // A cluster that names one without keyframes of its own is refused,
+    // naming the field.
+    let root = json["clusters"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .position(|c| c["class"] == "root")
+        .unwrap();
+    let dir = tempfile::tempdir().unwrap();
+    for entry in std::fs::read_dir(&b.dir).unwrap() {
+        let path = entry.unwrap().path();
+        if path.is_file() && path.file_name().unwrap() != "clusters.bin" {
+            std::fs::copy(&path, dir.path().join(path.file_name().unwrap())).unwrap();
+        }
+    }
+    std::os::unix::fs::symlink(b.dir.join("geometry"), dir.path().join("geometry")).unwrap();
+    let mut broken = json.clone();
+    let k = clusters
+        .iter()
+        .position(|c| c.get("motion_from").is_some())
+        .unwrap();
+    broken["clusters"][k]["motion_from"] = root.into();
+    std::fs::write(dir.path().join("clusters.json"), broken.to_string()).unwrap();
+    let err = load(dir.path()).unwrap_err().to_string();
+    assert!(err.contains(&format!("clusters[{k}].motion_from")), "{err}");
+    assert!(err.contains("no keyframes of its own"), "{err}");
+}

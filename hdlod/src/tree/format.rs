@@ -160,6 +160,10 @@ pub struct ClusterRecord {
     /// Steps `[t_i, v_i]`: `v(t) = v_i` for the last `t_i <= t`, 0 before `t_0`.
     pub visibility: Vec<(f64, f64)>,
     pub motion: Option<Vec<KeyframeRecord>>,
+    /// The cluster whose keyframes this one shares instead of `motion`:
+    /// the top of its LOD chain.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub motion_from: Option<u32>,
     pub geometry: Option<String>,
     pub triangles: u64,
     /// The original objects of a leaf (empty above the leaves).

@@ -220,6 +220,7 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
     let mut string_starts: Vec<u32> = vec![0];
     let mut strings: Vec<u8> = Vec::new();
     let mut string_ids: HashMap<String, u32> = HashMap::new();
+    let mut ranges: HashMap<u32, (u32, u32)> = HashMap::new();
     for c in tree.clusters() {
         let geometry = match &c.geometry {
             None => NONE,
@@ -228,9 +229,13 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
                 hashes.len() as u32 - 1
             }),
         };
-        let (first_key, key_count) = match &c.motion {
+        // A LOD chain's keyframes are stored once: every cluster of it names
+        // the range of its top's (`Tree::motion_source`).
+        let (first_key, key_count) = match tree.motion_source(c.id) {
             None => (0, 0),
-            Some(m) => {
+            Some(source) => *ranges.entry(source).or_insert_with(|| {
+                let top = tree.cluster(source);
+                let m = top.motion.as_ref().expect("a motion source has a motion");
                 let first = keys.len() as u32;
                 keys.extend(m.keyframes().iter().map(|k| Key {
                     t: k.t,
@@ -239,7 +244,7 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
                     scale: k.scale.to_array(),
                 }));
                 (first, m.keyframes().len() as u32)
-            }
+            }),
         };
         let first_object = objects.len() as u32;
         for id in &c.objects {

@@ -837,9 +837,28 @@ impl Tree {
         }
     }
 
-    /// The record of cluster `id` in `clusters.json`.
+    /// The highest ancestor of `id` (itself included) with the same
+    /// keyframes as `id`, when it has a motion: the top of its LOD chain,
+    /// whose keyframes the chain shares (the cut samples them once, and
+    /// `clusters.json` holds them once).
+    pub(crate) fn motion_source(&self, id: u32) -> Option<u32> {
+        let c = self.cluster(id);
+        let motion = c.motion.as_ref()?;
+        let mut source = id;
+        while let Some(parent) = self.cluster(source).parent
+            && self.cluster(parent).motion.as_ref() == Some(motion)
+        {
+            source = parent;
+        }
+        Some(source)
+    }
+
+    /// The record of cluster `id` in `clusters.json`: a cluster that shares
+    /// its keyframes with the top of its LOD chain names it
+    /// (`motion_from`) rather than repeating them.
     pub fn cluster_record(&self, id: u32) -> format::ClusterRecord {
         let c = self.cluster(id);
+        let motion_from = self.motion_source(id).filter(|&s| s != id);
         format::ClusterRecord {
             id: c.id,
             parent: c.parent,
@@ -856,17 +875,22 @@ impl Tree {
                 .iter()
                 .map(|&(t, v)| (t, f64::from(v)))
                 .collect(),
-            motion: c.motion.as_ref().map(|m| {
-                m.keyframes()
-                    .iter()
-                    .map(|k| format::KeyframeRecord {
-                        t: k.t,
-                        translation: k.translation.to_array(),
-                        rotation: k.rotation.to_array(),
-                        scale: k.scale.to_array(),
-                    })
-                    .collect()
-            }),
+            motion_from,
+            motion: c
+                .motion
+                .as_ref()
+                .filter(|_| motion_from.is_none())
+                .map(|m| {
+                    m.keyframes()
+                        .iter()
+                        .map(|k| format::KeyframeRecord {
+                            t: k.t,
+                            translation: k.translation.to_array(),
+                            rotation: k.rotation.to_array(),
+                            scale: k.scale.to_array(),
+                        })
+                        .collect()
+                }),
             geometry: c.geometry.clone(),
             triangles: c.triangles,
             objects: c.objects.clone(),
@@ -883,6 +907,25 @@ impl Tree {
         let aabb =
             |b: format::BoundsRecord| Aabb::new(DVec3::from_array(b.min), DVec3::from_array(b.max));
         let mut tree = Tree::from_manifest(manifest, dir)?;
+        // The keyframes of the clusters others share (`motion_from`), made
+        // first: a chain's top comes after the clusters below it.
+        let shared: std::collections::HashSet<u32> = clusters
+            .clusters
+            .iter()
+            .filter_map(|r| r.motion_from)
+            .collect();
+        let mut sources: std::collections::HashMap<u32, Motion> = Default::default();
+        for (i, r) in clusters.clusters.iter().enumerate() {
+            if shared.contains(&r.id)
+                && let Some(keys) = &r.motion
+            {
+                let at = format!("clusters[{i}].motion");
+                sources.insert(
+                    r.id,
+                    motion_of(keys).map_err(|m| Error::invalid(&cfile, at, m))?,
+                );
+            }
+        }
         let mut out = Vec::with_capacity(clusters.clusters.len());
         for (i, r) in clusters.clusters.into_iter().enumerate() {
             let bad = |field: &str, msg: String| {
@@ -894,26 +937,24 @@ impl Tree {
                 .map(|&(t, v)| (t, v as f32))
                 .collect::<Vec<_>>();
             let visibility = Steps::new(steps).map_err(|m| bad("visibility", m.to_string()))?;
-            let motion = match r.motion {
-                None => None,
-                Some(keys) => {
-                    if keys.windows(2).any(|w| w[0].t >= w[1].t) {
-                        return Err(bad(
-                            "motion",
-                            "keyframe times must strictly increase".into(),
-                        ));
-                    }
-                    let keys = keys
-                        .iter()
-                        .map(|k| Keyframe {
-                            t: k.t,
-                            translation: Vec3::from_array(k.translation),
-                            rotation: Quat::from_array(k.rotation),
-                            scale: Vec3::from_array(k.scale),
-                        })
-                        .collect();
-                    Some(Motion::new(keys).map_err(|m| bad("motion", m.to_string()))?)
+            let motion = match (r.motion, r.motion_from) {
+                (None, None) => None,
+                (Some(_), Some(_)) => {
+                    return Err(bad(
+                        "motion_from",
+                        "a cluster has its own keyframes or shares another's, not both".into(),
+                    ));
                 }
+                (None, Some(from)) => Some(sources.get(&from).cloned().ok_or_else(|| {
+                    bad(
+                        "motion_from",
+                        format!("cluster {from} has no keyframes of its own to share"),
+                    )
+                })?),
+                (Some(keys), None) => match sources.get(&r.id).cloned() {
+                    Some(m) => Some(m),
+                    None => Some(motion_of(&keys).map_err(|m| bad("motion", m))?),
+                },
             };
             out.push(Cluster {
                 id: r.id,
@@ -982,6 +1023,23 @@ impl Tree {
         }
         Ok(())
     }
+}
+
+/// The motion of a cluster record's keyframes.
+fn motion_of(keys: &[format::KeyframeRecord]) -> std::result::Result<Motion, String> {
+    if keys.windows(2).any(|w| w[0].t >= w[1].t) {
+        return Err("keyframe times must strictly increase".into());
+    }
+    let keys = keys
+        .iter()
+        .map(|k| Keyframe {
+            t: k.t,
+            translation: Vec3::from_array(k.translation),
+            rotation: Quat::from_array(k.rotation),
+            scale: Vec3::from_array(k.scale),
+        })
+        .collect();
+    Motion::new(keys).map_err(|m| m.to_string())
 }
 
 fn bounds_record(b: &Aabb) -> format::BoundsRecord {

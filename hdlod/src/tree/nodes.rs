@@ -121,7 +121,7 @@ impl Nodes {
                     first_step,
                     step_count: c.visibility.steps().len() as u32,
                     has_geometry: u32::from(c.geometry.is_some()),
-                    motion: motion_source(tree, id),
+                    motion: tree.motion_source(id).unwrap_or(NONE),
                     triangles: triangle_count(c.triangles),
                 }
             })
@@ -187,20 +187,4 @@ impl NodesRef<'_> {
 /// A cluster's triangles as a node stores them.
 pub(crate) fn triangle_count(triangles: u64) -> u32 {
     u32::try_from(triangles).unwrap_or(NONE)
-}
-
-/// The highest ancestor of `id` (itself included) with the same motion as
-/// `id`, or [`NONE`] when `id` has none.
-fn motion_source(tree: &Tree, id: u32) -> u32 {
-    let c = tree.cluster(id);
-    let Some(motion) = &c.motion else {
-        return NONE;
-    };
-    let mut source = id;
-    while let Some(parent) = tree.cluster(source).parent
-        && tree.cluster(parent).motion.as_ref() == Some(motion)
-    {
-        source = parent;
-    }
-    source
 }
