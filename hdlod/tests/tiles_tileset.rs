@@ -212,8 +212,9 @@ impl<'a> Client<'a> {
     }
 
     /// The content tiles a 3D Tiles client draws with `REPLACE` refinement:
-    /// refine where `error / distance >= r`, draw content where a tile is
-    /// not refined. `error` picks the geometric error of a tile.
+    /// refine where `error * scale / distance >= r` (`scale` the largest of
+    /// the composed transform's), draw content where a tile is not refined.
+    /// `error` picks the geometric error of a tile.
     fn draw(&self, view: &View, error: &dyn Fn(&Tile) -> f64) -> Vec<(u32, String)> {
         let mut out = Vec::new();
         let mut stack = vec![self.visit(&self.slice.root.root, DMat4::IDENTITY, None)];
@@ -228,8 +229,14 @@ impl<'a> Client<'a> {
                 .content
                 .as_ref()
                 .is_some_and(|c| c.uri.ends_with(".json"));
-            let refine =
-                !children.is_empty() && (stub || error(v.tile) >= view.r() * view.distance(&b));
+            // As CesiumJS does, the error grows with the largest scale of
+            // the composed transform (a scaled pose stretches the tile).
+            let scale = [v.chain.x_axis, v.chain.y_axis, v.chain.z_axis]
+                .iter()
+                .map(|a| a.truncate().length())
+                .fold(0.0, f64::max);
+            let refine = !children.is_empty()
+                && (stub || error(v.tile) * scale >= view.r() * view.distance(&b));
             if refine {
                 stack.extend(children.into_iter().rev());
             } else if let Some(content) = &v.tile.content {

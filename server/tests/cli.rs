@@ -83,6 +83,26 @@ fn cut_prints_the_http_answer() {
     }
 }
 
+/// `hdlod bench skin` compares multi-pose levels of the skinned limb with
+/// bind-pose ones of as many triangles; bad sizes are refused.
+#[test]
+fn bench_skin_reports_both_reductions() {
+    let (ok, out, err) = hdlod(&["bench", "skin", "--rings", "16", "--sides", "8", "--json"]);
+    assert!(ok, "{err}");
+    let rows: Value = serde_json::from_str(&out).unwrap();
+    let rows = rows.as_array().unwrap();
+    assert_eq!(rows.len(), 6);
+    for r in rows {
+        let bind = r["bind_pose"]["largest"].as_f64().unwrap();
+        let posed = r["multi_pose"]["largest"].as_f64().unwrap();
+        assert!(bind > 0.0 && posed > 0.0, "{r}");
+        assert!(r["triangles"].as_u64().unwrap() > 0, "{r}");
+    }
+    let (ok, _, err) = hdlod(&["bench", "skin", "--sides", "2"]);
+    assert!(!ok);
+    assert!(err.contains("--sides"), "{err}");
+}
+
 #[test]
 fn bench_paper_writes_the_table() {
     let dir = tempfile::tempdir().unwrap();

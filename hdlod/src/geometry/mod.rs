@@ -14,6 +14,7 @@ mod parallel;
 mod proxy;
 mod reduce;
 mod simplify;
+pub mod skin;
 mod union_find;
 mod vertex_removal;
 

@@ -23,6 +23,9 @@ pub enum Bench {
     Build(super::bench_build::Args),
     /// The three simplifiers on real meshes, as the decimation theses compare them.
     Simplify(super::bench_simplify::Args),
+    /// Levels of a skinned limb weighed in several poses against its bind
+    /// pose alone: their error over the poses.
+    Skin(super::bench_skin::Args),
     /// Temporal error of the paper's presence rule and the exact one in
     /// the table's 12 cells.
     Presence(super::bench_identity::PresenceArgs),
@@ -85,6 +88,7 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
         Bench::Paper(a) => paper_table(a),
         Bench::Build(a) => super::bench_build::run(a),
         Bench::Simplify(a) => super::bench_simplify::run(a),
+        Bench::Skin(a) => super::bench_skin::run(a),
         Bench::Presence(a) => super::bench_identity::presence(a),
         Bench::Features(a) => super::bench_identity::features(a),
         Bench::Objects(a) => super::bench_objects::run(a),

@@ -4,6 +4,7 @@ pub mod bench_identity;
 pub mod bench_image;
 pub mod bench_objects;
 pub mod bench_simplify;
+pub mod bench_skin;
 pub mod bench_viewer;
 #[cfg(feature = "ifc")]
 pub mod bench_xer;
