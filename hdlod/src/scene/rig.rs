@@ -13,10 +13,11 @@
 //! The scene keeps motions as keyframes interpolated linearly (slerp for
 //! rotations), so the composed transform is sampled: at every key time of
 //! the channels above the node and at the ends of the clip's placements,
-//! then halved between two samples until the keyframes' interpolation lies
-//! within [`TOLERANCE`] of the exact composed transform at the corners of
-//! the node's mesh box (a jib that slews moves a hook on an arc, which
-//! linear interpolation of its world position would cut short).
+//! then cut between two samples until the keyframes' interpolation lies
+//! within a tolerance ([`TOLERANCE`] for `scene.json` clips) of the exact
+//! composed transform at the corners of the node's mesh box (a jib that
+//! slews moves a hook on an arc, which linear interpolation of its world
+//! position would cut short).
 
 use glam::{Mat4, Quat, Vec3};
 
