@@ -442,7 +442,13 @@ impl Rig {
                 )
             })
             .fold(0.0, f32::max);
-        if error <= fit.tolerance || depth >= MAX_DEPTH || b.t - a.t < 2.0 * JUMP {
+        // Past the keyframes' cap the caller reports the motion too long:
+        // a wild curve must not be cut 64 ways at every depth first.
+        if error <= fit.tolerance
+            || depth >= MAX_DEPTH
+            || b.t - a.t < 2.0 * JUMP
+            || out.len() > MAX_KEYFRAMES
+        {
             return;
         }
         let n = ((error / fit.tolerance).sqrt().ceil() as usize).clamp(2, MAX_PIECES);
