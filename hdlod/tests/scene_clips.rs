@@ -37,25 +37,20 @@ fn write_crane(dir: &Path) {
         });
         if minmax {
             let width = floats.len() / count;
+            // Each component's extremes, as the specification asks of inputs.
+            let component = |k: usize, pick: fn(f32, f32) -> f32, start: f32| {
+                floats
+                    .iter()
+                    .skip(k)
+                    .step_by(width)
+                    .copied()
+                    .fold(start, pick)
+            };
             let min: Vec<f32> = (0..width)
-                .map(|k| {
-                    floats
-                        .iter()
-                        .skip(k)
-                        .step_by(width)
-                        .copied()
-                        .fold(f32::MAX, f32::min)
-                })
+                .map(|k| component(k, f32::min, f32::MAX))
                 .collect();
             let max: Vec<f32> = (0..width)
-                .map(|k| {
-                    floats
-                        .iter()
-                        .skip(k)
-                        .step_by(width)
-                        .copied()
-                        .fold(f32::MIN, f32::max)
-                })
+                .map(|k| component(k, f32::max, f32::MIN))
                 .collect();
             a["min"] = serde_json::json!(min);
             a["max"] = serde_json::json!(max);

@@ -19,7 +19,7 @@
 //! posed full mesh and the posed level.
 
 use glam::{Mat4, Vec3};
-use meshopt::{SimplifyOptions, VertexDataAdapter, typed_to_bytes};
+use meshopt::SimplifyOptions;
 
 use super::{HausdorffOptions, Mesh, hausdorff};
 
@@ -125,11 +125,21 @@ pub fn pose_error(mesh: &Mesh, level: &[u32], skin: &Skin, poses: &[Vec<Mat4>]) 
 /// into `mesh`'s vertices. An empty `poses` weighs the bind pose alone:
 /// the reduction it is compared against.
 pub fn reduce_posed(mesh: &Mesh, skin: &Skin, poses: &[Vec<Mat4>], target: usize) -> Vec<u32> {
-    let vertices = VertexDataAdapter::new(typed_to_bytes(&mesh.positions), 12, 0)
-        .expect("positions are 12-byte vertices");
+    let vertices = super::simplify::adapter(mesh);
+    let options = SimplifyOptions::LockBorder;
     let poses = &poses[..poses.len().min(MAX_POSES)];
+    if poses.is_empty() {
+        return meshopt::simplify(
+            &mesh.indices,
+            &vertices,
+            target * 3,
+            f32::MAX,
+            options,
+            None,
+        );
+    }
     let stride = 3 * poses.len();
-    let mut attributes = vec![0.0f32; mesh.positions.len() * stride.max(1)];
+    let mut attributes = vec![0.0f32; mesh.positions.len() * stride];
     for (k, pose) in poses.iter().enumerate() {
         let posed = skin.pose(mesh, pose);
         for (v, p) in posed.positions.iter().enumerate() {
@@ -145,19 +155,8 @@ pub fn reduce_posed(mesh: &Mesh, skin: &Skin, poses: &[Vec<Mat4>], target: usize
         .bounds()
         .map_or(1.0, |(lo, hi)| (hi - lo).max_element())
         .max(f32::MIN_POSITIVE);
-    let weights = vec![1.0 / (extent * poses.len().max(1) as f32); stride];
+    let weights = vec![1.0 / (extent * poses.len() as f32); stride];
     let locks = vec![false; mesh.positions.len()];
-    let options = SimplifyOptions::LockBorder;
-    if poses.is_empty() {
-        return meshopt::simplify(
-            &mesh.indices,
-            &vertices,
-            target * 3,
-            f32::MAX,
-            options,
-            None,
-        );
-    }
     meshopt::simplify_with_attributes_and_locks(
         &mesh.indices,
         &vertices,

@@ -142,10 +142,11 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
     check_buffer_uris(path, &document)?;
     let buffers = gltf::import_buffers(&document, path.parent(), blob)
         .map_err(|e| Error::invalid(path, "buffers", e.to_string()))?;
-    let worlds = world_transforms(&document).map_err(|(at, m)| Error::invalid(path, at, m))?;
+    let rig = read_rig(&document, &buffers).map_err(|(at, m)| Error::invalid(path, at, m))?;
+    let worlds = world_transforms(&rig).map_err(|(at, m)| Error::invalid(path, at, m))?;
 
     let mut model = Model {
-        rig: read_rig(&document, &buffers).map_err(|(at, m)| Error::invalid(path, at, m))?,
+        rig,
         ..Model::default()
     };
     let mut shared: HashMap<MeshKey, usize> = HashMap::new();
@@ -300,10 +301,10 @@ fn node_id(node: &gltf::Node) -> Result<Option<String>, String> {
     Ok(node.name().map(str::to_owned))
 }
 
-/// The node hierarchy (checked by [`world_transforms`] first) and the
-/// animations: each channel's keys and values, checked against each other.
-/// Morph-target weights are not animated here (the scene has no morph
-/// targets) and are left out.
+/// The node hierarchy (a node with two parents is an error; a cycle is
+/// found by [`world_transforms`]) and the animations: each channel's keys
+/// and values, checked against each other. Morph-target weights are not
+/// animated here (the scene has no morph targets) and are left out.
 fn read_rig(
     document: &gltf::Document,
     buffers: &[gltf::buffer::Data],
@@ -315,7 +316,12 @@ fn read_rig(
     };
     for node in document.nodes() {
         for child in node.children() {
-            rig.parent[child.index()] = Some(node.index());
+            if let Some(other) = rig.parent[child.index()].replace(node.index()) {
+                return Err((
+                    format!("node {}", child.index()),
+                    format!("is a child of both node {other} and node {}", node.index()),
+                ));
+            }
         }
         rig.rest
             .push(Mat4::from_cols_array_2d(&node.transform().matrix()));
@@ -418,24 +424,11 @@ fn read_rig(
     Ok(rig)
 }
 
-/// World transform of every node: its local transform after its parents'.
-fn world_transforms(document: &gltf::Document) -> Result<Vec<Mat4>, (String, String)> {
-    let n = document.nodes().len();
-    let mut parent = vec![None; n];
-    for node in document.nodes() {
-        for child in node.children() {
-            if let Some(other) = parent[child.index()].replace(node.index()) {
-                return Err((
-                    format!("node {}", child.index()),
-                    format!("is a child of both node {other} and node {}", node.index()),
-                ));
-            }
-        }
-    }
-    let local: Vec<Mat4> = document
-        .nodes()
-        .map(|node| Mat4::from_cols_array_2d(&node.transform().matrix()))
-        .collect();
+/// World transform of every node at rest: its local transform after its
+/// parents'; an error where the parent chain is a cycle.
+fn world_transforms(rig: &Rig) -> Result<Vec<Mat4>, (String, String)> {
+    let (parent, local) = (&rig.parent, &rig.rest);
+    let n = parent.len();
     let mut world: Vec<Option<Mat4>> = vec![None; n];
     for start in 0..n {
         // Walk up to the first node whose world transform is known; a chain

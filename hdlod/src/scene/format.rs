@@ -34,7 +34,7 @@ pub const SCENE_FILE: &str = "scene.json";
 /// Times further than this from the scene's start (about 300 years) are
 /// taken for mistakes (and would overflow date arithmetic long before
 /// `f64` does).
-const MAX_SECONDS: f64 = 1e10;
+pub(crate) const MAX_SECONDS: f64 = 1e10;
 
 #[derive(Debug, Serialize, Deserialize)]
 #[serde(deny_unknown_fields)]

@@ -19,6 +19,18 @@ impl Keyframe {
     pub fn matrix(&self) -> Mat4 {
         Mat4::from_scale_rotation_translation(self.scale, self.rotation, self.translation)
     }
+
+    /// The keyframe at `t` of the transform `m`, decomposed (exact for a
+    /// translation, rotation and scale; a shear is lost).
+    pub fn of_matrix(t: f64, m: &Mat4) -> Keyframe {
+        let (scale, rotation, translation) = m.to_scale_rotation_translation();
+        Keyframe {
+            t,
+            translation,
+            rotation,
+            scale,
+        }
+    }
 }
 
 /// Keyframes sorted by time, at least one.

@@ -96,6 +96,17 @@ pub struct Trs {
     pub scale: Vec3,
 }
 
+impl Trs {
+    /// A translation alone.
+    pub fn from_translation(translation: Vec3) -> Trs {
+        Trs {
+            translation,
+            rotation: Quat::IDENTITY,
+            scale: Vec3::ONE,
+        }
+    }
+}
+
 /// The node hierarchy of a model and its clips.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Rig {
@@ -149,6 +160,19 @@ impl Timeline {
             ));
         }
         Ok(Timeline { segments })
+    }
+
+    /// A clip whose time is the scene's from its start: a clip made in
+    /// scene seconds.
+    pub fn scene_time() -> Timeline {
+        const END: f64 = super::format::MAX_SECONDS;
+        Timeline {
+            segments: vec![Segment {
+                start: 0.0,
+                end: END,
+                tau: (0.0, END),
+            }],
+        }
     }
 
     pub fn segments(&self) -> &[Segment] {
@@ -293,6 +317,21 @@ enum Sampled {
 }
 
 impl Rig {
+    /// A rig whose nodes' rest transforms are all translations, rotations
+    /// and scales (a glTF node may give a matrix instead, kept as it is by
+    /// the reader).
+    pub fn from_trs(parent: Vec<Option<usize>>, rest: Vec<Trs>, clips: Vec<Clip>) -> Rig {
+        Rig {
+            parent,
+            rest: rest
+                .iter()
+                .map(|r| Mat4::from_scale_rotation_translation(r.scale, r.rotation, r.translation))
+                .collect(),
+            rest_trs: rest,
+            clips,
+        }
+    }
+
     /// The nodes from `node` up to its root, `node` first.
     fn chain(&self, node: usize) -> Vec<usize> {
         let mut chain = vec![node];
@@ -382,13 +421,7 @@ impl Rig {
             .collect();
         let key = |t: f64| -> Result<Keyframe, String> {
             let m = self.world(&chain, placed, t);
-            let (scale, rotation, translation) = m.to_scale_rotation_translation();
-            let k = Keyframe {
-                t,
-                translation,
-                rotation,
-                scale,
-            };
+            let k = Keyframe::of_matrix(t, &m);
             let off = far(&corners, &m, &k.matrix());
             if off.is_nan() || off > tolerance {
                 return Err(format!(
@@ -458,14 +491,7 @@ impl Rig {
                 b
             } else {
                 let t = a.t + (b.t - a.t) * k as f64 / n as f64;
-                let m = self.world(fit.chain, fit.placed, t);
-                let (scale, rotation, translation) = m.to_scale_rotation_translation();
-                Keyframe {
-                    t,
-                    translation,
-                    rotation,
-                    scale,
-                }
+                Keyframe::of_matrix(t, &self.world(fit.chain, fit.placed, t))
             };
             self.refine(fit, from, to, depth + 1, out);
             if k < n {
@@ -513,16 +539,13 @@ mod tests {
     /// A two-node arm: node 0 turns about Y through a quarter turn over
     /// one second, node 1 sits 10 m out along X on it.
     fn arm() -> Rig {
-        let trs = |t: Vec3| Trs {
-            translation: t,
-            rotation: Quat::IDENTITY,
-            scale: Vec3::ONE,
-        };
-        Rig {
-            parent: vec![None, Some(0)],
-            rest: vec![Mat4::IDENTITY, Mat4::from_translation(Vec3::X * 10.0)],
-            rest_trs: vec![trs(Vec3::ZERO), trs(Vec3::X * 10.0)],
-            clips: vec![Clip {
+        Rig::from_trs(
+            vec![None, Some(0)],
+            vec![
+                Trs::from_translation(Vec3::ZERO),
+                Trs::from_translation(Vec3::X * 10.0),
+            ],
+            vec![Clip {
                 name: Some("slew".into()),
                 channels: vec![channel(
                     0,
@@ -534,7 +557,7 @@ mod tests {
                     ]),
                 )],
             }],
-        }
+        )
     }
 
     #[test]

@@ -132,7 +132,7 @@ pub fn cut_into(
     let split_below = presence.split_below();
     let nodes = tree.nodes();
     let r = view.r();
-    let mut sampled = (u32::MAX, Mat4::IDENTITY);
+    let mut sampled = Posed::NONE;
     while let Some(i) = stack.pop() {
         out.stats.visited += 1;
         let c = &nodes.nodes[i as usize];
@@ -140,7 +140,8 @@ pub fn cut_into(
         if v <= 0.0 {
             continue;
         }
-        let transform = pose(tree, c, t, &mut sampled);
+        let posed = pose(tree, c, t, &mut sampled);
+        let transform = posed.map(|p| p.matrix);
         // A static node's box is tested where it lies: copied out first, it
         // was read back across the copy's two stores, which stalled.
         let moved;
@@ -154,10 +155,7 @@ pub fn cut_into(
         if view.outside(bounds) {
             continue;
         }
-        // A pose that scales the cluster (a crane's cable paying out)
-        // stretches its error with it: a distance grows by at most the
-        // largest scale of a rotation and scale.
-        let delta = c.delta(v) * transform.map_or(1.0, |m| f64::from(largest_scale(&m)));
+        let delta = c.delta(v) * posed.map_or(1.0, |p| p.scale);
         let leaf = c.child_count == 0;
         let refine =
             !leaf && (c.has_geometry == 0 || v < split_below || delta >= r * view.distance(bounds));
@@ -182,7 +180,7 @@ pub fn present_leaves_into(
 ) {
     let drawn = start(presence, out, stack);
     let nodes = tree.nodes();
-    let mut sampled = (u32::MAX, Mat4::IDENTITY);
+    let mut sampled = Posed::NONE;
     while let Some(i) = stack.pop() {
         out.stats.visited += 1;
         let c = &nodes.nodes[i as usize];
@@ -193,21 +191,11 @@ pub fn present_leaves_into(
         if i == 0 || c.child_count > 0 {
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
-            let transform = pose(tree, c, t, &mut sampled);
-            let delta = c.delta(v) * transform.map_or(1.0, |m| f64::from(largest_scale(&m)));
-            emit(tree, out, c, transform, v, delta);
+            let posed = pose(tree, c, t, &mut sampled);
+            let delta = c.delta(v) * posed.map_or(1.0, |p| p.scale);
+            emit(tree, out, c, posed.map(|p| p.matrix), v, delta);
         }
     }
-}
-
-/// The largest factor by which `m` (a rotation, scale and translation)
-/// stretches a distance: its longest axis.
-fn largest_scale(m: &Mat4) -> f32 {
-    m.x_axis
-        .truncate()
-        .length()
-        .max(m.y_axis.truncate().length())
-        .max(m.z_axis.truncate().length())
 }
 
 /// Clears the buffers and pushes the root; answers the least `v_c(t)` drawn.
@@ -243,17 +231,47 @@ fn push_children(
     }
 }
 
+/// A motion sampled at `t`.
+#[derive(Clone, Copy)]
+struct Posed {
+    /// The motion's source cluster (`u32::MAX` before the first sample).
+    source: u32,
+    matrix: Mat4,
+    /// The largest factor by which `matrix` (a rotation, scale and
+    /// translation) stretches a distance, its longest axis: a pose that
+    /// scales a cluster (a crane's cable paying out) stretches its error
+    /// with it.
+    scale: f64,
+}
+
+impl Posed {
+    const NONE: Posed = Posed {
+        source: u32::MAX,
+        matrix: Mat4::IDENTITY,
+        scale: 1.0,
+    };
+}
+
 /// A dynamic node's pose at `t`, `None` for others. `sampled` keeps the
 /// last motion sampled: the levels of a chain come one after another and
 /// share it.
-fn pose(tree: &Tree, c: &super::nodes::Node, t: f64, sampled: &mut (u32, Mat4)) -> Option<Mat4> {
+fn pose(tree: &Tree, c: &super::nodes::Node, t: f64, sampled: &mut Posed) -> Option<Posed> {
     if c.motion == u32::MAX {
         return None;
     }
-    if sampled.0 != c.motion {
-        *sampled = (c.motion, tree.pose_at(c.motion, t));
+    if sampled.source != c.motion {
+        let matrix = tree.pose_at(c.motion, t);
+        let scale = [matrix.x_axis, matrix.y_axis, matrix.z_axis]
+            .iter()
+            .map(|a| a.truncate().length())
+            .fold(0.0, f32::max);
+        *sampled = Posed {
+            source: c.motion,
+            matrix,
+            scale: f64::from(scale),
+        };
     }
-    Some(sampled.1)
+    Some(*sampled)
 }
 
 fn emit(

@@ -213,6 +213,10 @@ pub struct Tree {
     pub(crate) nodes: Derived<nodes::Nodes>,
     summary: Derived<TreeSummary>,
     baseline: Derived<Baseline>,
+    /// Each cluster's [`Tree::motion_source`] (`u32::MAX` for none), made
+    /// once for the writer's three readers of it (the cluster table, the
+    /// index's keyframe ranges, the cut's nodes).
+    motion_sources: Derived<Vec<u32>>,
 }
 
 /// The clusters of a tree: built (or read from `clusters.json`) as
@@ -303,16 +307,17 @@ impl Tree {
             nodes: Derived::default(),
             summary: Derived::default(),
             baseline: Derived::default(),
+            motion_sources: Derived::default(),
         }
     }
 
-    /// The tree mapped from its index, with the manifest's fields of
-    /// `like` (read from the JSON manifest).
     /// The geometry file `hash` of this tree, loaded from `dir`.
     pub fn geometry_file(&self, dir: &Path, hash: &str) -> PathBuf {
         self.layout.geometry_file(dir, hash)
     }
 
+    /// The tree mapped from its index, with the manifest's fields of
+    /// `like` (read from the JSON manifest).
     pub(crate) fn mapped(like: Tree, index: index::Index) -> Tree {
         Tree {
             clusters: Clusters::Mapped(index),
@@ -350,6 +355,7 @@ impl Tree {
         self.nodes = Derived::default();
         self.summary = Derived::default();
         self.baseline = Derived::default();
+        self.motion_sources = Derived::default();
         match &mut self.clusters {
             Clusters::Built(v) => v,
             Clusters::Mapped(_) => unreachable!("decoded above"),
@@ -842,15 +848,24 @@ impl Tree {
     /// whose keyframes the chain shares (the cut samples them once, and
     /// `clusters.json` holds them once).
     pub(crate) fn motion_source(&self, id: u32) -> Option<u32> {
-        let c = self.cluster(id);
-        let motion = c.motion.as_ref()?;
-        let mut source = id;
-        while let Some(parent) = self.cluster(source).parent
-            && self.cluster(parent).motion.as_ref() == Some(motion)
-        {
-            source = parent;
-        }
-        Some(source)
+        let sources = self.motion_sources.0.get_or_init(|| {
+            (0..self.cluster_count() as u32)
+                .map(|id| {
+                    let c = self.cluster(id);
+                    let Some(motion) = c.motion.as_ref() else {
+                        return u32::MAX;
+                    };
+                    let mut source = id;
+                    while let Some(parent) = self.cluster(source).parent
+                        && self.cluster(parent).motion.as_ref() == Some(motion)
+                    {
+                        source = parent;
+                    }
+                    source
+                })
+                .collect()
+        });
+        Some(sources[id as usize]).filter(|&s| s != u32::MAX)
     }
 
     /// The record of cluster `id` in `clusters.json`: a cluster that shares
@@ -981,18 +996,7 @@ impl Tree {
     /// A tree of the manifest's fields and no clusters yet.
     pub(crate) fn from_manifest(manifest: format::ManifestRecord, dir: &Path) -> Result<Tree> {
         let mfile = dir.join(format::MANIFEST_FILE);
-        let Some(layout) = Layout::of_format(&manifest.format) else {
-            return Err(Error::invalid(
-                &mfile,
-                "format",
-                format!(
-                    "{:?} is not {:?} nor {:?}",
-                    manifest.format,
-                    format::FORMAT,
-                    format::FORMAT_FLAT
-                ),
-            ));
-        };
+        let layout = layout_of(&manifest, &mfile)?;
         let start = parse_date(&manifest.time.start)
             .map_err(|m| Error::invalid(&mfile, "time.start", m.to_string()))?;
         let aabb =
@@ -1023,6 +1027,23 @@ impl Tree {
         }
         Ok(())
     }
+}
+
+/// The geometry layout of a tree whose manifest, read from `path`, is
+/// `manifest`; an error for a format this reader does not read.
+pub(crate) fn layout_of(manifest: &format::ManifestRecord, path: &Path) -> Result<Layout> {
+    Layout::of_format(&manifest.format).ok_or_else(|| {
+        Error::invalid(
+            path,
+            "format",
+            format!(
+                "{:?} is not {:?} nor {:?}",
+                manifest.format,
+                format::FORMAT,
+                format::FORMAT_FLAT
+            ),
+        )
+    })
 }
 
 /// The motion of a cluster record's keyframes.

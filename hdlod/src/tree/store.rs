@@ -575,18 +575,7 @@ fn list_into(dir: &Path, prefix: Option<&str>, present: &mut impl Extend<[u8; 32
 pub fn layout_of(dir: &Path) -> Result<Layout> {
     let path = dir.join(MANIFEST_FILE);
     let manifest: format::ManifestRecord = read_json(&path)?;
-    Layout::of_format(&manifest.format).ok_or_else(|| {
-        Error::invalid(
-            &path,
-            "format",
-            format!(
-                "{:?} is not {:?} nor {:?}",
-                manifest.format,
-                format::FORMAT,
-                format::FORMAT_FLAT
-            ),
-        )
-    })
+    super::layout_of(&manifest, &path)
 }
 
 /// Every geometry file of the tree in `dir` (named by hash or not by the
