@@ -135,9 +135,17 @@ fn bench_paper_writes_the_table() {
             "baseline_triangles",
             "baseline_draws",
             "micros",
+            "visited",
         ] {
             assert!(rows[0].get(key).is_some(), "{key}");
         }
+        assert!(report["median_nanos_per_visited"].as_f64().unwrap() > 0.0);
+    }
+    // A frame that names no object is refused, naming what it looked for.
+    for (frame, want) in [("site", "KEY=VALUE"), ("site=Nowhere", "\"Nowhere\"")] {
+        let (ok, _, err) = hdlod(&["bench", "paper", tree.to_str().unwrap(), "--frame", frame]);
+        assert!(!ok);
+        assert!(err.contains(want), "{err}");
     }
     // Written twice, the section is replaced, not repeated.
     let text = std::fs::read_to_string(&doc).unwrap();

@@ -27,11 +27,17 @@ pub struct Baseline {
 
 impl Baseline {
     pub fn of(tree: &Tree) -> Baseline {
+        Baseline::of_leaves(tree, |_| true)
+    }
+
+    /// The baseline of the leaves `counted` keeps: a part of the scene,
+    /// such as one site of a district.
+    pub fn of_leaves(tree: &Tree, counted: impl Fn(u32) -> bool) -> Baseline {
         // (time, [triangles, objects, draws]) deltas at each change of a leaf.
         let mut events: Vec<(f64, [i64; 3])> = Vec::new();
         for id in 0..tree.cluster_count() as u32 {
             let c = tree.facts(id);
-            if !c.leaf || !c.geometry {
+            if !c.leaf || !c.geometry || !counted(id) {
                 continue;
             }
             let (tri, obj) = (c.triangles as i64, c.objects as i64);

@@ -58,6 +58,12 @@ pub struct PaperArgs {
     /// Timings per cell (the median is reported).
     #[arg(long, default_value_t = 21)]
     repeats: usize,
+    /// Frame the views on the objects whose property KEY is VALUE rather
+    /// than on the whole scene: their box, the period to their tasks' last
+    /// finish, and their leaves alone in the baseline. `--frame "site=Site
+    /// 1"` gives a district's first site the views of a lone site.
+    #[arg(long, value_name = "KEY=VALUE")]
+    frame: Option<String>,
     /// Markdown file whose "paper table" section is replaced. A benchmark
     /// writes no file unless asked, so without it the table is only printed.
     #[arg(long)]
@@ -103,17 +109,18 @@ pub fn run(bench: Bench) -> anyhow::Result<()> {
 const BEGIN: &str = "<!-- bench paper: begin -->";
 const END: &str = "<!-- bench paper: end -->";
 
-fn markdown(tree: &hdlod::tree::Tree, report: &paper::Report) -> String {
+fn markdown(tree: &hdlod::tree::Tree, frame: Option<&str>, report: &paper::Report) -> String {
+    let framed = frame.map_or(String::new(), |f| format!(", framed on `{f}`"));
     let mut out = format!(
-        "{BEGIN}\nScene `{}`, {} clusters; `hdlod bench paper`: 1920x1080, fov_y 60 degrees, 1 pixel of error.\n\n\
-         | time | screen | triangles | clusters | baseline triangles | baseline draws | ratio | cut (us) |\n\
-         |---|---|---|---|---|---|---|---|\n",
+        "{BEGIN}\nScene `{}`, {} clusters{framed}; `hdlod bench paper`: 1920x1080, fov_y 60 degrees, 1 pixel of error.\n\n\
+         | time | screen | triangles | clusters | baseline triangles | baseline draws | ratio | cut (us) | visited |\n\
+         |---|---|---|---|---|---|---|---|---|\n",
         tree.scene,
         tree.cluster_count()
     );
     for r in &report.rows {
         out.push_str(&format!(
-            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1}x | {:.1} |\n",
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1}x | {:.1} | {:.0} |\n",
             r.time,
             r.screen,
             r.triangles,
@@ -121,20 +128,36 @@ fn markdown(tree: &hdlod::tree::Tree, report: &paper::Report) -> String {
             r.baseline_triangles,
             r.baseline_draws,
             r.baseline_triangles / r.triangles.max(1.0),
-            r.micros
+            r.micros,
+            r.visited
         ));
     }
     out.push_str(&format!(
-        "\nCut time over all {} views: median {:.1} us, p99 {:.1} us.\n{END}\n",
-        report.cuts, report.median_micros, report.p99_micros
+        "\nCut time over all {} views: median {:.1} us, p99 {:.1} us; per cluster visited, median {:.1} ns.\n{END}\n",
+        report.cuts, report.median_micros, report.p99_micros, report.median_nanos_per_visited
     ));
     out
 }
 
 fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
     let tree = hdlod::tree::load(&args.tree)?;
-    let report = paper::table(&tree, args.frames, args.repeats);
-    let table = markdown(&tree, &report);
+    let frame = match &args.frame {
+        None => paper::Frame::whole(&tree),
+        Some(spec) => {
+            let (key, value) = spec
+                .split_once('=')
+                .with_context(|| format!("--frame {spec:?}: expected KEY=VALUE"))?;
+            paper::Frame::of_objects(&tree, key, value).with_context(|| {
+                format!(
+                    "--frame {spec:?}: no object of {} that stands still has property {key:?} = {value:?}{}",
+                    args.tree.display(),
+                    if tree.objects.is_none() { " (the tree has no object tables)" } else { "" }
+                )
+            })?
+        }
+    };
+    let report = paper::table(&tree, &frame, args.frames, args.repeats);
+    let table = markdown(&tree, args.frame.as_deref(), &report);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
     } else {
