@@ -1,6 +1,6 @@
 //! Schedule-only updates of a built tree (`build_or_update_to`): what they
 //! recompute is what a full build computes, they keep every geometry file,
-//! and anything beyond a schedule change builds in full.
+//! and a new configuration or a class change builds in full.
 
 use std::collections::HashSet;
 use std::path::{Path, PathBuf};
@@ -151,7 +151,7 @@ fn groups_that_no_longer_fit_the_schedule_are_dissolved() {
 }
 
 #[test]
-fn a_geometry_change_a_class_change_or_full_build_in_full() {
+fn a_new_configuration_a_class_change_or_full_build_in_full() {
     let scene = tiny();
     let config = BuildConfig::default();
     let tmp = tempfile::tempdir().unwrap();
@@ -162,20 +162,21 @@ fn a_geometry_change_a_class_change_or_full_build_in_full() {
     let (_, _, how) = build_or_update_to(&scene, &config, &dir, true, &Silent).unwrap();
     assert_eq!(how, How::Full { why: None }, "a full build asked for");
 
+    // An object moved: a geometry update (tests/build_local.rs).
     let mut moved = scene.clone();
     moved.objects[0].transform.w_axis.x += 1.0;
     let (_, _, how) = build_or_update_to(&moved, &config, &dir, false, &Silent).unwrap();
-    let How::Full { why: Some(why) } = how else {
-        panic!("{how:?}")
-    };
-    assert!(why.contains("geometry"), "{why}");
+    assert!(matches!(how, How::GeometryUpdate { .. }), "{how:?}");
 
     let coarser = BuildConfig {
         max_children: config.max_children + 1,
         ..config.clone()
     };
     let (_, _, how) = build_or_update_to(&moved, &coarser, &dir, false, &Silent).unwrap();
-    assert!(matches!(how, How::Full { why: Some(_) }), "{how:?}");
+    let How::Full { why: Some(why) } = how else {
+        panic!("{how:?}")
+    };
+    assert!(why.contains("configuration"), "{why}");
 
     // An object present throughout gets a task: it leaves the static class.
     let (_, _, how) = build_or_update_to(&scene, &config, &dir, false, &Silent).unwrap();
@@ -204,13 +205,20 @@ fn a_geometry_change_a_class_change_or_full_build_in_full() {
     assert!(why.contains("class"), "{why}");
 }
 
-/// The digest that decides between an update and a full build is computed
+/// The digests that decide between an update and a full build are computed
 /// the same way by every release: a tree built by an earlier one updates.
 #[test]
 fn the_geometry_key_is_stable_across_releases() {
     assert_eq!(
         hdlod::build::geometry_key(&tiny(), &BuildConfig::default()),
         "7ac6867e99202cbe592ae861c74300e1a743404cbb7f0f0e696015b32335cc7a"
+    );
+    // And the objects' digests a geometry update compares (`sources.bin`).
+    let sources = hdlod::build::object_sources(&tiny());
+    let all: Vec<u8> = sources.iter().flatten().copied().collect();
+    assert_eq!(
+        blake3::hash(&all).to_hex().as_str(),
+        "2aec6b0ae8cd7a9f490777a83c60ab1c44e93f9db698575126ac709e7f7244e5"
     );
 }
 

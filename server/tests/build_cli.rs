@@ -49,6 +49,38 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
     assert_eq!(full["mode"], "full");
     assert!(full.get("not_updated").is_none());
 
+    // One object moved: only the clusters above it are made again.
+    let mut scene = hdlod::scene::format::load(&fixture).unwrap();
+    let still = scene
+        .objects
+        .iter()
+        .position(|o| o.motion.is_none() && o.properties.contains_key("storey"))
+        .unwrap();
+    scene.objects[still].transform.w_axis.x += 0.5;
+    let edited = tmp.path().join("edited");
+    hdlod::scene::format::save(&scene, &edited).unwrap();
+    let out = hdlod(&[
+        "build".as_ref(),
+        edited.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+        "--json".as_ref(),
+    ]);
+    assert_success(&out);
+    let local: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    common::assert_matches_schema(&local, "build-summary.schema.json");
+    assert_eq!(local["mode"], "geometry-update", "{local}");
+    let reused = &local["reused"];
+    assert_eq!(reused["edited_objects"], 1);
+    assert_eq!(reused["added_objects"], 0);
+    let rebuilt = reused["rebuilt_clusters"].as_u64().unwrap();
+    assert!((2..=12).contains(&rebuilt), "{local}");
+    assert_eq!(
+        reused["clusters"].as_u64().unwrap() + rebuilt,
+        local["clusters"].as_u64().unwrap()
+    );
+    assert!(tree.join("sources.bin").is_file());
+
     let out = hdlod(&["inspect".as_ref(), tree.as_os_str(), "--json".as_ref()]);
     assert_success(&out);
     let inspect: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();

@@ -2,7 +2,7 @@
 //! static or pseudo-dynamic piece stored as a leaf cluster in the world
 //! frame (docs/method.md section 3).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 use std::sync::Arc;
 
 use glam::{Mat4, Vec3};
@@ -79,6 +79,22 @@ pub(super) fn split_at_rest(scene: &Scene, classes: &[Class]) -> Vec<Piece> {
     pieces
 }
 
+/// A static or pseudo-dynamic piece's leaf geometry: its object's mesh
+/// moved into the world frame, coloured, each vertex carrying the object's
+/// feature id.
+pub(super) fn leaf_mesh(scene: &Scene, piece: &Piece) -> Mesh {
+    let o = &scene.objects[piece.object];
+    geometry::merge(
+        &[Part {
+            mesh: &scene.meshes[o.mesh],
+            transform: piece.transform,
+            color: o.color,
+            feature: Some(piece.object as u32),
+        }],
+        0.0,
+    )
+}
+
 /// The leaf clusters of the static and the pseudo-dynamic pieces (in that
 /// order): each object's mesh moved into the world frame, coloured, and
 /// stored. Records the distinct leaf visibilities in `ctx.leaf_steps`.
@@ -104,16 +120,7 @@ pub(super) fn leaves(
     let leaf_meshes: Vec<Result<(Mesh, String)>> = members
         .par_iter()
         .map(|&(p, _)| {
-            let o = &scene.objects[p.object];
-            let mesh = geometry::merge(
-                &[Part {
-                    mesh: &scene.meshes[o.mesh],
-                    transform: p.transform,
-                    color: o.color,
-                    feature: Some(p.object as u32),
-                }],
-                0.0,
-            );
+            let mesh = leaf_mesh(scene, p);
             // A leaf is the object itself: exact, its `eps` 0.
             let hash = sink.put(&mesh, None, 0.0)?.hash;
             progress.advance(1);
@@ -133,7 +140,7 @@ pub(super) fn leaves(
     ctx.shapes = shapes;
     // Objects of one task share one visibility: the temporal error is a
     // maximum over the distinct ones.
-    let mut vis_ids: HashMap<Vec<(u64, u64)>, u32> = HashMap::new();
+    let mut vis_ids: FxHashMap<Vec<(u64, u64)>, u32> = FxHashMap::default();
     for ((&(p, tree), made), instance) in members.iter().zip(leaf_meshes).zip(instances) {
         let (mesh, hash) = made?;
         let o = &scene.objects[p.object];

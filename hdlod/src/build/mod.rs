@@ -17,6 +17,7 @@ mod hilbert;
 mod instances;
 mod leaves;
 mod level;
+pub mod local;
 mod outputs;
 mod parent;
 mod steps;
@@ -37,7 +38,7 @@ pub use config::{BuildConfig, Thresholds, level_count, thresholds};
 pub use hilbert::hilbert_key;
 pub use outputs::{BuildStats, GeometrySink, LevelStats, Progress, Silent};
 pub use steps::StepFunction;
-pub use update::{Update, geometry_key, update_schedule};
+pub use update::{Update, geometry_key, object_sources, update_schedule};
 
 /// Builds the HDLOD tree of `scene`. Geometry goes to `sink` as it is made.
 pub fn build(
@@ -175,6 +176,7 @@ pub fn build(
     tree.config = serde_json::to_value(config).expect("the config serialises");
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);
+    tree.sources = Some(object_sources(scene));
     Ok((tree, stats))
 }
 
@@ -190,6 +192,66 @@ pub(super) fn scheduled<'a>(scene: &'a Scene, config: &BuildConfig) -> Cow<'a, S
         }
         _ => Cow::Borrowed(scene),
     }
+}
+
+/// Carries out a local geometry update of the tree `old` at `out`
+/// ([`local`]), atomically: the new tree shares the old one's geometry
+/// store and adds its new files to it.
+fn update_geometry(
+    old: &Tree,
+    plan: local::Plan,
+    config: &BuildConfig,
+    out: &Path,
+    load: f64,
+    planned: Instant,
+    progress: &dyn Progress,
+) -> Result<(Tree, BuildStats, How)> {
+    let clock = planned;
+    let (edited_objects, added_objects) = (plan.edited_objects, plan.added_objects);
+    let writer = TreeWriter::create(out)?;
+    let old_files: rustc_hash::FxHashSet<String> = (0..old.cluster_count() as u32)
+        .filter_map(|id| old.geometry_of(id).map(|h| h.into_owned()))
+        .collect();
+    let shared = writer.share_geometry(old.layout, old_files.iter().cloned())?;
+    let shared_seconds = clock.elapsed().as_secs_f64();
+    let updated = plan.run(old, out, config, &writer, progress)?;
+    let mut stats = updated.stats;
+    let mut phases = vec![
+        ("load tree".to_string(), load),
+        ("plan and share".to_string(), shared_seconds),
+    ];
+    phases.append(&mut stats.phases);
+    stats.phases = phases;
+    let clock = Instant::now();
+    progress.phase("write", 1);
+    let files: rustc_hash::FxHashSet<Cow<str>> = (0..updated.tree.cluster_count() as u32)
+        .filter_map(|id| updated.tree.geometry_of(id))
+        .collect();
+    let kept: Vec<&str> = files
+        .iter()
+        .map(|h| h.as_ref())
+        .filter(|h| old_files.contains(*h))
+        .collect();
+    if !shared {
+        // A flat (`hdlod-tree/1`) tree's files are linked one by one.
+        for hash in &kept {
+            writer.reuse_geometry(out, old.layout, hash)?;
+        }
+    }
+    let geometry_files = kept.len();
+    drop(files);
+    writer.finish(&updated.tree)?;
+    stats
+        .phases
+        .push(("write".into(), clock.elapsed().as_secs_f64()));
+    let how = How::GeometryUpdate {
+        edited_objects,
+        added_objects,
+        rebuilt: updated.rebuilt,
+        geometry_files,
+        dissolved: updated.dissolved,
+    };
+    Ok((updated.tree, stats, how))
 }
 
 /// Builds the tree of `scene` into the directory `out`, atomically: a
@@ -221,12 +283,25 @@ pub enum How {
         geometry_files: usize,
         dissolved: usize,
     },
+    /// The tree that was there, brought to the scene's edited or added
+    /// objects ([`local`]): the clusters above them made again
+    /// (`rebuilt`, leaves included), every other cluster and geometry file
+    /// kept (`geometry_files` of the new tree's were the old tree's).
+    GeometryUpdate {
+        edited_objects: usize,
+        added_objects: usize,
+        rebuilt: usize,
+        geometry_files: usize,
+        dissolved: usize,
+    },
 }
 
 /// Like [`build_to`], but when `out` holds a tree built from a scene with
 /// the same geometry and configuration ([`geometry_key`]), only the
-/// schedule changed, that tree is updated instead of rebuilt, unless
-/// `full`. Atomic either way: a failure leaves `out` as it was.
+/// schedule changed, that tree is updated instead of rebuilt; where some
+/// objects were edited or added since, only the clusters above them are
+/// made again ([`local`]); unless `full`. Atomic either way: a failure
+/// leaves `out` as it was.
 pub fn build_or_update_to(
     scene: &Scene,
     config: &BuildConfig,
@@ -249,11 +324,16 @@ pub fn build_or_update_to(
                 let same = key == Some(geometry_key(scene, config).as_str());
                 let key_seconds = clock.elapsed().as_secs_f64();
                 if !same {
-                    Some(
-                        "the scene's geometry or placements, or the build configuration, \
-                         changed since it was built"
-                            .into(),
-                    )
+                    match local::plan(&old, scene, config) {
+                        Err(why) => Some(format!(
+                            "the scene's geometry or the build configuration changed, and {why}"
+                        )),
+                        Ok(plan) => {
+                            let (tree, stats, how) =
+                                update_geometry(&old, plan, config, out, load, clock, progress)?;
+                            return Ok((tree, stats, how));
+                        }
+                    }
                 } else {
                     progress.phase("update", 1);
                     let clock = Instant::now();
@@ -272,10 +352,10 @@ pub fn build_or_update_to(
                             let clock = Instant::now();
                             progress.phase("write", 1);
                             let writer = TreeWriter::create(out)?;
-                            let files: std::collections::HashSet<Cow<str>> =
-                                (0..tree.cluster_count() as u32)
-                                    .filter_map(|id| tree.geometry_of(id))
-                                    .collect();
+                            let files: rustc_hash::FxHashSet<Cow<str>> = (0..tree.cluster_count()
+                                as u32)
+                                .filter_map(|id| tree.geometry_of(id))
+                                .collect();
                             let geometry_files = files.len();
                             // A flat (`hdlod-tree/1`) tree's files are linked
                             // one by one into the new tree's shards.
@@ -349,7 +429,7 @@ fn virtual_root(ctx: &Context, clusters: &mut Vec<Cluster>, roots: Vec<u32>) -> 
 
 /// The box of a cluster in the world over the whole span: a dynamic
 /// cluster's own box moved by every keyframe.
-fn world_box(c: &Cluster) -> Aabb {
+pub(super) fn world_box(c: &Cluster) -> Aabb {
     let Some(motion) = &c.motion else {
         return c.bounds;
     };

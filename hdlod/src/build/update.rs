@@ -13,7 +13,10 @@
 //! dynamic, absent) the leaves themselves change, and the caller rebuilds
 //! in full.
 
-use std::collections::HashMap;
+use std::borrow::Cow;
+
+use rayon::prelude::*;
+use rustc_hash::FxHashMap;
 
 use super::config::{BuildConfig, thresholds};
 use super::leaves::{Piece, split_at_rest};
@@ -21,6 +24,7 @@ use super::outputs::BuildStats;
 use super::scheduled;
 use super::steps::StepFunction;
 use crate::scene::{Class, Scene};
+use crate::tree::sources::Digest;
 use crate::tree::{Cluster, ClusterClass, ObjectTables, Tree};
 
 /// What an update made of an old tree.
@@ -51,46 +55,81 @@ pub fn geometry_key(scene: &Scene, config: &BuildConfig) -> String {
     );
     hash.update(&(scene.meshes.len() as u64).to_le_bytes());
     for mesh in &scene.meshes {
-        for (name, len) in [
-            ("positions", mesh.positions.len()),
-            ("normals", mesh.normals.len()),
-            ("colors", mesh.colors.len()),
-            ("features", mesh.features.len()),
-            ("indices", mesh.indices.len()),
-        ] {
-            hash.update(name.as_bytes());
-            hash.update(&(len as u64).to_le_bytes());
-        }
-        for p in mesh.positions.iter().chain(&mesh.normals) {
-            hash.floats(&p.to_array());
-        }
-        for c in &mesh.colors {
-            hash.floats(c);
-        }
-        for &i in mesh.features.iter().chain(&mesh.indices) {
-            hash.update(&i.to_le_bytes());
-        }
+        hash_mesh(&mut hash, mesh);
     }
     hash.update(&(scene.objects.len() as u64).to_le_bytes());
     for o in &scene.objects {
-        hash.update(&(o.id.len() as u64).to_le_bytes());
-        hash.update(o.id.as_bytes());
-        hash.update(&(o.mesh as u64).to_le_bytes());
-        hash.floats(&o.transform.to_cols_array());
-        hash.floats(&o.color);
-        match &o.motion {
-            None => hash.update(&[0]),
-            Some(m) => {
-                hash.update(&(m.keyframes().len() as u64).to_le_bytes());
-                for k in m.keyframes() {
-                    hash.update(&k.t.to_le_bytes());
-                    hash.floats(&k.matrix().to_cols_array());
-                }
-            }
-        }
+        hash_object(&mut hash, o);
     }
     hash.update(&[scene.up as u8]);
     hash.finish()
+}
+
+/// Per object of `scene`, in order, a digest of what its leaves are made
+/// of: its id, its mesh's content, its placement, colour and motion
+/// (`tree::sources`). A geometry update compares them with the tree's.
+pub fn object_sources(scene: &Scene) -> Vec<Digest> {
+    let meshes: Vec<blake3::Hash> = scene
+        .meshes
+        .par_iter()
+        .map(|m| {
+            let mut hash = Buffered::default();
+            hash_mesh(&mut hash, m);
+            hash.digest()
+        })
+        .collect();
+    scene
+        .objects
+        .par_iter()
+        .map(|o| {
+            let mut hash = Buffered::default();
+            hash.update(meshes[o.mesh].as_bytes());
+            hash_object(&mut hash, o);
+            let mut digest = [0u8; 16];
+            digest.copy_from_slice(&hash.digest().as_bytes()[..16]);
+            digest
+        })
+        .collect()
+}
+
+fn hash_mesh(hash: &mut Buffered, mesh: &crate::geometry::Mesh) {
+    for (name, len) in [
+        ("positions", mesh.positions.len()),
+        ("normals", mesh.normals.len()),
+        ("colors", mesh.colors.len()),
+        ("features", mesh.features.len()),
+        ("indices", mesh.indices.len()),
+    ] {
+        hash.update(name.as_bytes());
+        hash.update(&(len as u64).to_le_bytes());
+    }
+    for p in mesh.positions.iter().chain(&mesh.normals) {
+        hash.floats(&p.to_array());
+    }
+    for c in &mesh.colors {
+        hash.floats(c);
+    }
+    for &i in mesh.features.iter().chain(&mesh.indices) {
+        hash.update(&i.to_le_bytes());
+    }
+}
+
+fn hash_object(hash: &mut Buffered, o: &crate::scene::Object) {
+    hash.update(&(o.id.len() as u64).to_le_bytes());
+    hash.update(o.id.as_bytes());
+    hash.update(&(o.mesh as u64).to_le_bytes());
+    hash.floats(&o.transform.to_cols_array());
+    hash.floats(&o.color);
+    match &o.motion {
+        None => hash.update(&[0]),
+        Some(m) => {
+            hash.update(&(m.keyframes().len() as u64).to_le_bytes());
+            for k in m.keyframes() {
+                hash.update(&k.t.to_le_bytes());
+                hash.floats(&k.matrix().to_cols_array());
+            }
+        }
+    }
 }
 
 /// A blake3 hasher fed through a buffer: the key is made of millions of
@@ -119,9 +158,13 @@ impl Buffered {
         }
     }
 
-    fn finish(mut self) -> String {
+    fn digest(mut self) -> blake3::Hash {
         self.hasher.update(&self.buffer);
-        self.hasher.finalize().to_hex().to_string()
+        self.hasher.finalize()
+    }
+
+    fn finish(self) -> String {
+        self.digest().to_hex().to_string()
     }
 }
 
@@ -130,11 +173,21 @@ impl Buffered {
 /// [`geometry_key`] (the caller compares the key stored in its
 /// statistics).
 pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Update {
+    schedule_pass(Cow::Borrowed(old), scene, config)
+}
+
+/// [`update_schedule`] of a tree made in memory, whose clusters it takes
+/// rather than copies (a geometry update's, `super::local`).
+pub(super) fn update_schedule_of(tree: Tree, scene: &Scene, config: &BuildConfig) -> Update {
+    schedule_pass(Cow::Owned(tree), scene, config)
+}
+
+fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update {
     let scene = &*scheduled(scene, config);
     let span = scene.time.seconds;
     let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
     let pieces = split_at_rest(scene, &classes);
-    let Some(leaf_pieces) = match_leaves(old, scene, &pieces) else {
+    let Some(leaf_pieces) = match_leaves(&old, scene, &pieces) else {
         return Update::Rebuild(
             "an object changed class (static, pseudo-dynamic, dynamic or absent), \
              or a moving object's rests before or after its motion changed, \
@@ -146,6 +199,12 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
         return Update::Rebuild("the tree's statistics are not a build's".into());
     };
     let (levels, scene_w) = (stats.levels, stats.scene_w);
+    let n = old.cluster_count();
+    let (bounds, old_config, sources) = (old.bounds, old.config.clone(), old.sources.clone());
+    let records: Box<dyn Iterator<Item = Cluster> + '_> = match old {
+        Cow::Borrowed(t) => Box::new(t.clusters().map(Cow::into_owned)),
+        Cow::Owned(mut t) => Box::new(std::mem::take(t.clusters_mut()).into_iter()),
+    };
 
     // Distinct leaf visibilities, as the build numbers them, and per
     // cluster the ones below it. A group whose recomputed `gamma_c` breaks
@@ -154,14 +213,12 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
     // and `eps_c` stay a bound, and the parent's `gamma_c` is measured over
     // its new children against its own, higher, threshold.
     let mut leaf_steps: Vec<StepFunction> = Vec::new();
-    let mut vis_ids: HashMap<Vec<(u64, u64)>, u32> = HashMap::new();
-    let n = old.cluster_count();
+    let mut vis_ids: FxHashMap<Vec<(u64, u64)>, u32> = FxHashMap::default();
     let mut steps: Vec<StepFunction> = Vec::with_capacity(n);
     let mut below: Vec<Vec<u32>> = Vec::with_capacity(n);
     let mut clusters: Vec<Cluster> = Vec::with_capacity(n);
     let mut dissolved: Vec<Option<Vec<u32>>> = vec![None; n];
-    for c in old.clusters() {
-        let mut c = c.into_owned();
+    for mut c in records {
         c.children = c
             .children
             .iter()
@@ -275,15 +332,16 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
     let mut tree = Tree::new(
         scene.name.clone(),
         scene.time,
-        old.bounds,
+        bounds,
         scene.up,
         root,
         clusters,
     );
     tree.georeference = scene.georeference;
-    tree.config = old.config.clone();
+    tree.config = old_config;
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);
+    tree.sources = sources;
     Update::Updated {
         tree: Box::new(tree),
         stats,
@@ -295,13 +353,13 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
 /// the pieces are those the tree was built from: the same objects in the
 /// same classes, in the build's order (static and pseudo-dynamic leaves
 /// first, then the dynamic ones).
-fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<HashMap<u32, usize>> {
+fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap<u32, usize>> {
     let clustered = (0..pieces.len())
         .filter(|&i| matches!(pieces[i].class, Class::Static | Class::PseudoDynamic));
     let dynamic = (0..pieces.len()).filter(|&i| pieces[i].class == Class::Dynamic);
     let leaves = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
-    let mut out = HashMap::new();
+    let mut out = FxHashMap::default();
     let mut expected = clustered.chain(dynamic);
     for leaf in leaves {
         let i = expected.next()?;

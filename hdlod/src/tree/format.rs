@@ -26,6 +26,8 @@ pub const INDEX_FILE: &str = "clusters.bin";
 /// The object rows of `objects.json` in binary, optional
 /// (`super::object_index`).
 pub const OBJECTS_INDEX_FILE: &str = "objects.bin";
+/// The objects' source digests, optional (`super::sources`).
+pub const SOURCES_FILE: &str = "sources.bin";
 
 /// Where a tree's geometry files lie, fixed by its manifest's `format`.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]

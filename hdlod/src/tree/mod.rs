@@ -18,6 +18,7 @@ pub mod object_index;
 pub mod objects;
 pub mod presence;
 mod sections;
+pub mod sources;
 pub mod store;
 
 use std::borrow::Cow;
@@ -204,6 +205,10 @@ pub struct Tree {
     /// The object and task tables (`objects.json`), when the tree has them.
     /// The cut never reads them.
     pub objects: Option<ObjectTables>,
+    /// Per scene object, a digest of what its leaves are made of
+    /// (`sources.bin`), when the tree has them: what a geometry update
+    /// compares.
+    pub sources: Option<Vec<sources::Digest>>,
     /// The root's children by time, made on the first cut (the clusters
     /// must not change after it).
     pub(crate) presence: Derived<presence::Presence>,
@@ -303,6 +308,7 @@ impl Tree {
             layout: Layout::default(),
             clusters: Clusters::Built(clusters),
             objects: None,
+            sources: None,
             presence: Derived::default(),
             nodes: Derived::default(),
             summary: Derived::default(),

@@ -28,10 +28,12 @@ use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
 
+use rustc_hash::FxHashSet;
+
 use super::Tree;
 use super::format::{
     self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, Layout, MANIFEST_FILE, OBJECTS_FILE,
-    OBJECTS_INDEX_FILE,
+    OBJECTS_INDEX_FILE, SOURCES_FILE,
 };
 use super::index::{self, Index};
 use super::object_index::ObjectRows;
@@ -57,7 +59,7 @@ fn sibling(target: &Path, kind: &str) -> PathBuf {
 pub struct TreeWriter {
     target: PathBuf,
     tmp: PathBuf,
-    stored: Mutex<HashSet<String>>,
+    stored: Mutex<FxHashSet<String>>,
     finished: bool,
 }
 
@@ -72,7 +74,7 @@ impl TreeWriter {
         let writer = TreeWriter {
             target,
             tmp,
-            stored: Mutex::new(HashSet::new()),
+            stored: Mutex::new(FxHashSet::default()),
             finished: false,
         };
         // Made up front, so that storing a file is one create.
@@ -246,6 +248,12 @@ impl TreeWriter {
         table?;
         others.0?;
         others.1?;
+        if let Some(digests) = &tree.sources {
+            write_bytes(
+                &self.tmp.join(SOURCES_FILE),
+                &super::sources::encode(digests),
+            )?;
+        }
         let written = lap();
 
         let old = sibling(&self.target, "old");
@@ -491,7 +499,20 @@ pub(super) fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
         let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
         Tree::from_records(manifest, clusters, dir)?
     };
-    Ok(tree)
+    Ok(Tree {
+        sources: load_sources(dir)?,
+        ..tree
+    })
+}
+
+/// The objects' source digests, when the tree has them.
+fn load_sources(dir: &Path) -> Result<Option<Vec<super::sources::Digest>>> {
+    let path = dir.join(SOURCES_FILE);
+    match fs::read(&path) {
+        Ok(bytes) => super::sources::decode(&bytes, &path).map(Some),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(Error::io(&path, e)),
+    }
 }
 
 /// Hashes blake3 hashes by their first eight bytes: they are uniform

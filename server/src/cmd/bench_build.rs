@@ -24,6 +24,11 @@ pub struct Args {
     /// Builds of SCENE; the medians are reported.
     #[arg(long, default_value_t = 3)]
     repeats: usize,
+    /// The storey (the objects' `storey` property) a geometry edit moves 2
+    /// cm, for the geometry updates of a scene; by default the one in the
+    /// middle of those the scene names.
+    #[arg(long)]
+    storey: Option<String>,
     /// Storeys of the paper's tower to build (about 830 objects each).
     #[arg(long, value_delimiter = ',', default_value = "12,24,48,96")]
     storeys: Vec<usize>,
@@ -139,6 +144,22 @@ struct Repeated {
     update_runs: Vec<Run>,
     median_update_wall_seconds: f64,
     median_update_cpu_seconds: f64,
+    /// The storey the geometry edit moves, and how many of its objects.
+    geometry_edit_storey: Option<String>,
+    geometry_edit_objects: usize,
+    /// Geometry updates of the tree, alternately to the edited storey and
+    /// back (`build_or_update_to`, the scene already loaded).
+    geometry_update_runs: Vec<Run>,
+    median_geometry_update_wall_seconds: f64,
+    median_geometry_update_cpu_seconds: f64,
+    /// Clusters the first geometry update made again, of all.
+    rebuilt_clusters: usize,
+    /// The first geometry update's phases, in seconds.
+    geometry_update_phases: Vec<(String, f64)>,
+    /// Table 2 of the tree after the geometry updates against a full build
+    /// of the same scene: the largest change of a cell's triangles, in
+    /// percent (`hdlod bench paper`'s views).
+    table_largest_change_percent: f64,
     /// The process's peak resident set over every build (and the scene's
     /// load), in bytes.
     peak_rss_bytes: u64,
@@ -206,6 +227,7 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         }
         updates.push(run);
     }
+    let geometry = geometry_updates(args, &scene, &out, work)?;
     std::fs::remove_dir_all(&out).with_context(|| format!("removing {}", out.display()))?;
     let store = work.join(".tree.geometry");
     if store.exists() {
@@ -230,6 +252,22 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         median_update_wall_seconds: median_of(&updates, |r| r.wall_seconds),
         median_update_cpu_seconds: median_of(&updates, |r| r.cpu_seconds),
         update_runs: updates,
+        geometry_edit_storey: geometry.storey,
+        geometry_edit_objects: geometry.objects,
+        median_geometry_update_wall_seconds: if geometry.runs.is_empty() {
+            0.0
+        } else {
+            median_of(&geometry.runs, |r| r.wall_seconds)
+        },
+        median_geometry_update_cpu_seconds: if geometry.runs.is_empty() {
+            0.0
+        } else {
+            median_of(&geometry.runs, |r| r.cpu_seconds)
+        },
+        geometry_update_runs: geometry.runs,
+        rebuilt_clusters: geometry.rebuilt,
+        geometry_update_phases: geometry.phases,
+        table_largest_change_percent: geometry.largest_change,
         runs,
     };
     if args.json {
@@ -253,8 +291,132 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
             report.median_update_wall_seconds,
             report.median_update_cpu_seconds
         );
+        if let Some(storey) = &report.geometry_edit_storey {
+            println!(
+                "geometry updates ({} objects of {storey} moved 2 cm, and back; {} of {} clusters \
+                 made again): median of {}: {:.2} s wall, {:.2} s CPU ({:.1}% of a full build's \
+                 wall time); table 2 against a full build: cells within {:.2}%",
+                report.geometry_edit_objects,
+                report.rebuilt_clusters,
+                report.clusters,
+                args.repeats,
+                report.median_geometry_update_wall_seconds,
+                report.median_geometry_update_cpu_seconds,
+                100.0 * report.median_geometry_update_wall_seconds / report.median_wall_seconds,
+                report.table_largest_change_percent
+            );
+            let phases: Vec<String> = report
+                .geometry_update_phases
+                .iter()
+                .map(|(name, s)| format!("{name} {s:.2}"))
+                .collect();
+            println!("  the first one's phases (s): {}", phases.join(", "));
+        }
     }
     Ok(())
+}
+
+#[derive(Default)]
+struct GeometryUpdates {
+    storey: Option<String>,
+    objects: usize,
+    runs: Vec<Run>,
+    rebuilt: usize,
+    phases: Vec<(String, f64)>,
+    largest_change: f64,
+}
+
+/// Geometry updates of the tree at `out`, alternately to `scene` with one
+/// storey moved and back, then table 2 of the updated tree against a full
+/// build of the same scene. None for a scene without storeys.
+fn geometry_updates(
+    args: &Args,
+    scene: &Scene,
+    out: &Path,
+    work: &Path,
+) -> anyhow::Result<GeometryUpdates> {
+    let mut storeys: Vec<&str> = scene
+        .objects
+        .iter()
+        .filter_map(|o| o.properties.get("storey").map(String::as_str))
+        .collect();
+    storeys.sort_unstable();
+    storeys.dedup();
+    let storey = match &args.storey {
+        Some(s) => s.clone(),
+        None => match storeys.get(storeys.len() / 2) {
+            Some(s) => s.to_string(),
+            None => return Ok(GeometryUpdates::default()),
+        },
+    };
+    let mut edited = scene.clone();
+    let mut objects = 0;
+    for o in &mut edited.objects {
+        if o.properties.get("storey") == Some(&storey) && o.motion.is_none() {
+            o.transform.w_axis.x += 0.02;
+            objects += 1;
+        }
+    }
+    anyhow::ensure!(
+        objects > 0,
+        "no object that stands still is on storey {storey:?}"
+    );
+    let mut result = GeometryUpdates {
+        storey: Some(storey),
+        objects,
+        ..GeometryUpdates::default()
+    };
+    for k in 0..args.repeats.max(1) {
+        let next = if k % 2 == 0 { &edited } else { scene };
+        let (cpu, started) = (cpu_seconds(), Instant::now());
+        let (tree, stats, how) =
+            build_or_update_to(next, &BuildConfig::default(), out, false, &Silent)
+                .with_context(|| format!("updating {}", out.display()))?;
+        let How::GeometryUpdate { rebuilt, .. } = how else {
+            anyhow::bail!("the geometry edit was not a geometry update: {how:?}");
+        };
+        let run = Run {
+            wall_seconds: started.elapsed().as_secs_f64(),
+            cpu_seconds: cpu_seconds() - cpu,
+        };
+        drop(tree);
+        if k == 0 {
+            result.rebuilt = rebuilt;
+            result.phases = stats.phases;
+        }
+        if !args.json {
+            eprintln!(
+                "geometry update {}/{}: {:.2} s wall, {:.2} s CPU, {rebuilt} clusters made again",
+                k + 1,
+                args.repeats,
+                run.wall_seconds,
+                run.cpu_seconds
+            );
+        }
+        result.runs.push(run);
+    }
+    // The tree now holds the last scene updated to; a full build of it.
+    let last = if args.repeats.max(1) % 2 == 1 {
+        &edited
+    } else {
+        scene
+    };
+    let full = work.join("full");
+    build_to(last, &BuildConfig::default(), &full, &Silent)
+        .with_context(|| format!("building {}", full.display()))?;
+    let (updated, full_tree) = (hdlod::tree::load(out)?, hdlod::tree::load(&full)?);
+    let table = |t: &hdlod::tree::Tree| {
+        hdlod_fixtures::paper::table(t, &hdlod_fixtures::paper::Frame::whole(t), 30, 1)
+    };
+    let (a, b) = (table(&updated), table(&full_tree));
+    result.largest_change = a
+        .rows
+        .iter()
+        .zip(&b.rows)
+        .map(|(a, b)| 100.0 * (a.triangles - b.triangles).abs() / b.triangles.max(1.0))
+        .fold(0.0, f64::max);
+    std::fs::remove_dir_all(&full).with_context(|| format!("removing {}", full.display()))?;
+    Ok(result)
 }
 
 /// `scene` with every tenth construct task of objects that do not move a

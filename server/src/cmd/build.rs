@@ -39,7 +39,7 @@ pub struct Args {
 struct Summary<'a> {
     scene: &'a str,
     out: String,
-    /// `full` or `schedule-update`.
+    /// `full`, `schedule-update` or `geometry-update`.
     mode: &'static str,
     /// Why the tree at `out` was not updated, when there was one.
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -59,6 +59,12 @@ struct Summary<'a> {
 #[derive(Serialize)]
 struct Reused {
     clusters: usize,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    rebuilt_clusters: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    edited_objects: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    added_objects: Option<usize>,
     geometry_files: usize,
     dissolved_groups: usize,
 }
@@ -106,6 +112,27 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             None,
             Some(Reused {
                 clusters: tree.cluster_count(),
+                rebuilt_clusters: None,
+                edited_objects: None,
+                added_objects: None,
+                geometry_files,
+                dissolved_groups: dissolved,
+            }),
+        ),
+        How::GeometryUpdate {
+            edited_objects,
+            added_objects,
+            rebuilt,
+            geometry_files,
+            dissolved,
+        } => (
+            "geometry-update",
+            None,
+            Some(Reused {
+                clusters: tree.cluster_count().saturating_sub(rebuilt),
+                rebuilt_clusters: Some(rebuilt),
+                edited_objects: Some(edited_objects),
+                added_objects: Some(added_objects),
                 geometry_files,
                 dissolved_groups: dissolved,
             }),
@@ -165,6 +192,20 @@ fn table(s: &Summary) -> String {
         None => format!(
             "built {} -> {}: {} objects, {} clusters, {} levels, {:.2} s\n",
             s.scene, s.out, s.objects, s.clusters, s.levels, s.seconds
+        ),
+        Some(r) if r.rebuilt_clusters.is_some() => format!(
+            "updated the geometry of {} -> {}: {} objects ({} edited, {} added), {} clusters \
+             made again, {} kept with {} geometry files ({} groups dissolved), {:.2} s\n",
+            s.scene,
+            s.out,
+            s.objects,
+            r.edited_objects.unwrap_or(0),
+            r.added_objects.unwrap_or(0),
+            r.rebuilt_clusters.unwrap_or(0),
+            r.clusters,
+            r.geometry_files,
+            r.dissolved_groups,
+            s.seconds
         ),
         Some(r) => format!(
             "updated the schedule of {} -> {}: {} objects, {} clusters kept with {} geometry \

@@ -1,0 +1,668 @@
+//! Local geometry updates: a tree built from an earlier version of a scene
+//! in which some objects were edited (new mesh, placement or colour) or
+//! added is brought up to date by rebuilding only the clusters above them,
+//! up to the root, and reusing every other cluster and its geometry file
+//! (docs/method.md section 3, "Geometry updates").
+//!
+//! The tree's groups stay as they were: an edited object's leaf is
+//! replaced in place, and an added object joins the parent of the nearest
+//! leaf of its class (nearest in time first for the pseudo-dynamic class,
+//! as the build ranks candidates). Each cluster above a changed leaf is
+//! made again from its children exactly as the build makes it (the union
+//! reduced within its level's budget, `eps_c` measured; a lone child's own
+//! parent reduced alone), the unchanged children read back from their
+//! geometry files. The schedule pass of [`super::update_schedule`] then
+//! recomputes every `v_c` and `gamma_c` from the leaves, so the scene's
+//! schedule may have moved too.
+//!
+//! What it does not do, and leaves to a full build: objects removed (a
+//! feature id is the object's index in the scene, so every later object's
+//! would move), moving objects edited or added, objects that change class,
+//! trees with baked colour, and edits to more than a quarter of the
+//! objects. The levels and their thresholds are the old tree's.
+
+use std::collections::HashMap;
+use std::path::Path;
+use std::sync::Arc;
+
+use glam::Vec3;
+use rayon::prelude::*;
+
+use super::config::{BuildConfig, thresholds};
+use super::context::{Active, Context};
+use super::leaves::{Piece, leaf_mesh, split_at_rest};
+use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
+use super::parent::{DIRECT_MAX_TRIANGLES, make_parent, single_parent};
+use super::steps::StepFunction;
+use super::update::{Update, geometry_key, object_sources, update_schedule_of};
+use crate::error::{Error, Result};
+use crate::geometry::Mesh;
+use crate::scene::{Class, Scene};
+use crate::tree::sources::Digest;
+use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
+
+/// Edits above this share of the objects are built in full: the groups
+/// would no longer be the scene's.
+const MAX_TOUCHED_SHARE: f64 = 0.25;
+
+/// What a geometry update will do, decided before anything is written.
+pub struct Plan {
+    scene: Scene,
+    pieces: Vec<Piece>,
+    sources: Vec<Digest>,
+    /// The static and pseudo-dynamic leaves are the clusters `0..leaves`,
+    /// in the order of their pieces `kept`.
+    leaves: usize,
+    kept: Vec<usize>,
+    /// Old leaves whose object was edited.
+    edited: Vec<u32>,
+    /// Pieces of the added objects, and the cluster each joins.
+    added: Vec<(usize, u32)>,
+    stats: BuildStats,
+    pub edited_objects: usize,
+    pub added_objects: usize,
+}
+
+/// What a geometry update made.
+pub struct Updated {
+    pub tree: Tree,
+    pub stats: BuildStats,
+    /// Clusters made again (leaves included) and geometry files written.
+    pub rebuilt: usize,
+    /// Groups dissolved by the schedule pass.
+    pub dissolved: usize,
+}
+
+/// Whether `old` can be brought to `scene` by a local geometry update, and
+/// how; `Err` says why not, for the caller's report.
+pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Result<Plan, String> {
+    let Some(before) = &old.sources else {
+        return Err("the tree records no digests of its objects' sources (sources.bin)".into());
+    };
+    if serde_json::to_value(config).ok().as_ref() != Some(&old.config) {
+        return Err("the build configuration changed".into());
+    }
+    if config.bake {
+        return Err("a tree with baked colour is rebuilt in full".into());
+    }
+    if scene.up != old.up {
+        return Err("the scene's up axis changed".into());
+    }
+    let stats: BuildStats = serde_json::from_value(old.stats.clone())
+        .map_err(|_| "the tree's statistics are not a build's".to_string())?;
+    let scene = super::scheduled(scene, config).into_owned();
+    let sources = object_sources(&scene);
+    if sources.len() < before.len() {
+        return Err(format!(
+            "{} objects were removed: the feature ids of the objects after them would move",
+            before.len() - sources.len()
+        ));
+    }
+    let touched: Vec<bool> = (0..sources.len())
+        .map(|i| before.get(i) != Some(&sources[i]))
+        .collect();
+    let edited_objects = (0..before.len()).filter(|&i| touched[i]).count();
+    let added_objects = sources.len() - before.len();
+    let share = (edited_objects + added_objects) as f64 / sources.len().max(1) as f64;
+    if share > MAX_TOUCHED_SHARE {
+        return Err(format!(
+            "{} of {} objects were edited or added: more than a quarter",
+            edited_objects + added_objects,
+            sources.len()
+        ));
+    }
+
+    let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
+    let pieces = split_at_rest(&scene, &classes);
+    let clustered = |c: Class| matches!(c, Class::Static | Class::PseudoDynamic);
+    let changed_class = || "an object changed class (static, pseudo-dynamic, dynamic or absent), so the leaves differ";
+    for p in pieces.iter().filter(|p| p.class == Class::Dynamic) {
+        if touched[p.object] {
+            return Err(format!(
+                "moving object {} was edited or added",
+                scene.objects[p.object].id
+            ));
+        }
+    }
+    // The build's order: the static and pseudo-dynamic leaves first, in
+    // the order of their pieces.
+    let old_leaves: Vec<u32> = (0..old.cluster_count() as u32)
+        .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root)
+        .collect();
+    let leaves = old_leaves
+        .iter()
+        .take_while(|&&c| old.class_of(c) != ClusterClass::Dynamic)
+        .count();
+    if old_leaves[..leaves]
+        .iter()
+        .enumerate()
+        .any(|(i, &c)| c as usize != i)
+    {
+        return Err("the tree's leaves are not in the build's order".into());
+    }
+    let (kept, new): (Vec<usize>, Vec<usize>) = (0..pieces.len())
+        .filter(|&i| clustered(pieces[i].class))
+        .partition(|&i| pieces[i].object < before.len());
+    let dynamic: Vec<usize> = (0..pieces.len())
+        .filter(|&i| pieces[i].class == Class::Dynamic)
+        .collect();
+    if kept.len() != leaves || dynamic.len() != old_leaves.len() - leaves {
+        return Err(changed_class().into());
+    }
+    let class_of = |p: &Piece| match p.class {
+        Class::Static => ClusterClass::Static,
+        Class::PseudoDynamic => ClusterClass::PseudoDynamic,
+        _ => ClusterClass::Dynamic,
+    };
+    for (&leaf, &p) in old_leaves.iter().zip(kept.iter().chain(&dynamic)) {
+        let piece = &pieces[p];
+        if old.class_of(leaf) != class_of(piece)
+            || !old.names_object(leaf, &scene.objects[piece.object].id)
+        {
+            return Err(changed_class().into());
+        }
+    }
+    let edited: Vec<u32> = (0..leaves as u32)
+        .filter(|&c| touched[pieces[kept[c as usize]].object])
+        .collect();
+
+    // Each added piece joins the parent of the nearest old leaf of its
+    // class.
+    let span = scene.time.seconds;
+    let time_step = thresholds(config, stats.scene_w, stats.levels, 1)
+        .gamma
+        .max(1e-9)
+        / 4.0;
+    let leaf_steps: Vec<StepFunction> = kept
+        .iter()
+        .map(|&p| StepFunction::of_visibility(&pieces[p].visibility, span))
+        .collect();
+    let centres: Vec<Vec3> = (0..leaves as u32)
+        .map(|c| {
+            let b = old.cluster(c).bounds;
+            ((b.min + b.max) * 0.5).as_vec3()
+        })
+        .collect();
+    let mut added = Vec::with_capacity(new.len());
+    for &p in &new {
+        let piece = &pieces[p];
+        let mesh = leaf_mesh(&scene, piece);
+        let Some((lo, hi)) = mesh.bounds() else {
+            return Err(format!(
+                "added object {} has no geometry",
+                scene.objects[piece.object].id
+            ));
+        };
+        let centre = (lo + hi) * 0.5;
+        let class = class_of(piece);
+        let steps = StepFunction::of_visibility(&piece.visibility, span);
+        let apart = |leaf: usize| {
+            if class == ClusterClass::PseudoDynamic && span > 0.0 {
+                (steps.l1_distance(&leaf_steps[leaf], span) / span / time_step).floor() as u32
+            } else {
+                0
+            }
+        };
+        // The nearest in space of each class of time, the nearest class
+        // first.
+        let mut near: Vec<(f32, usize)> = (0..leaves)
+            .filter(|&l| old.class_of(l as u32) == class)
+            .map(|l| (centres[l].distance_squared(centre), l))
+            .collect();
+        let take = near.len().min(64);
+        if take == 0 {
+            return Err(format!(
+                "added object {} has no leaf of its class to join",
+                scene.objects[piece.object].id
+            ));
+        }
+        near.select_nth_unstable_by(take - 1, |a, b| a.0.total_cmp(&b.0));
+        near.truncate(take);
+        let &(_, best) = near
+            .iter()
+            .min_by(|a, b| apart(a.1).cmp(&apart(b.1)).then(a.0.total_cmp(&b.0)))
+            .expect("one at least");
+        let parent = old.cluster(best as u32).parent;
+        match parent {
+            Some(parent) if old.class_of(parent) != ClusterClass::Root => added.push((p, parent)),
+            _ => {
+                return Err(format!(
+                    "added object {} has no cluster to join",
+                    scene.objects[piece.object].id
+                ));
+            }
+        }
+    }
+    Ok(Plan {
+        scene,
+        pieces,
+        sources,
+        leaves,
+        kept,
+        edited,
+        added,
+        stats,
+        edited_objects,
+        added_objects,
+    })
+}
+
+/// A cluster's geometry while the update runs.
+#[derive(Clone)]
+struct Made {
+    mesh: Arc<Mesh>,
+    eps: f64,
+    lo: Vec3,
+    hi: Vec3,
+    hash: String,
+    originals: Option<Vec<Arc<Mesh>>>,
+}
+
+/// A child of a cluster being made again, by its id in the old tree, or
+/// an added leaf by its place in the plan.
+#[derive(Clone, Copy)]
+enum Child {
+    Old(u32),
+    Added(usize),
+}
+
+impl Plan {
+    /// Carries the plan out: the new leaves and the clusters above them
+    /// made and stored in `sink`, the unchanged geometry read from the old
+    /// tree's files in `old_dir`.
+    pub fn run(
+        self,
+        old: &Tree,
+        old_dir: &Path,
+        config: &BuildConfig,
+        sink: &dyn GeometrySink,
+        progress: &dyn Progress,
+    ) -> Result<Updated> {
+        let clock = std::time::Instant::now();
+        let mut phases: Vec<(String, f64)> = Vec::new();
+        let mut lap = |name: &str| {
+            phases.push((name.to_string(), clock.elapsed().as_secs_f64()));
+        };
+        let scene = &self.scene;
+        let span = scene.time.seconds;
+        let ctx = Context {
+            config,
+            span,
+            leaf_steps: Vec::new(),
+            sink,
+            shapes: Vec::new(),
+        };
+        let added_count = self.added.len();
+        progress.phase("leaves", (self.edited.len() + added_count) as u64);
+        let leaf = |p: usize| -> Result<Made> {
+            let mesh = leaf_mesh(scene, &self.pieces[p]);
+            let hash = sink.put(&mesh, None, 0.0)?.hash;
+            let (lo, hi) = mesh.bounds().unwrap_or((Vec3::ZERO, Vec3::ZERO));
+            let mesh = Arc::new(mesh);
+            progress.advance(1);
+            Ok(Made {
+                originals: (mesh.triangle_count() <= DIRECT_MAX_TRIANGLES)
+                    .then(|| vec![mesh.clone()]),
+                mesh,
+                eps: 0.0,
+                lo,
+                hi,
+                hash,
+            })
+        };
+        let edited: HashMap<u32, Made> = self
+            .edited
+            .par_iter()
+            .map(|&c| Ok((c, leaf(self.kept[c as usize])?)))
+            .collect::<Result<_>>()?;
+        let added: Vec<Made> = self
+            .added
+            .par_iter()
+            .map(|&(p, _)| leaf(p))
+            .collect::<Result<_>>()?;
+        lap("leaves");
+
+        // The clusters above a changed leaf, up to the root's children.
+        let mut joined: HashMap<u32, Vec<usize>> = HashMap::new();
+        for (a, &(_, parent)) in self.added.iter().enumerate() {
+            joined.entry(parent).or_default().push(a);
+        }
+        let mut dirty: Vec<u32> = Vec::new();
+        let mut seen = vec![false; old.cluster_count()];
+        let starts = self
+            .edited
+            .iter()
+            .filter_map(|&c| old.cluster(c).parent)
+            .chain(joined.keys().copied());
+        for start in starts {
+            let mut at = Some(start);
+            while let Some(c) = at {
+                if seen[c as usize] || old.class_of(c) == ClusterClass::Root {
+                    break;
+                }
+                seen[c as usize] = true;
+                dirty.push(c);
+                at = old.cluster(c).parent;
+            }
+        }
+        dirty.sort_unstable_by_key(|&c| (old.cluster(c).level, c));
+
+        // Level by level, each on every core: a cluster's children are at
+        // lower levels.
+        let mut made: HashMap<u32, Made> = HashMap::new();
+        let mut k = 0;
+        while k < dirty.len() {
+            let level = old.cluster(dirty[k]).level;
+            let end = k + dirty[k..]
+                .iter()
+                .take_while(|&&c| old.cluster(c).level == level)
+                .count();
+            progress.phase(&format!("rebuild level {level}"), (end - k) as u64);
+            let th = thresholds(config, self.stats.scene_w, self.stats.levels, level);
+            let this: Vec<(u32, Made)> = dirty[k..end]
+                .par_iter()
+                .map(|&c| {
+                    let children: Vec<Child> = old
+                        .children_of(c)
+                        .iter()
+                        .map(|&k| Child::Old(k))
+                        .chain(
+                            joined
+                                .get(&c)
+                                .into_iter()
+                                .flatten()
+                                .map(|&a| Child::Added(a)),
+                        )
+                        .collect();
+                    let active: Vec<Active> = children
+                        .iter()
+                        .map(|&child| {
+                            let m = match child {
+                                Child::Added(a) => added[a].clone(),
+                                Child::Old(k) => match edited.get(&k).or_else(|| made.get(&k)) {
+                                    Some(m) => m.clone(),
+                                    None => self.stored(old, old_dir, k)?,
+                                },
+                            };
+                            Ok(active_of(m))
+                        })
+                        .collect::<Result<_>>()?;
+                    let out = remade(&ctx, &active, &th)?;
+                    progress.advance(1);
+                    Ok((c, out))
+                })
+                .collect::<Result<_>>()?;
+            tracing::debug!(
+                "level {level}: {} clusters made again in {:.3} s",
+                end - k,
+                clock.elapsed().as_secs_f64()
+            );
+            made.extend(this);
+            k = end;
+        }
+        let rebuilt = edited.len() + added.len() + made.len();
+        lap("rebuild");
+        let mut updated = self.assemble(old, config, edited, added, joined, made, rebuilt)?;
+        lap("schedule");
+        // Each phase's own seconds, from the laps.
+        let mut last = 0.0;
+        for (name, at) in phases {
+            updated.stats.phases.push((name, at - last));
+            last = at;
+        }
+        Ok(updated)
+    }
+
+    /// The unchanged cluster `id` of `old`: its geometry read back from its
+    /// file, its error as stored, and the original objects below it while
+    /// they are few enough for the direct bound.
+    fn stored(&self, old: &Tree, old_dir: &Path, id: u32) -> Result<Made> {
+        let c = old.cluster(id);
+        let hash = c
+            .geometry
+            .clone()
+            .ok_or_else(|| Error::argument("tree", format!("cluster {id} has no geometry")))?;
+        let path = old.geometry_file(old_dir, &hash);
+        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+        let decoded = crate::io::compact::decode(&bytes)
+            .map_err(|message| Error::invalid(&path, "glb", message))?;
+        let mut mesh = decoded.mesh;
+        for p in &mut mesh.positions {
+            *p += decoded.translation;
+        }
+        Ok(Made {
+            mesh: Arc::new(mesh),
+            eps: c.eps,
+            lo: c.bounds.min.as_vec3(),
+            hi: c.bounds.max.as_vec3(),
+            hash,
+            originals: self.originals_below(old, id),
+        })
+    }
+
+    /// The original objects below old cluster `id` (none of them edited),
+    /// when they have at most [`DIRECT_MAX_TRIANGLES`] triangles.
+    fn originals_below(&self, old: &Tree, id: u32) -> Option<Vec<Arc<Mesh>>> {
+        let mut leaves = Vec::new();
+        let mut stack = vec![id];
+        let mut triangles = 0;
+        while let Some(c) = stack.pop() {
+            let children = old.children_of(c);
+            if children.is_empty() {
+                triangles += old.cluster(c).triangles as usize;
+                if triangles > DIRECT_MAX_TRIANGLES || c as usize >= self.leaves {
+                    return None;
+                }
+                leaves.push(c);
+            } else {
+                stack.extend_from_slice(children);
+            }
+        }
+        Some(
+            leaves
+                .into_iter()
+                .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept[c as usize]])))
+                .collect(),
+        )
+    }
+
+    /// The new tree: the old clusters in their order with the added leaves
+    /// after the old ones, the changed clusters' geometry replaced, then
+    /// the schedule pass over all of it.
+    #[allow(clippy::too_many_arguments)]
+    fn assemble(
+        self,
+        old: &Tree,
+        config: &BuildConfig,
+        mut edited: HashMap<u32, Made>,
+        added: Vec<Made>,
+        joined: HashMap<u32, Vec<usize>>,
+        mut made: HashMap<u32, Made>,
+        rebuilt: usize,
+    ) -> Result<Updated> {
+        let leaves = self.leaves as u32;
+        let shift = added.len() as u32;
+        let new_id = |c: u32| if c < leaves { c } else { c + shift };
+        let scene = &self.scene;
+        let span = scene.time.seconds;
+        let mut clusters: Vec<Cluster> = Vec::with_capacity(old.cluster_count() + added.len());
+        let replace = |c: &mut Cluster, m: Made| {
+            c.bounds = Aabb::from_f32(m.lo, m.hi);
+            c.w = f64::from((m.hi - m.lo).length());
+            c.eps = m.eps;
+            c.triangles = m.mesh.triangle_count() as u64;
+            c.geometry = Some(m.hash);
+        };
+        for id in 0..leaves {
+            let mut c = old.cluster(id).into_owned();
+            if let Some(m) = edited.remove(&id) {
+                replace(&mut c, m);
+            }
+            clusters.push(c);
+        }
+        for ((p, _), m) in self.added.iter().zip(added) {
+            let piece = &self.pieces[*p];
+            let class = match piece.class {
+                Class::Static => ClusterClass::Static,
+                _ => ClusterClass::PseudoDynamic,
+            };
+            let steps = StepFunction::of_visibility(&piece.visibility, span);
+            let mut c = Cluster {
+                id: 0,
+                parent: None,
+                children: Vec::new(),
+                level: 0,
+                class,
+                bounds: Aabb::from_f32(m.lo, m.hi),
+                w: 0.0,
+                eps: 0.0,
+                gamma: 0.0,
+                visibility: steps.to_tree(),
+                motion: None,
+                geometry: None,
+                triangles: 0,
+                objects: vec![scene.objects[piece.object].id.clone()],
+            };
+            replace(&mut c, m);
+            clusters.push(c);
+        }
+        for id in leaves..old.cluster_count() as u32 {
+            let mut c = old.cluster(id).into_owned();
+            c.children = c.children.iter().map(|&k| new_id(k)).collect();
+            if let Some(a) = joined.get(&id) {
+                c.children.extend(a.iter().map(|&a| leaves + a as u32));
+            }
+            if let Some(m) = made.remove(&id) {
+                replace(&mut c, m);
+            }
+            clusters.push(c);
+        }
+        for (i, c) in clusters.iter_mut().enumerate() {
+            c.id = i as u32;
+            c.parent = None;
+        }
+        for i in 0..clusters.len() {
+            for k in clusters[i].children.clone() {
+                clusters[k as usize].parent = Some(i as u32);
+            }
+        }
+        // As `virtual_root` makes it, from its children's new boxes and
+        // errors.
+        let root = new_id(old.root);
+        let tops = &clusters[root as usize].children;
+        let bounds = tops
+            .iter()
+            .map(|&k| super::world_box(&clusters[k as usize]))
+            .reduce(|a, b| a.union(&b))
+            .unwrap_or(old.bounds);
+        let eps = tops
+            .iter()
+            .map(|&k| clusters[k as usize].eps)
+            .fold(0.0, f64::max);
+        {
+            let r = &mut clusters[root as usize];
+            r.bounds = bounds;
+            r.w = bounds.diagonal();
+            r.eps = eps;
+        }
+
+        let mut stats = self.stats;
+        stats.geometry_key = geometry_key(scene, config);
+        for (levels, class) in [
+            (&mut stats.static_levels, ClusterClass::Static),
+            (
+                &mut stats.pseudo_dynamic_levels,
+                ClusterClass::PseudoDynamic,
+            ),
+        ] {
+            for level in levels {
+                level.max_eps = clusters
+                    .iter()
+                    .filter(|c| c.class == class && c.level == level.level)
+                    .map(|c| c.eps)
+                    .fold(0.0, f64::max);
+            }
+        }
+        let mut tree = Tree::new(
+            scene.name.clone(),
+            scene.time,
+            bounds,
+            scene.up,
+            root,
+            clusters,
+        );
+        tree.config = old.config.clone();
+        tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+        tree.sources = Some(self.sources);
+        match update_schedule_of(tree, scene, config) {
+            Update::Updated {
+                tree,
+                stats,
+                dissolved,
+            } => Ok(Updated {
+                tree: *tree,
+                stats,
+                rebuilt,
+                dissolved,
+            }),
+            Update::Rebuild(why) => Err(Error::argument("scene", why)),
+        }
+    }
+}
+
+fn active_of(m: Made) -> Active {
+    Active {
+        id: 0,
+        lo: m.lo,
+        hi: m.hi,
+        w: f64::from((m.hi - m.lo).length()),
+        eps: m.eps,
+        steps: StepFunction::constant(1.0),
+        vis: Vec::new(),
+        mesh: m.mesh,
+        baked: None,
+        originals: m.originals,
+        instance: None,
+    }
+}
+
+/// A cluster made again from its children as the build makes it: a group
+/// reduced within the level's budget, a lone child's own parent reduced
+/// alone (or, where that no longer pays, the child's geometry as it is).
+fn remade(ctx: &Context, children: &[Active], th: &super::config::Thresholds) -> Result<Made> {
+    let lo = children
+        .iter()
+        .fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
+    let hi = children
+        .iter()
+        .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
+    if let [child] = children
+        && let Some(single) = single_parent(ctx, child, th)
+    {
+        let stored = ctx
+            .sink
+            .put(&single.mesh, None, single.eps * QUANTIZATION_SHARE)?;
+        let (lo, hi) = single
+            .mesh
+            .bounds()
+            .map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi)));
+        return Ok(Made {
+            mesh: Arc::new(single.mesh),
+            eps: single.eps + stored.moved,
+            lo,
+            hi,
+            hash: stored.hash,
+            originals: child.originals.clone(),
+        });
+    }
+    let group: Vec<usize> = (0..children.len()).collect();
+    let parent = make_parent(ctx, children, &group, th)?;
+    Ok(Made {
+        mesh: Arc::new(parent.mesh),
+        eps: parent.eps,
+        lo,
+        hi,
+        hash: parent.hash,
+        originals: parent.originals,
+    })
+}

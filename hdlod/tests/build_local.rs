@@ -1,0 +1,291 @@
+//! Local geometry updates of a built tree (`build_or_update_to`, module
+//! `build::local`): a storey of the tiny site edited and an object added.
+//! Only the clusters above them are made again, every stored error is
+//! still a bound on the distance to the objects, the cuts are those of a
+//! full build within a few percent, and what it cannot do builds in full.
+
+use std::collections::{HashMap, HashSet};
+use std::path::Path;
+
+use glam::{DVec3, Vec3};
+use hdlod::build::{BuildConfig, How, Silent, build_or_update_to, build_to};
+use hdlod::geometry::{HausdorffOptions, Part, hausdorff, merge};
+use hdlod::io::gltf::read_mesh;
+use hdlod::scene::{Scene, format};
+use hdlod::tree::cut::cut;
+use hdlod::tree::{CameraSpec, ClusterClass, Tree, View, Viewport, load};
+
+fn tiny() -> Scene {
+    let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
+    format::load(&fixture).expect("the tiny fixture loads")
+}
+
+const STOREY: &str = "Level 02";
+
+/// The tiny site with every object of one storey moved 30 cm along x, and
+/// a copy of one of them added after the last object, a metre away.
+fn edited(scene: &Scene) -> (Scene, usize) {
+    let mut scene = scene.clone();
+    let mut edited = 0;
+    let mut copy = None;
+    for o in &mut scene.objects {
+        if o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none() {
+            o.transform.w_axis.x += 0.3;
+            edited += 1;
+            copy.get_or_insert_with(|| o.clone());
+        }
+    }
+    let mut added = copy.expect("an object on the storey");
+    added.id = "ADDED-1".into();
+    added.transform.w_axis.z += 1.0;
+    scene.objects.push(added);
+    scene.apply_schedule();
+    (scene, edited)
+}
+
+fn files(tree: &Tree) -> HashSet<String> {
+    tree.clusters().filter_map(|c| c.geometry.clone()).collect()
+}
+
+/// The leaf clusters below `id`.
+fn leaves_below(tree: &Tree, id: u32) -> Vec<u32> {
+    let mut out = Vec::new();
+    let mut stack = vec![id];
+    while let Some(c) = stack.pop() {
+        let children = tree.children_of(c);
+        if children.is_empty() {
+            out.push(c);
+        } else {
+            stack.extend_from_slice(children);
+        }
+    }
+    out
+}
+
+/// Triangles of the cut at 1 px, 1920x1080, from azimuth 45 and elevation
+/// 30 degrees at `factor` times the distance where the scene fills the
+/// view, at `t`.
+fn cut_triangles(tree: &Tree, factor: f64, t: f64) -> u64 {
+    let centre = (tree.bounds.min + tree.bounds.max) / 2.0;
+    let radius = tree.bounds.diagonal() / 2.0;
+    let (az, el) = (45f64.to_radians(), 30f64.to_radians());
+    let dir = DVec3::new(el.cos() * az.cos(), el.sin(), el.cos() * az.sin());
+    let distance = factor * radius / 30f64.to_radians().sin();
+    let camera = CameraSpec {
+        position: Some((centre + dir * distance).to_array()),
+        target: Some(centre.to_array()),
+        up: Some([0.0, 1.0, 0.0]),
+        fov_y_deg: Some(60.0),
+        aspect: None,
+        near: Some((distance - radius) * 0.5),
+        far: Some(distance + 2.0 * radius),
+        view_projection: None,
+    };
+    let viewport = Viewport {
+        width: 1920,
+        height: 1080,
+    };
+    let view = View::new(&camera, viewport, 1.0, DVec3::Y).unwrap();
+    cut(tree, &view, t).stats.triangles
+}
+
+#[test]
+fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let before = load(&dir).unwrap();
+    let before_files = files(&before);
+
+    let (changed, storey) = edited(&scene);
+    let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
+    let How::GeometryUpdate {
+        edited_objects,
+        added_objects,
+        rebuilt,
+        geometry_files,
+        ..
+    } = how
+    else {
+        panic!("{how:?}")
+    };
+    assert_eq!((edited_objects, added_objects), (storey, 1));
+    let after = load(&dir).expect("the updated tree passes every check of the loader");
+    assert_eq!(after.cluster_count(), before.cluster_count() + 1);
+    assert!(
+        rebuilt < after.cluster_count() / 2,
+        "{rebuilt} of {} clusters made again",
+        after.cluster_count()
+    );
+    let after_files = files(&after);
+    assert_eq!(
+        geometry_files,
+        after_files.intersection(&before_files).count()
+    );
+    assert!(
+        geometry_files * 2 > after_files.len(),
+        "{geometry_files} of {} files kept",
+        after_files.len()
+    );
+
+    // The added object is a leaf of the tree and a row of its tables.
+    let tables = after.objects.as_ref().expect("object tables");
+    let added = tables.object_index("ADDED-1").expect("the added object");
+    assert_eq!(added as usize, changed.objects.len() - 1);
+    assert_eq!(tables.object(added).clusters.len(), 1);
+
+    // Every cluster made again bounds the distance to its objects as
+    // placed now.
+    let objects: HashMap<&str, &hdlod::scene::Object> =
+        changed.objects.iter().map(|o| (o.id.as_str(), o)).collect();
+    let mut checked = 0;
+    for c in after.clusters().filter(|c| {
+        !c.is_leaf()
+            && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic)
+            && !before_files.contains(c.geometry.as_ref().unwrap())
+    }) {
+        let geometry = read_mesh(&after.geometry_file(&dir, c.geometry.as_ref().unwrap())).unwrap();
+        let parts: Vec<Part> = leaves_below(&after, c.id)
+            .iter()
+            .map(|&l| {
+                let leaf = after.cluster(l);
+                let o = objects[leaf.objects[0].as_str()];
+                // A moving object's resting part stands at its held pose.
+                let shown = leaf
+                    .visibility
+                    .steps()
+                    .iter()
+                    .find(|s| s.1 > 0.0)
+                    .unwrap()
+                    .0;
+                Part {
+                    mesh: &changed.meshes[o.mesh],
+                    transform: o.pose(shown),
+                    color: o.color,
+                    feature: None,
+                }
+            })
+            .collect();
+        let h = hausdorff(
+            &geometry,
+            &merge(&parts, 0.0),
+            &HausdorffOptions {
+                tolerance: (c.eps * 0.01).max(1e-4) as f32,
+                seed: 1,
+            },
+        );
+        assert!(
+            f64::from(h.lower) <= c.eps + 1e-4,
+            "cluster {} (level {}): distance {} above its eps {}",
+            c.id,
+            c.level,
+            h.lower,
+            c.eps
+        );
+        checked += 1;
+    }
+    assert!(checked >= 3, "only {checked} clusters made again");
+    // The edited storey's leaves stand where the scene now puts them.
+    let moved = after
+        .clusters()
+        .filter(|c| c.is_leaf() && c.objects.iter().any(|o| o.starts_with("L02")))
+        .count();
+    assert!(moved > 0);
+    for c in after.clusters().filter(|c| c.is_leaf()) {
+        let o = objects[c.objects[0].as_str()];
+        if o.motion.is_some() {
+            continue;
+        }
+        let mesh = read_mesh(&after.geometry_file(&dir, c.geometry.as_ref().unwrap())).unwrap();
+        let want = changed.meshes[o.mesh]
+            .positions
+            .iter()
+            .map(|&p| o.transform.transform_point3(p))
+            .fold(Vec3::splat(f32::INFINITY), Vec3::min);
+        let got = mesh
+            .positions
+            .iter()
+            .fold(Vec3::splat(f32::INFINITY), |a, &p| a.min(p));
+        assert!(want.distance(got) < 1e-3, "{}: {want} against {got}", o.id);
+    }
+
+    // The cuts are those of a full build of the edited scene within a few
+    // percent over the table's views (a cell of a few hundred triangles
+    // within a quarter).
+    let full_dir = tmp.path().join("full");
+    build_to(&changed, &config, &full_dir, &Silent).unwrap();
+    let full = load(&full_dir).unwrap();
+    let (mut ours_sum, mut theirs_sum) = (0, 0);
+    for factor in [1.0, 2.0, 4.0] {
+        for fraction in [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0] {
+            let t = changed.time.seconds * fraction;
+            let (ours, theirs) = (
+                cut_triangles(&after, factor, t),
+                cut_triangles(&full, factor, t),
+            );
+            let ratio = ours as f64 / theirs.max(1) as f64;
+            assert!(
+                (0.75..=1.25).contains(&ratio),
+                "at {factor}x, {fraction:.2} of the period: {ours} triangles against {theirs}"
+            );
+            ours_sum += ours;
+            theirs_sum += theirs;
+        }
+    }
+    let ratio = ours_sum as f64 / theirs_sum as f64;
+    assert!(
+        (0.95..=1.05).contains(&ratio),
+        "{ours_sum} against {theirs_sum}"
+    );
+
+    // Updated again with the same scene: a schedule update, nothing made.
+    let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
+    assert!(matches!(how, How::ScheduleUpdate { .. }), "{how:?}");
+}
+
+#[test]
+fn what_a_geometry_update_cannot_do_builds_in_full() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let full_why = |s: &Scene| {
+        let (_, _, how) = build_or_update_to(s, &config, &dir, false, &Silent).unwrap();
+        let How::Full { why: Some(why) } = how else {
+            panic!("{how:?}")
+        };
+        // Back to the original, in full, for the next case.
+        build_to(&scene, &config, &dir, &Silent).unwrap();
+        why
+    };
+
+    let mut removed = scene.clone();
+    removed.objects.remove(10);
+    removed
+        .tasks
+        .iter_mut()
+        .for_each(|t| t.objects.retain(|o| scene.objects[10].id != *o));
+    removed.apply_schedule();
+    let why = full_why(&removed);
+    assert!(why.contains("removed"), "{why}");
+
+    let mut crane = scene.clone();
+    let moving = crane
+        .objects
+        .iter()
+        .position(|o| o.motion.is_some())
+        .expect("a moving object");
+    crane.objects[moving].color[0] *= 0.5;
+    let why = full_why(&crane);
+    assert!(why.contains("moving object"), "{why}");
+
+    let mut most = scene.clone();
+    for o in most.objects.iter_mut().filter(|o| o.motion.is_none()) {
+        o.transform.w_axis.y += 0.1;
+    }
+    let why = full_why(&most);
+    assert!(why.contains("more than a quarter"), "{why}");
+}
