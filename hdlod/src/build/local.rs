@@ -30,9 +30,10 @@ use rayon::prelude::*;
 
 use super::config::{BuildConfig, thresholds};
 use super::context::{Active, Context};
+use super::instances::{Instance, shapes_of, single_parents};
 use super::leaves::{Piece, leaf_mesh, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
-use super::parent::{DIRECT_MAX_TRIANGLES, make_parent, single_parent};
+use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
 use super::update::{Update, geometry_key, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
@@ -256,6 +257,8 @@ struct Made {
     hi: Vec3,
     hash: String,
     originals: Option<Vec<Arc<Mesh>>>,
+    /// A new leaf's shape, when other new leaves share it.
+    instance: Option<Instance>,
 }
 
 /// A child of a cluster being made again, by its id in the old tree, or
@@ -285,12 +288,31 @@ impl Plan {
         };
         let scene = &self.scene;
         let span = scene.time.seconds;
+        // The new leaves' repeated shapes: their own parents share one
+        // reduction per shape, as in a full build (`instances`).
+        let new_pieces: Vec<usize> = (self.edited.iter())
+            .map(|&c| self.kept[c as usize])
+            .chain(self.added.iter().map(|&(p, _)| p))
+            .collect();
+        let placements: Vec<(usize, glam::Mat4, [f32; 4])> = new_pieces
+            .iter()
+            .map(|&p| {
+                let o = &scene.objects[self.pieces[p].object];
+                (o.mesh, self.pieces[p].transform, o.color)
+            })
+            .collect();
+        let (shapes, instances) = shapes_of(&scene.meshes, &placements);
+        let instance_of: HashMap<usize, Instance> = new_pieces
+            .iter()
+            .zip(instances)
+            .filter_map(|(&p, i)| Some((p, i?)))
+            .collect();
         let ctx = Context {
             config,
             span,
             leaf_steps: Vec::new(),
             sink,
-            shapes: Vec::new(),
+            shapes,
         };
         let added_count = self.added.len();
         progress.phase("leaves", (self.edited.len() + added_count) as u64);
@@ -308,6 +330,7 @@ impl Plan {
                 lo,
                 hi,
                 hash,
+                instance: instance_of.get(&p).copied(),
             })
         };
         let edited: HashMap<u32, Made> = self
@@ -359,7 +382,7 @@ impl Plan {
                 .count();
             progress.phase(&format!("rebuild level {level}"), (end - k) as u64);
             let th = thresholds(config, self.stats.scene_w, self.stats.levels, level);
-            let this: Vec<(u32, Made)> = dirty[k..end]
+            let children: Vec<(u32, Vec<Active>)> = dirty[k..end]
                 .par_iter()
                 .map(|&c| {
                     let children: Vec<Child> = old
@@ -387,17 +410,27 @@ impl Plan {
                             Ok(active_of(m))
                         })
                         .collect::<Result<_>>()?;
+                    Ok((c, active))
+                })
+                .collect::<Result<_>>()?;
+            let (lone, groups): (Vec<_>, Vec<_>) =
+                children.into_iter().partition(|(_, a)| a.len() == 1);
+            let this: Vec<(u32, Made)> = groups
+                .into_par_iter()
+                .map(|(c, active)| {
                     let out = remade(&ctx, &active, &th)?;
                     progress.advance(1);
                     Ok((c, out))
                 })
                 .collect::<Result<_>>()?;
+            made.extend(this);
+            let this = lone_remade(&ctx, lone, &th, progress)?;
+            made.extend(this);
             tracing::debug!(
-                "level {level}: {} clusters made again in {:.3} s",
+                "level {level}: {} clusters made again, {:.2} s in",
                 end - k,
                 clock.elapsed().as_secs_f64()
             );
-            made.extend(this);
             k = end;
         }
         let rebuilt = edited.len() + added.len() + made.len();
@@ -437,6 +470,7 @@ impl Plan {
             hi: c.bounds.max.as_vec3(),
             hash,
             originals: self.originals_below(old, id),
+            instance: None,
         })
     }
 
@@ -622,39 +656,14 @@ fn active_of(m: Made) -> Active {
         mesh: m.mesh,
         baked: None,
         originals: m.originals,
-        instance: None,
+        instance: m.instance,
     }
 }
 
-/// A cluster made again from its children as the build makes it: a group
-/// reduced within the level's budget, a lone child's own parent reduced
-/// alone (or, where that no longer pays, the child's geometry as it is).
+/// A group made again from its children as the build makes it: their
+/// union reduced within the level's budget.
 fn remade(ctx: &Context, children: &[Active], th: &super::config::Thresholds) -> Result<Made> {
-    let lo = children
-        .iter()
-        .fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
-    let hi = children
-        .iter()
-        .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
-    if let [child] = children
-        && let Some(single) = single_parent(ctx, child, th)
-    {
-        let stored = ctx
-            .sink
-            .put(&single.mesh, None, single.eps * QUANTIZATION_SHARE)?;
-        let (lo, hi) = single
-            .mesh
-            .bounds()
-            .map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi)));
-        return Ok(Made {
-            mesh: Arc::new(single.mesh),
-            eps: single.eps + stored.moved,
-            lo,
-            hi,
-            hash: stored.hash,
-            originals: child.originals.clone(),
-        });
-    }
+    let (lo, hi) = bounds_of(children);
     let group: Vec<usize> = (0..children.len()).collect();
     let parent = make_parent(ctx, children, &group, th)?;
     Ok(Made {
@@ -664,5 +673,60 @@ fn remade(ctx: &Context, children: &[Active], th: &super::config::Thresholds) ->
         hi,
         hash: parent.hash,
         originals: parent.originals,
+        instance: None,
     })
+}
+
+/// Lone children's own parents made again as the build makes them: each
+/// reduced alone, new leaves of one shape sharing one reduction; where
+/// that no longer pays, the child's geometry as it is.
+fn lone_remade(
+    ctx: &Context,
+    lone: Vec<(u32, Vec<Active>)>,
+    th: &super::config::Thresholds,
+    progress: &dyn Progress,
+) -> Result<Vec<(u32, Made)>> {
+    let (ids, children): (Vec<u32>, Vec<Active>) = lone
+        .into_iter()
+        .map(|(c, mut a)| (c, a.pop().expect("one child")))
+        .unzip();
+    let all: Vec<usize> = (0..children.len()).collect();
+    let singles = single_parents(ctx, &children, &all, th);
+    ids.into_par_iter()
+        .zip(children.par_iter())
+        .zip(singles)
+        .map(|((c, child), single)| {
+            let out = match single {
+                Some(Single { mesh, eps, .. }) => {
+                    let stored = ctx.sink.put(&mesh, None, eps * QUANTIZATION_SHARE)?;
+                    let (lo, hi) = bounds_of(std::slice::from_ref(child));
+                    let (lo, hi) = mesh
+                        .bounds()
+                        .map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi)));
+                    Made {
+                        mesh: Arc::new(mesh),
+                        eps: eps + stored.moved,
+                        lo,
+                        hi,
+                        hash: stored.hash,
+                        originals: child.originals.clone(),
+                        instance: None,
+                    }
+                }
+                None => remade(ctx, std::slice::from_ref(child), th)?,
+            };
+            progress.advance(1);
+            Ok((c, out))
+        })
+        .collect()
+}
+
+fn bounds_of(children: &[Active]) -> (Vec3, Vec3) {
+    let lo = children
+        .iter()
+        .fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
+    let hi = children
+        .iter()
+        .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
+    (lo, hi)
 }
