@@ -130,6 +130,55 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
         after_files.len()
     );
 
+    // What was made again is exactly the leaves of the edited and added
+    // objects and the clusters above them, up to the root's children; each
+    // one's geometry is new unless it came out the same (a coarse proxy
+    // the moved elements are dropped from).
+    let touched: HashSet<String> = changed
+        .objects
+        .iter()
+        .zip(
+            scene
+                .objects
+                .iter()
+                .map(Some)
+                .chain(std::iter::repeat(None)),
+        )
+        .filter(|(new, old)| old.is_none_or(|old| old.transform != new.transform))
+        .map(|(new, _)| new.id.clone())
+        .collect();
+    let mut expected: Vec<u32> = Vec::new();
+    for c in after.clusters().filter(|c| c.is_leaf()) {
+        if c.objects.iter().any(|o| touched.contains(o)) {
+            let mut at = Some(c.id);
+            while let Some(id) = at.filter(|&id| id != after.root) {
+                expected.push(id);
+                at = after.cluster(id).parent;
+            }
+        }
+    }
+    expected.sort_unstable();
+    expected.dedup();
+    let remade: Vec<u32> = after
+        .clusters()
+        .filter(|c| {
+            c.geometry
+                .as_ref()
+                .is_some_and(|g| !before_files.contains(g))
+        })
+        .map(|c| c.id)
+        .collect();
+    assert_eq!(rebuilt, expected.len(), "made again: {expected:?}");
+    let unexpected: Vec<&u32> = remade.iter().filter(|c| !expected.contains(c)).collect();
+    assert!(
+        unexpected.is_empty(),
+        "new geometry outside {expected:?}: {unexpected:?}"
+    );
+    assert!(
+        remade.len() * 10 >= expected.len() * 9,
+        "{remade:?} of {expected:?}"
+    );
+
     // The added object is a leaf of the tree and a row of its tables.
     let tables = after.objects.as_ref().expect("object tables");
     let added = tables.object_index("ADDED-1").expect("the added object");

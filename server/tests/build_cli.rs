@@ -236,20 +236,46 @@ fn a_build_removes_what_killed_builds_left() {
 /// updates it and leaves no temporary.
 #[test]
 fn a_killed_update_leaves_a_tree_that_loads() {
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    killed_updates(&[&fixture], "schedule-update");
+}
+
+/// The same for geometry updates: each build is the tiny site with one
+/// object moved, or the site as it was, in turn.
+#[test]
+fn a_killed_geometry_update_leaves_a_tree_that_loads() {
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    let tmp = tempfile::tempdir().unwrap();
+    let mut scene = hdlod::scene::format::load(&fixture).unwrap();
+    let still = scene
+        .objects
+        .iter()
+        .position(|o| o.motion.is_none() && o.properties.contains_key("storey"))
+        .unwrap();
+    scene.objects[still].transform.w_axis.y += 0.5;
+    let edited = tmp.path().join("edited");
+    hdlod::scene::format::save(&scene, &edited).unwrap();
+    killed_updates(&[&edited, &fixture], "geometry-update");
+}
+
+/// Updates of a tree of `scenes[0]` to each of `scenes` in turn, killed
+/// ever later; then one to the end, whose mode is `mode`.
+fn killed_updates(scenes: &[&std::path::Path], mode: &str) {
     let tmp = tempfile::tempdir().unwrap();
     let tree = common::build_tree(tmp.path());
-    let fixture = repo().join("fixtures/skyscraper-tiny");
-    let args = [
-        "build".as_ref(),
-        fixture.as_os_str(),
-        "--out".as_ref(),
-        tree.as_os_str(),
-        "--json".as_ref(),
-    ];
+    let args = |k: usize| {
+        [
+            "build".as_ref(),
+            scenes[k % scenes.len()].as_os_str(),
+            "--out".as_ref(),
+            tree.as_os_str(),
+            "--json".as_ref(),
+        ]
+    };
     let mut interrupted = 0;
-    for extra in [0, 0, 2, 5, 10, 20, 40, 80] {
+    for (k, extra) in [0, 0, 2, 5, 10, 20, 40, 80].into_iter().enumerate() {
         let mut update = std::process::Command::new(env!("CARGO_BIN_EXE_hdlod"))
-            .args(args)
+            .args(args(k))
             .stdout(std::process::Stdio::null())
             .stderr(std::process::Stdio::null())
             .spawn()
@@ -275,10 +301,18 @@ fn a_killed_update_leaves_a_tree_that_loads() {
     }
     assert!(interrupted > 0, "no update was killed before its end");
 
-    let out = hdlod(&args);
+    // The tree holds one of the scenes: updated to the other (or, with
+    // one scene, to it again), to the end.
+    let loaded = hdlod::tree::load(&tree).unwrap();
+    let sources =
+        |p: &std::path::Path| hdlod::build::object_sources(&hdlod::scene::format::load(p).unwrap());
+    let next = (0..scenes.len())
+        .find(|&k| sources(scenes[k]) != *loaded.sources.as_ref().unwrap())
+        .unwrap_or(0);
+    let out = hdlod(&args(next));
     assert_success(&out);
     let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    assert_eq!(summary["mode"], "schedule-update");
+    assert_eq!(summary["mode"], mode, "{summary}");
     let mut left: Vec<String> = std::fs::read_dir(tmp.path())
         .unwrap()
         .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
@@ -287,10 +321,11 @@ fn a_killed_update_leaves_a_tree_that_loads() {
     assert_eq!(left, [".tree.geometry", "tree"]);
 }
 
-/// `hdlod bench build SCENE` times the scene's build and then schedule
-/// updates of its tree, and leaves nothing behind in its work directory.
+/// `hdlod bench build SCENE` times the scene's build and then schedule and
+/// geometry updates of its tree, and leaves nothing behind in its work
+/// directory.
 #[test]
-fn bench_build_times_builds_and_schedule_updates() {
+fn bench_build_times_builds_and_updates() {
     let tmp = tempfile::tempdir().unwrap();
     let work = tmp.path().join("work");
     let fixture = repo().join("fixtures/skyscraper-tiny");
@@ -310,5 +345,12 @@ fn bench_build_times_builds_and_schedule_updates() {
     assert_eq!(report["update_runs"].as_array().unwrap().len(), 1);
     assert!(report["schedule_edit_tasks"].as_u64().unwrap() > 0);
     assert!(report["median_update_wall_seconds"].as_f64().unwrap() > 0.0);
+    // One storey moved and back: geometry updates, against a full build.
+    assert_eq!(report["geometry_edit_storey"], "Level 02");
+    assert!(report["geometry_edit_objects"].as_u64().unwrap() > 0);
+    assert_eq!(report["geometry_update_runs"].as_array().unwrap().len(), 1);
+    let rebuilt = report["rebuilt_clusters"].as_u64().unwrap();
+    assert!(rebuilt > 0 && rebuilt < report["clusters"].as_u64().unwrap() / 2);
+    assert!(report["table_largest_change_percent"].as_f64().unwrap() < 50.0);
     assert!(!work.exists(), "the work directory is removed");
 }
