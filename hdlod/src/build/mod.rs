@@ -17,7 +17,7 @@ mod hilbert;
 mod instances;
 mod leaves;
 mod level;
-pub mod local;
+mod local;
 mod outputs;
 mod parent;
 mod steps;
@@ -195,7 +195,7 @@ pub(super) fn scheduled<'a>(scene: &'a Scene, config: &BuildConfig) -> Cow<'a, S
 }
 
 /// Carries out a local geometry update of the tree `old` at `out`
-/// ([`local`]), atomically: the new tree shares the old one's geometry
+/// (`local.rs`), atomically: the new tree shares the old one's geometry
 /// store and adds its new files to it.
 fn update_geometry(
     old: &Tree,
@@ -284,7 +284,7 @@ pub enum How {
         dissolved: usize,
     },
     /// The tree that was there, brought to the scene's edited or added
-    /// objects ([`local`]): the clusters above them made again
+    /// objects (`local.rs`): the clusters above them made again
     /// (`rebuilt`, leaves included), every other cluster and geometry file
     /// kept (`geometry_files` of the new tree's were the old tree's).
     GeometryUpdate {
@@ -300,7 +300,7 @@ pub enum How {
 /// the same geometry and configuration ([`geometry_key`]), only the
 /// schedule changed, that tree is updated instead of rebuilt; where some
 /// objects were edited or added since, only the clusters above them are
-/// made again ([`local`]); unless `full`. Atomic either way: a failure
+/// made again (`local.rs`); unless `full`. Atomic either way: a failure
 /// leaves `out` as it was.
 pub fn build_or_update_to(
     scene: &Scene,
@@ -326,7 +326,8 @@ pub fn build_or_update_to(
                 if !same {
                     match local::plan(&old, scene, config) {
                         Err(why) => Some(format!(
-                            "the scene's geometry or the build configuration changed, and {why}"
+                            "the scene's geometry or the build configuration changed since it \
+                             was built, and the tree cannot be updated in place: {why}"
                         )),
                         Ok(plan) => {
                             let (tree, stats, how) =
