@@ -10,7 +10,7 @@ use std::sync::OnceLock;
 use glam::Vec3;
 use hdlod::build::{BuildConfig, Silent, StepFunction, build_to};
 use hdlod::geometry::Mesh;
-use hdlod::geometry::{ErrorMetric, HausdorffOptions, Part, hausdorff, merge};
+use hdlod::geometry::{ErrorMetric, HausdorffOptions, hausdorff};
 use hdlod::io::gltf::{read_mesh, read_textured_mesh};
 use hdlod::io::texture::decode_png;
 use hdlod::scene::{Class, Scene, format};
@@ -182,7 +182,7 @@ fn temporal_error_is_measured_against_the_objects() {
         let v = StepFunction::from_tree(&c.visibility);
         // A leaf is an object, or the part of a moving object's life where
         // it stands still: its visibility is that part's.
-        let worst = leaves_below(&b.tree, c.id)
+        let worst = common::leaves_below(&b.tree, c.id)
             .iter()
             .map(|&l| {
                 let leaf = &b.tree.cluster(l);
@@ -207,17 +207,6 @@ fn temporal_error_is_measured_against_the_objects() {
         let delta_mid = c.delta(0.5);
         assert!(delta_mid >= c.eps && c.delta(0.0) == c.eps && c.delta(1.0) == c.eps);
     }
-}
-
-fn leaves_below(t: &Tree, id: u32) -> Vec<u32> {
-    let c = &t.cluster(id);
-    if c.is_leaf() {
-        return vec![id];
-    }
-    c.children
-        .iter()
-        .flat_map(|&ch| leaves_below(t, ch))
-        .collect()
 }
 
 /// The stored eps is a bound: re-measured directly against the original
@@ -272,8 +261,6 @@ fn an_appearance_bound_is_a_geometric_bound_that_keeps_colours() {
 }
 
 fn eps_bounds_the_distance(b: &Built) {
-    let objects: HashMap<&str, &hdlod::scene::Object> =
-        b.scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
     let mut checked = 0;
     for c in b.tree.clusters().filter(|c| {
         !c.is_leaf() && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic)
@@ -283,29 +270,7 @@ fn eps_bounds_the_distance(b: &Built) {
         }
         let geometry = read_mesh(&b.tree.geometry_file(&b.dir, c.geometry.as_ref().unwrap()))
             .expect("cluster geometry reads");
-        // Each leaf's object, placed where it is at a time the leaf shows
-        // it (a moving object's resting part is at its held pose).
-        let parts: Vec<Part> = leaves_below(&b.tree, c.id)
-            .iter()
-            .map(|&l| {
-                let leaf = &b.tree.cluster(l);
-                let o = objects[leaf.objects[0].as_str()];
-                let shown = leaf
-                    .visibility
-                    .steps()
-                    .iter()
-                    .find(|s| s.1 > 0.0)
-                    .unwrap()
-                    .0;
-                Part {
-                    mesh: &b.scene.meshes[o.mesh],
-                    transform: o.pose(shown),
-                    color: o.color,
-                    feature: None,
-                }
-            })
-            .collect();
-        let union = merge(&parts, 0.0);
+        let union = common::objects_below(&b.tree, &b.scene, c.id);
         let h = hausdorff(
             &geometry,
             &union,
@@ -412,7 +377,7 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
                 .tree
                 .dynamic_object(c.id)
                 .expect("a dynamic cluster's object");
-            let leaves = leaves_below(&b.tree, c.id);
+            let leaves = common::leaves_below(&b.tree, c.id);
             assert_eq!(index[b.tree.cluster(leaves[0]).objects[0].as_str()], object);
             continue;
         }
@@ -430,7 +395,7 @@ fn every_cluster_glb_carries_its_objects_feature_ids() {
                 c.id
             );
         }
-        let below: std::collections::HashSet<u32> = leaves_below(&b.tree, c.id)
+        let below: std::collections::HashSet<u32> = common::leaves_below(&b.tree, c.id)
             .iter()
             .flat_map(|&l| b.tree.cluster(l).objects.clone())
             .map(|o| index[o.as_str()])

@@ -9,11 +9,13 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use hdlod::build::{BuildConfig, How, Silent, build_or_update_to, build_to};
-use hdlod::geometry::{HausdorffOptions, Part, hausdorff, merge};
+use hdlod::geometry::{HausdorffOptions, hausdorff};
 use hdlod::io::gltf::read_mesh;
 use hdlod::scene::{Scene, format};
 use hdlod::tree::cut::cut;
 use hdlod::tree::{CameraSpec, ClusterClass, Tree, View, Viewport, load};
+
+mod common;
 
 fn tiny() -> Scene {
     let fixture = Path::new(env!("CARGO_MANIFEST_DIR")).join("../fixtures/skyscraper-tiny");
@@ -45,21 +47,6 @@ fn edited(scene: &Scene) -> (Scene, usize) {
 
 fn files(tree: &Tree) -> HashSet<String> {
     tree.clusters().filter_map(|c| c.geometry.clone()).collect()
-}
-
-/// The leaf clusters below `id`.
-fn leaves_below(tree: &Tree, id: u32) -> Vec<u32> {
-    let mut out = Vec::new();
-    let mut stack = vec![id];
-    while let Some(c) = stack.pop() {
-        let children = tree.children_of(c);
-        if children.is_empty() {
-            out.push(c);
-        } else {
-            stack.extend_from_slice(children);
-        }
-    }
-    out
 }
 
 /// Triangles of the cut at 1 px, 1920x1080, from azimuth 45 and elevation
@@ -187,8 +174,6 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
 
     // Every cluster made again bounds the distance to its objects as
     // placed now.
-    let objects: HashMap<&str, &hdlod::scene::Object> =
-        changed.objects.iter().map(|o| (o.id.as_str(), o)).collect();
     let mut checked = 0;
     for c in after.clusters().filter(|c| {
         !c.is_leaf()
@@ -196,30 +181,10 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
             && !before_files.contains(c.geometry.as_ref().unwrap())
     }) {
         let geometry = read_mesh(&after.geometry_file(&dir, c.geometry.as_ref().unwrap())).unwrap();
-        let parts: Vec<Part> = leaves_below(&after, c.id)
-            .iter()
-            .map(|&l| {
-                let leaf = after.cluster(l);
-                let o = objects[leaf.objects[0].as_str()];
-                // A moving object's resting part stands at its held pose.
-                let shown = leaf
-                    .visibility
-                    .steps()
-                    .iter()
-                    .find(|s| s.1 > 0.0)
-                    .unwrap()
-                    .0;
-                Part {
-                    mesh: &changed.meshes[o.mesh],
-                    transform: o.pose(shown),
-                    color: o.color,
-                    feature: None,
-                }
-            })
-            .collect();
+        let objects = common::objects_below(&after, &changed, c.id);
         let h = hausdorff(
             &geometry,
-            &merge(&parts, 0.0),
+            &objects,
             &HausdorffOptions {
                 tolerance: (c.eps * 0.01).max(1e-4) as f32,
                 seed: 1,
@@ -242,6 +207,8 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
         .filter(|c| c.is_leaf() && c.objects.iter().any(|o| o.starts_with("L02")))
         .count();
     assert!(moved > 0);
+    let objects: HashMap<&str, &hdlod::scene::Object> =
+        changed.objects.iter().map(|o| (o.id.as_str(), o)).collect();
     for c in after.clusters().filter(|c| c.is_leaf()) {
         let o = objects[c.objects[0].as_str()];
         if o.motion.is_some() {

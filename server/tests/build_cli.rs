@@ -50,15 +50,7 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
     assert!(full.get("not_updated").is_none());
 
     // One object moved: only the clusters above it are made again.
-    let mut scene = hdlod::scene::format::load(&fixture).unwrap();
-    let still = scene
-        .objects
-        .iter()
-        .position(|o| o.motion.is_none() && o.properties.contains_key("storey"))
-        .unwrap();
-    scene.objects[still].transform.w_axis.x += 0.5;
-    let edited = tmp.path().join("edited");
-    hdlod::scene::format::save(&scene, &edited).unwrap();
+    let edited = one_object_moved(&fixture, &tmp.path().join("edited"));
     let out = hdlod(&[
         "build".as_ref(),
         edited.as_os_str(),
@@ -246,16 +238,22 @@ fn a_killed_update_leaves_a_tree_that_loads() {
 fn a_killed_geometry_update_leaves_a_tree_that_loads() {
     let fixture = repo().join("fixtures/skyscraper-tiny");
     let tmp = tempfile::tempdir().unwrap();
-    let mut scene = hdlod::scene::format::load(&fixture).unwrap();
+    let edited = one_object_moved(&fixture, &tmp.path().join("edited"));
+    killed_updates(&[&edited, &fixture], "geometry-update");
+}
+
+/// The scene at `fixture` with one object of a storey moved 50 cm, saved
+/// at `to`.
+fn one_object_moved(fixture: &std::path::Path, to: &std::path::Path) -> std::path::PathBuf {
+    let mut scene = hdlod::scene::format::load(fixture).unwrap();
     let still = scene
         .objects
         .iter()
         .position(|o| o.motion.is_none() && o.properties.contains_key("storey"))
         .unwrap();
-    scene.objects[still].transform.w_axis.y += 0.5;
-    let edited = tmp.path().join("edited");
-    hdlod::scene::format::save(&scene, &edited).unwrap();
-    killed_updates(&[&edited, &fixture], "geometry-update");
+    scene.objects[still].transform.w_axis.x += 0.5;
+    hdlod::scene::format::save(&scene, to).unwrap();
+    to.to_path_buf()
 }
 
 /// Updates of a tree of `scenes[0]` to each of `scenes` in turn, killed

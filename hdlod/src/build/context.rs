@@ -51,6 +51,14 @@ pub(super) struct Active {
     pub instance: Option<Instance>,
 }
 
+/// The box around the boxes of `children`.
+pub(super) fn bounds_of<'a>(children: impl IntoIterator<Item = &'a Active>) -> (Vec3, Vec3) {
+    children.into_iter().fold(
+        (Vec3::splat(f32::INFINITY), Vec3::splat(f32::NEG_INFINITY)),
+        |(lo, hi), c| (lo.min(c.lo), hi.max(c.hi)),
+    )
+}
+
 impl Active {
     /// The cluster's geometry as a surface to bake colour from.
     pub fn source(&self) -> Source<'_> {

@@ -16,7 +16,7 @@ use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 use rayon::prelude::*;
 
 use super::config::{Thresholds, thresholds};
-use super::context::{Active, Context, Node, add};
+use super::context::{Active, Context, Node, add, bounds_of};
 use super::hilbert::hilbert_key;
 use super::instances::single_parents;
 use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE, Stored};
@@ -80,12 +80,7 @@ pub(super) fn cluster_class(
             } = parent?;
             let children: Vec<&Active> = g.iter().map(|&i| &active[i]).collect();
             let (steps, vis, gamma) = temporal(ctx, &children);
-            let lo = children
-                .iter()
-                .fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
-            let hi = children
-                .iter()
-                .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
+            let (lo, hi) = bounds_of(children.iter().copied());
             for c in &children {
                 stats.children_triangles += clusters[c.id as usize].triangles;
             }

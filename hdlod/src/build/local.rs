@@ -29,7 +29,7 @@ use glam::Vec3;
 use rayon::prelude::*;
 
 use super::config::{BuildConfig, thresholds};
-use super::context::{Active, Context};
+use super::context::{Active, Context, bounds_of};
 use super::instances::{Instance, shapes_of, single_parents};
 use super::leaves::{Piece, leaf_mesh, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
@@ -350,7 +350,8 @@ impl Plan {
         for (a, &(_, parent)) in self.added.iter().enumerate() {
             joined.entry(parent).or_default().push(a);
         }
-        let mut dirty: Vec<u32> = Vec::new();
+        // (level, id) of each, so that the levels come out in order.
+        let mut dirty: Vec<(u32, u32)> = Vec::new();
         let mut seen = vec![false; old.cluster_count()];
         let starts = self
             .edited
@@ -360,31 +361,27 @@ impl Plan {
         for start in starts {
             let mut at = Some(start);
             while let Some(c) = at {
-                if seen[c as usize] || old.class_of(c) == ClusterClass::Root {
+                let cluster = old.cluster(c);
+                if seen[c as usize] || cluster.class == ClusterClass::Root {
                     break;
                 }
                 seen[c as usize] = true;
-                dirty.push(c);
-                at = old.cluster(c).parent;
+                dirty.push((cluster.level, c));
+                at = cluster.parent;
             }
         }
-        dirty.sort_unstable_by_key(|&c| (old.cluster(c).level, c));
+        dirty.sort_unstable();
 
         // Level by level, each on every core: a cluster's children are at
         // lower levels.
         let mut made: HashMap<u32, Made> = HashMap::new();
-        let mut k = 0;
-        while k < dirty.len() {
-            let level = old.cluster(dirty[k]).level;
-            let end = k + dirty[k..]
-                .iter()
-                .take_while(|&&c| old.cluster(c).level == level)
-                .count();
-            progress.phase(&format!("rebuild level {level}"), (end - k) as u64);
+        for of_level in dirty.chunk_by(|a, b| a.0 == b.0) {
+            let level = of_level[0].0;
+            progress.phase(&format!("rebuild level {level}"), of_level.len() as u64);
             let th = thresholds(config, self.stats.scene_w, self.stats.levels, level);
-            let children: Vec<(u32, Vec<Active>)> = dirty[k..end]
+            let children: Vec<(u32, Vec<Active>)> = of_level
                 .par_iter()
-                .map(|&c| {
+                .map(|&(_, c)| {
                     let children: Vec<Child> = old
                         .children_of(c)
                         .iter()
@@ -428,10 +425,9 @@ impl Plan {
             made.extend(this);
             tracing::debug!(
                 "level {level}: {} clusters made again, {:.2} s in",
-                end - k,
+                of_level.len(),
                 clock.elapsed().as_secs_f64()
             );
-            k = end;
         }
         let rebuilt = edited.len() + added.len() + made.len();
         lap("rebuild");
@@ -583,16 +579,7 @@ impl Plan {
         // As `virtual_root` makes it, from its children's new boxes and
         // errors.
         let root = new_id(old.root);
-        let tops = &clusters[root as usize].children;
-        let bounds = tops
-            .iter()
-            .map(|&k| super::world_box(&clusters[k as usize]))
-            .reduce(|a, b| a.union(&b))
-            .unwrap_or(old.bounds);
-        let eps = tops
-            .iter()
-            .map(|&k| clusters[k as usize].eps)
-            .fold(0.0, f64::max);
+        let (bounds, eps) = super::root_extent(&clusters, &clusters[root as usize].children);
         {
             let r = &mut clusters[root as usize];
             r.bounds = bounds;
@@ -602,21 +589,6 @@ impl Plan {
 
         let mut stats = self.stats;
         stats.geometry_key = geometry_key(scene, config);
-        for (levels, class) in [
-            (&mut stats.static_levels, ClusterClass::Static),
-            (
-                &mut stats.pseudo_dynamic_levels,
-                ClusterClass::PseudoDynamic,
-            ),
-        ] {
-            for level in levels {
-                level.max_eps = clusters
-                    .iter()
-                    .filter(|c| c.class == class && c.level == level.level)
-                    .map(|c| c.eps)
-                    .fold(0.0, f64::max);
-            }
-        }
         let mut tree = Tree::new(
             scene.name.clone(),
             scene.time,
@@ -719,14 +691,4 @@ fn lone_remade(
             Ok((c, out))
         })
         .collect()
-}
-
-fn bounds_of(children: &[Active]) -> (Vec3, Vec3) {
-    let lo = children
-        .iter()
-        .fold(Vec3::splat(f32::INFINITY), |a, c| a.min(c.lo));
-    let hi = children
-        .iter()
-        .fold(Vec3::splat(f32::NEG_INFINITY), |a, c| a.max(c.hi));
-    (lo, hi)
 }

@@ -403,15 +403,7 @@ fn virtual_root(ctx: &Context, clusters: &mut Vec<Cluster>, roots: Vec<u32>) -> 
         .collect();
     let parts: Vec<(f64, &StepFunction)> = root_steps.iter().map(|(w, s)| (*w, s)).collect();
     let visibility = StepFunction::weighted_mean(&parts).simplified(ctx.config.max_steps, ctx.span);
-    let bounds = roots
-        .iter()
-        .map(|&r| world_box(&clusters[r as usize]))
-        .reduce(|a, b| a.union(&b))
-        .unwrap_or(Aabb::new(DVec3::ZERO, DVec3::ZERO));
-    let eps = roots
-        .iter()
-        .map(|&r| clusters[r as usize].eps)
-        .fold(0.0, f64::max);
+    let (bounds, eps) = root_extent(clusters, &roots);
     let level = clusters.iter().map(|c| c.level).max().unwrap_or(0) + 1;
     let node = Node {
         bounds,
@@ -428,9 +420,24 @@ fn virtual_root(ctx: &Context, clusters: &mut Vec<Cluster>, roots: Vec<u32>) -> 
     add(clusters, node)
 }
 
+/// The virtual root's box, its children's over the whole span, and its
+/// error, their largest.
+pub(super) fn root_extent(clusters: &[Cluster], roots: &[u32]) -> (Aabb, f64) {
+    let bounds = roots
+        .iter()
+        .map(|&r| world_box(&clusters[r as usize]))
+        .reduce(|a, b| a.union(&b))
+        .unwrap_or(Aabb::new(DVec3::ZERO, DVec3::ZERO));
+    let eps = roots
+        .iter()
+        .map(|&r| clusters[r as usize].eps)
+        .fold(0.0, f64::max);
+    (bounds, eps)
+}
+
 /// The box of a cluster in the world over the whole span: a dynamic
 /// cluster's own box moved by every keyframe.
-pub(super) fn world_box(c: &Cluster) -> Aabb {
+fn world_box(c: &Cluster) -> Aabb {
     let Some(motion) = &c.motion else {
         return c.bounds;
     };

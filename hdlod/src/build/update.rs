@@ -318,6 +318,9 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
                 .map(|&k| clusters[k as usize].triangles)
                 .sum();
             level.max_gamma = of_level().map(|c| c.gamma).fold(0.0, f64::max);
+            // The same as built for a schedule update; a geometry update
+            // (`local.rs`) made some clusters again.
+            level.max_eps = of_level().map(|c| c.eps).fold(0.0, f64::max);
         }
     }
     stats.absent_objects = scene

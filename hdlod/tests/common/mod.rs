@@ -432,3 +432,49 @@ pub fn checked_manifest(dir: &Path) -> serde_json::Value {
     assert_matches_schema(&manifest, "tree-manifest.schema.json");
     manifest
 }
+
+/// The leaf clusters below cluster `id` of `tree` (itself, if a leaf).
+pub fn leaves_below(tree: &hdlod::tree::Tree, id: u32) -> Vec<u32> {
+    let c = tree.cluster(id);
+    if c.is_leaf() {
+        return vec![id];
+    }
+    c.children
+        .iter()
+        .flat_map(|&k| leaves_below(tree, k))
+        .collect()
+}
+
+/// The original objects of `scene` below cluster `id` of `tree`, merged,
+/// each placed where it is at a time its leaf shows it (a moving object's
+/// resting part at its held pose): what the cluster's `eps` bounds the
+/// distance to.
+pub fn objects_below(tree: &hdlod::tree::Tree, scene: &Scene, id: u32) -> Mesh {
+    let objects: std::collections::HashMap<&str, &Object> =
+        scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
+    let leaves: Vec<(usize, Mat4, [f32; 4])> = leaves_below(tree, id)
+        .iter()
+        .map(|&l| {
+            let leaf = tree.cluster(l);
+            let o = objects[leaf.objects[0].as_str()];
+            let shown = leaf
+                .visibility
+                .steps()
+                .iter()
+                .find(|s| s.1 > 0.0)
+                .unwrap()
+                .0;
+            (o.mesh, o.pose(shown), o.color)
+        })
+        .collect();
+    let parts: Vec<hdlod::geometry::Part> = leaves
+        .iter()
+        .map(|&(mesh, transform, color)| hdlod::geometry::Part {
+            mesh: &scene.meshes[mesh],
+            transform,
+            color,
+            feature: None,
+        })
+        .collect();
+    hdlod::geometry::merge(&parts, 0.0)
+}

@@ -234,10 +234,11 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         std::fs::remove_dir_all(&store).with_context(|| format!("removing {}", store.display()))?;
     }
     let _ = std::fs::remove_dir(work);
+    // 0 for no runs (a scene without storeys has no geometry updates).
     let median_of = |runs: &[Run], f: fn(&Run) -> f64| {
         let mut v: Vec<f64> = runs.iter().map(f).collect();
         v.sort_by(f64::total_cmp);
-        v[v.len() / 2]
+        v.get(v.len() / 2).copied().unwrap_or(0.0)
     };
     let median = |f: fn(&Run) -> f64| median_of(&runs, f);
     let report = Repeated {
@@ -254,16 +255,8 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         update_runs: updates,
         geometry_edit_storey: geometry.storey,
         geometry_edit_objects: geometry.objects,
-        median_geometry_update_wall_seconds: if geometry.runs.is_empty() {
-            0.0
-        } else {
-            median_of(&geometry.runs, |r| r.wall_seconds)
-        },
-        median_geometry_update_cpu_seconds: if geometry.runs.is_empty() {
-            0.0
-        } else {
-            median_of(&geometry.runs, |r| r.cpu_seconds)
-        },
+        median_geometry_update_wall_seconds: median_of(&geometry.runs, |r| r.wall_seconds),
+        median_geometry_update_cpu_seconds: median_of(&geometry.runs, |r| r.cpu_seconds),
         geometry_update_runs: geometry.runs,
         rebuilt_clusters: geometry.rebuilt,
         geometry_update_phases: geometry.phases,
