@@ -384,6 +384,22 @@ fn points_within(
     Ok(())
 }
 
+/// Points on a grid of `steps` by `steps` over each triangle of `m`
+/// (corners and edges included): where a bound from a piece's corners and
+/// cuts would fail, it fails between sample points too.
+fn grid_on(m: &Mesh, steps: usize) -> Vec<Vec3> {
+    let mut out = Vec::new();
+    for [a, b, c] in m.triangles() {
+        for i in 0..=steps {
+            for j in 0..=steps - i {
+                let (u, v) = (i as f32 / steps as f32, j as f32 / steps as f32);
+                out.push(a + (b - a) * u + (c - a) * v);
+            }
+        }
+    }
+    out
+}
+
 proptest! {
     #![proptest_config(ProptestConfig::with_cases(64))]
 
@@ -444,5 +460,46 @@ proptest! {
         };
         let h = hausdorff(&a, &b, &opts(1e-4));
         points_within(&a, &b, &picks, h.ab, h.ba)?;
+    }
+
+    #[test]
+    fn the_bound_holds_where_a_lies_across_fans_and_creases(
+        radii in prop::collection::vec(0.05f32..0.5, 3..16),
+        heights in prop::collection::vec(-0.2f32..0.2, 1..16),
+        flat in any::<bool>(),
+        apex in -0.3f32..0.3,
+        picks in prop::collection::vec((0usize..1000, 0.0f32..1.0, 0.0f32..1.0), 3..24),
+        lift in prop::collection::vec(-0.01f32..0.01, 1..8),
+        tolerance in 0.0005f32..0.05,
+    ) {
+        // B: a fan, flat (a plate's tessellation) or folded at every spoke
+        // with its apex raised (a cone's cap); A: triangles between points
+        // on B, just off it, so that A's pieces lie across B's spokes and
+        // around its apex, where the cut and star bounds apply.
+        let mut b = fan(&radii, if flat { &[0.0] } else { &heights });
+        if !flat {
+            b.positions[0].z = apex;
+        }
+        let points = points_on(&b, &picks);
+        let mut a = Mesh::default();
+        for (k, w) in points.windows(3).enumerate() {
+            let base = a.positions.len() as u32;
+            a.positions.extend(w.iter().map(|p| *p + Vec3::Z * lift[k % lift.len()]));
+            a.indices.extend([base, base + 1, base + 2]);
+        }
+        // The apex itself as a corner of A, as a simplification keeps it.
+        let base = a.positions.len() as u32;
+        a.positions.extend([b.positions[0], points[0], points[1]]);
+        a.indices.extend([base, base + 1, base + 2]);
+        let h = hausdorff(&a, &b, &opts(tolerance));
+        for p in grid_on(&a, 12) {
+            let d = brute_distance(p, &b);
+            prop_assert!(d <= h.ab, "a point of A is {d} from B, bound {}", h.ab);
+        }
+        for p in grid_on(&b, 12) {
+            let d = brute_distance(p, &a);
+            prop_assert!(d <= h.ba, "a point of B is {d} from A, bound {}", h.ba);
+        }
+        prop_assert!(h.bound - h.lower <= tolerance + 1e-4, "{h:?}");
     }
 }

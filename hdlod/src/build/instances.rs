@@ -154,15 +154,53 @@ fn farthest(at: &[Vec3], from: &[Vec3], t: Vec3) -> f64 {
         .fold(0.0, f64::max)
 }
 
+/// For each mesh, the first mesh with the same content: exporters write one
+/// mesh per element even where elements repeat (the public Tekla model's
+/// 2,636 meshes are 1,580 distinct ones), and leaves of equal meshes are
+/// one shape.
+fn same_meshes(meshes: &[Mesh]) -> Vec<usize> {
+    let digest = |m: &Mesh| {
+        let mut bytes = Vec::new();
+        // The counts keep a mesh's arrays apart.
+        for n in [
+            m.positions.len(),
+            m.normals.len(),
+            m.colors.len(),
+            m.features.len(),
+        ] {
+            bytes.extend((n as u64).to_le_bytes());
+        }
+        for v in m.positions.iter().chain(&m.normals) {
+            bytes.extend(v.to_array().iter().flat_map(|x| x.to_le_bytes()));
+        }
+        bytes.extend(m.colors.iter().flatten().flat_map(|x| x.to_le_bytes()));
+        bytes.extend(
+            m.features
+                .iter()
+                .chain(&m.indices)
+                .flat_map(|i| i.to_le_bytes()),
+        );
+        *blake3::hash(&bytes).as_bytes()
+    };
+    let digests: Vec<[u8; 32]> = meshes.par_iter().map(digest).collect();
+    let mut first: HashMap<[u8; 32], usize> = HashMap::new();
+    digests
+        .iter()
+        .enumerate()
+        .map(|(i, d)| *first.entry(*d).or_insert(i))
+        .collect()
+}
+
 /// The distinct shapes of `leaves` (mesh, transform, colour) used by more
 /// than one leaf, made at the origin, and each leaf's instance of one.
 pub(super) fn shapes_of(
     scene_meshes: &[Mesh],
     leaves: &[(usize, Mat4, [f32; 4])],
 ) -> (Vec<Arc<Mesh>>, Vec<Option<Instance>>) {
+    let same = same_meshes(scene_meshes);
     let keys: Vec<ShapeKey> = leaves
         .iter()
-        .map(|(mesh, transform, color)| ShapeKey::new(*mesh, transform, *color))
+        .map(|(mesh, transform, color)| ShapeKey::new(same[*mesh], transform, *color))
         .collect();
     let mut count: HashMap<ShapeKey, usize> = HashMap::new();
     for k in &keys {
@@ -252,6 +290,21 @@ mod tests {
         let shape = Mesh::cuboid(Vec3::ZERO, Vec3::ONE, 1);
         let other = Mesh::cuboid(Vec3::ZERO, Vec3::ONE, 2);
         assert!(moved(&other, &shape, &shape, 0.0, Vec3::X).is_none());
+    }
+
+    #[test]
+    fn equal_meshes_are_one_shape() {
+        let cube = Mesh::cuboid(Vec3::ZERO, Vec3::ONE, 1);
+        let finer = Mesh::cuboid(Vec3::ZERO, Vec3::ONE, 2);
+        let meshes = vec![cube.clone(), finer, cube];
+        let grey = [0.5; 4];
+        let at = |x: f32| Mat4::from_translation(Vec3::new(x, 0.0, 0.0));
+        let leaves = [(0, at(1.0), grey), (1, at(5.0), grey), (2, at(9.0), grey)];
+        let (shapes, instances) = shapes_of(&meshes, &leaves);
+        assert_eq!(shapes.len(), 1);
+        assert_eq!(instances[0].map(|i| i.shape), Some(0));
+        assert!(instances[1].is_none(), "a mesh of its own is unique");
+        assert_eq!(instances[2].map(|i| i.shape), Some(0));
     }
 
     #[test]

@@ -7,6 +7,8 @@
 //! nearest-neighbour traversal (depth-first, nearer child first, pruned by
 //! the squared distance to each node's box) is written here.
 
+use std::sync::OnceLock;
+
 use glam::Vec3A;
 use glam::{DVec3, Vec3};
 use obvhs::aabb::Aabb;
@@ -121,6 +123,10 @@ pub struct TriangleSet {
     /// Each triangle's position in the input, for `input_index`.
     inputs: Vec<u32>,
     bvh: Option<Bvh2>,
+    /// Every (corner, triangle) pair, sorted by the corner's bits: the
+    /// triangles around a corner (`around`). Made on first use, since most
+    /// sets are never asked.
+    corners: OnceLock<Vec<([u32; 3], u32)>>,
 }
 
 thread_local! {
@@ -159,6 +165,7 @@ impl TriangleSet {
                 tris,
                 inputs,
                 bvh: None,
+                corners: OnceLock::new(),
             };
         }
         // A minimal search distance builds fastest; the queries only need
@@ -185,6 +192,7 @@ impl TriangleSet {
             tris,
             inputs,
             bvh: Some(bvh),
+            corners: OnceLock::new(),
         }
     }
 
@@ -203,6 +211,28 @@ impl TriangleSet {
         let t = &self.tris[triangle as usize];
         let p = Vec3A::from(p);
         closest_point_on_triangle(p, t.a, t.b, t.c).distance(p)
+    }
+
+    /// The triangles (handles) with a corner at exactly `p`.
+    pub fn around(&self, p: Vec3) -> impl Iterator<Item = u32> + '_ {
+        let corners = self.corners.get_or_init(|| {
+            let mut all: Vec<([u32; 3], u32)> = self
+                .tris
+                .iter()
+                .enumerate()
+                .flat_map(|(i, t)| {
+                    [t.a, t.b, t.c].map(|c| (c.to_array().map(f32::to_bits), i as u32))
+                })
+                .collect();
+            all.sort_unstable();
+            all
+        });
+        let key = p.to_array().map(f32::to_bits);
+        let first = corners.partition_point(|(k, _)| *k < key);
+        corners[first..]
+            .iter()
+            .take_while(move |(k, _)| *k == key)
+            .map(|&(_, t)| t)
     }
 
     /// The corners of `triangle` (a handle from `nearest`).

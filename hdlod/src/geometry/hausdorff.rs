@@ -8,8 +8,11 @@
 //! `d(p) <= d_i + |p - c_i| <= d_i + max_j |c_j - c_i|` for each corner `i`,
 //! so `min_i (d_i + max_j |c_j - c_i|)` bounds `d` over the whole triangle;
 //! and the distance to any single triangle of the other mesh is convex, so
-//! its largest value over the triangle is at a corner, another bound (see
-//! `triangle_upper`). Any exact `d(p)` is a lower bound of the supremum. Triangles whose
+//! its largest value over a convex polygon is at a corner: over the
+//! triangle, or over the parts of it cut along a crease or into the
+//! sectors of a fan of the other mesh, each part held to its own triangle
+//! (see `triangle_upper`, `cut_pair_bound`, `star_bound`). Any exact
+//! `d(p)` is a lower bound of the supremum. Triangles whose
 //! upper bound could still raise the running lower bound are split, largest
 //! bound first, until the gap between the two is at most the tolerance:
 //! 4 ways at their edge midpoints, or, when thin, in two across their
@@ -26,6 +29,7 @@
 
 use std::cmp::Ordering;
 use std::collections::BinaryHeap;
+use std::f32::consts::TAU;
 
 use glam::Vec3;
 use rand::{Rng, SeedableRng};
@@ -239,10 +243,283 @@ fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
         .collect()
 }
 
+/// The upper bound of `d(p, B)` over the piece `c`: `triangle_upper`,
+/// then, while that would leave the piece open, the centroid's and the
+/// star's bounds, which cost more.
+fn piece_upper(
+    distance: &mut impl FnMut(Vec3, Option<u32>) -> (f32, u32),
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    lower: &mut f32,
+    tolerance: f32,
+) -> f32 {
+    let mut upper = triangle_upper(b, c, d, nearest);
+    if upper > *lower + tolerance {
+        upper = centroid_bound(distance, b, c, d, nearest, upper, lower);
+    }
+    if upper > *lower + tolerance {
+        upper = star_bound(b, c, nearest, upper);
+    }
+    upper
+}
+
+/// Where the corners' nearest triangles meet at a corner `v` of B (a fan:
+/// a plate tessellated around a hole or from one corner, a disc), a bound
+/// of `d(p, B)` over `c` from cutting `c` into the sectors, around `c`'s
+/// normal through `v`, of the triangles around `v` that face along it: each
+/// part is bounded by the distance to its sector's triangle, which is
+/// convex, so by its largest value at the part's corners (`c`'s own and
+/// where `c`'s edges cross the sector's sides). It holds where the
+/// sectors cover the whole of `c` as seen from `v`'s axis, whichever
+/// triangle a point of overlapping sectors is given to. Tessellators make
+/// fans of slivers; a piece near their corner has corners nearest to
+/// triangles that share only it, and no other bound settles it before the
+/// piece is about the tolerance across. That was most of the search on a
+/// steel model's plates. `best` where it does not apply or would not beat
+/// it.
+fn star_bound(b: &TriangleSet, c: &[Vec3; 3], nearest: &[u32; 3], best: f32) -> f32 {
+    if nearest[0] == nearest[1] && nearest[1] == nearest[2] {
+        return best;
+    }
+    // The piece's own normal: where it matters, the piece lies along the
+    // surface near `v`, whose triangles then face it.
+    let [p, q, r] = b.corners(nearest[0]);
+    let Some(axis) = (c[1] - c[0])
+        .cross(c[2] - c[0])
+        .try_normalize()
+        .or_else(|| (q - p).cross(r - p).try_normalize())
+    else {
+        return best;
+    };
+    let mut best = best;
+    for v in [p, q, r] {
+        if nearest[1..].iter().all(|&t| b.corners(t).contains(&v)) {
+            best = best.min(sectors_bound(b, c, v, axis, best));
+        }
+    }
+    best
+}
+
+/// Most triangles a corner of B may have around it for `star_bound`.
+const MAX_STAR: usize = 64;
+/// The triangles around `v` that take part in `star_bound`: those within
+/// about 11 degrees of facing along the axis (the fan a piece lies on)
+/// and, where those do not cover the piece, within about 45 degrees (a
+/// gently curved fan). A triangle seen edge-on from the axis has a sector
+/// of nearly nothing or of half a turn, and one of a chamfer next to the
+/// fan overlaps the fan's sectors and is far from the piece.
+const FACING: [f32; 2] = [0.98, 0.7];
+/// Gaps between sectors up to this angle (radians) are float rounding;
+/// the bound covers them (see `sectors_bound`).
+const MAX_GAP: f32 = 1e-4;
+
+/// A triangle around a corner `v` of B, seen along an axis through `v`.
+struct Sector {
+    triangle: u32,
+    /// Its two edges from `v`, flattened across the axis.
+    sides: [Vec3; 2],
+    /// Its interval of angle around the axis.
+    start: f32,
+    width: f32,
+    /// `|cos|` of the angle between its normal and the axis.
+    facing: f32,
+}
+
+/// The bound of `star_bound` for the triangles around `v` and `axis`.
+fn sectors_bound(b: &TriangleSet, c: &[Vec3; 3], v: Vec3, axis: Vec3, best: f32) -> f32 {
+    let flat = |e: Vec3| e - axis * e.dot(axis);
+    let (fx, fy) = axis.any_orthonormal_pair();
+    let angle = |e: Vec3| e.dot(fy).atan2(e.dot(fx)).rem_euclid(TAU);
+    let mut sectors: Vec<Sector> = Vec::new();
+    for t in b.around(v) {
+        let corners = b.corners(t);
+        let Some(k) = corners.iter().position(|p| *p == v) else {
+            continue;
+        };
+        let (x, y) = (corners[(k + 1) % 3] - v, corners[(k + 2) % 3] - v);
+        let Some(facing) = x.cross(y).try_normalize().map(|n| n.dot(axis).abs()) else {
+            continue;
+        };
+        if facing < FACING[1] {
+            continue;
+        }
+        let (x, y) = (flat(x), flat(y));
+        let width = axis.dot(x.cross(y)).atan2(x.dot(y));
+        sectors.push(Sector {
+            triangle: t,
+            sides: [x, y],
+            start: angle(if width > 0.0 { x } else { y }),
+            width: width.abs(),
+            facing,
+        });
+        if sectors.len() > MAX_STAR {
+            return best;
+        }
+    }
+    // The arc of `c` seen from the axis: the whole turn where the axis
+    // passes through `c`, else the turn less the largest gap between its
+    // corners' angles (a corner on the axis, where a piece of A has a
+    // corner at `v`, has no angle: its edges' directions are the other
+    // corners').
+    let seen = c.map(|p| flat(p - v));
+    let normal = (seen[1] - seen[0]).cross(seen[2] - seen[0]);
+    let through = (0..3).all(|k| seen[k].cross(seen[(k + 1) % 3]).dot(normal) > 0.0);
+    let arc = if through {
+        (0.0, TAU)
+    } else {
+        let mut angles: Vec<f32> = seen
+            .iter()
+            .filter(|e| e.length_squared() > 0.0)
+            .map(|&e| angle(e))
+            .collect();
+        if angles.len() < 2 {
+            return best;
+        }
+        angles.sort_by(f32::total_cmp);
+        let n = angles.len();
+        let (k, gap) = (0..n)
+            .map(|k| {
+                let next = if k + 1 < n {
+                    angles[k + 1]
+                } else {
+                    angles[0] + TAU
+                };
+                (k, next - angles[k])
+            })
+            .max_by(|a, b| a.1.total_cmp(&b.1))
+            .unwrap_or((0, 0.0));
+        (angles[(k + 1) % n], TAU - gap)
+    };
+    for facing in FACING {
+        let chosen: Vec<&Sector> = sectors.iter().filter(|s| s.facing >= facing).collect();
+        if let Some(gap) = uncovered(&chosen, arc) {
+            // A point of `c` in a gap is within `radius * gap` of a side
+            // of a sector, and `d` is 1-Lipschitz.
+            let radius = c.iter().map(|p| p.distance(v)).fold(0.0, f32::max);
+            return parts_bound(b, c, v, axis, &chosen, radius * gap, best);
+        }
+    }
+    best
+}
+
+/// The largest gap (radians) the `sectors` leave in the `arc` (its start
+/// and length), if none is over `MAX_GAP`.
+fn uncovered(sectors: &[&Sector], (from, length): (f32, f32)) -> Option<f32> {
+    // Each sector also a turn earlier, so that one that starts before the
+    // arc counts.
+    let mut spans: Vec<(f32, f32)> = sectors
+        .iter()
+        .flat_map(|s| {
+            let start = (s.start - from).rem_euclid(TAU);
+            [
+                (start, start + s.width),
+                (start - TAU, start - TAU + s.width),
+            ]
+        })
+        .collect();
+    spans.sort_by(|a, b| a.0.total_cmp(&b.0));
+    let (mut reach, mut gap) = (0.0f32, 0.0f32);
+    for (start, end) in spans {
+        if reach >= length {
+            break;
+        }
+        gap = gap.max(start - reach);
+        reach = reach.max(end);
+    }
+    gap = gap.max(length - reach);
+    (gap <= MAX_GAP).then_some(gap)
+}
+
+/// The largest distance from a corner of `c`'s part in each sector to the
+/// sector's triangle, starting from `worst`; `best` once it is reached.
+fn parts_bound(
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    v: Vec3,
+    axis: Vec3,
+    sectors: &[&Sector],
+    mut worst: f32,
+    best: f32,
+) -> f32 {
+    for s in sectors {
+        // A side is the plane through `v` with the axis and one edge; the
+        // sector is on the side of it where the other edge is.
+        let mut part = Polygon::of(c);
+        for (edge, other) in [(s.sides[0], s.sides[1]), (s.sides[1], s.sides[0])] {
+            let normal = axis.cross(edge);
+            let normal = if normal.dot(other) < 0.0 {
+                -normal
+            } else {
+                normal
+            };
+            part = part.clipped(|p| normal.dot(p - v));
+        }
+        for &p in part.corners() {
+            worst = worst.max(b.distance_to(p, s.triangle));
+            if worst >= best {
+                return best;
+            }
+        }
+    }
+    worst
+}
+
+/// A convex polygon of a triangle clipped by two planes: at most five
+/// corners.
+struct Polygon {
+    corners: [Vec3; 5],
+    len: usize,
+}
+
+impl Polygon {
+    fn of(c: &[Vec3; 3]) -> Polygon {
+        Polygon {
+            corners: [c[0], c[1], c[2], Vec3::ZERO, Vec3::ZERO],
+            len: 3,
+        }
+    }
+
+    fn corners(&self) -> &[Vec3] {
+        &self.corners[..self.len]
+    }
+
+    /// The part where `side` is not negative (Sutherland and Hodgman).
+    fn clipped(&self, side: impl Fn(Vec3) -> f32) -> Polygon {
+        let mut out = Polygon {
+            corners: [Vec3::ZERO; 5],
+            len: 0,
+        };
+        let mut push = |p: Vec3| {
+            if out.len < out.corners.len() {
+                out.corners[out.len] = p;
+                out.len += 1;
+            }
+        };
+        let points = self.corners();
+        for (k, &p) in points.iter().enumerate() {
+            let q = points[(k + 1) % points.len()];
+            let (sp, sq) = (side(p), side(q));
+            if sp >= 0.0 {
+                push(p);
+            }
+            if (sp >= 0.0) != (sq >= 0.0) {
+                push(p + (q - p) * (sp / (sp - sq)));
+            }
+        }
+        out
+    }
+}
+
 /// When the corners' nearest triangles do not settle a triangle, the one
 /// nearest to its centroid may: on coincident surfaces a corner is equally
 /// near to every triangle around it, the centroid only to the right one.
-/// The centroid's distance also raises the lower bound.
+/// The centroid's own distance bounds the triangle too, by Lipschitz from
+/// the centroid, which is about half as far from the farthest point as a
+/// corner is: where the surface is near but broken into triangles smaller
+/// than the piece, that settles a piece twice as large. The centroid's
+/// distance also raises the lower bound.
 fn centroid_bound(
     distance: &mut impl FnMut(Vec3, Option<u32>) -> (f32, u32),
     b: &TriangleSet,
@@ -252,8 +529,11 @@ fn centroid_bound(
     upper: f32,
     lower: &mut f32,
 ) -> f32 {
-    let (dc, tc) = distance((c[0] + c[1] + c[2]) / 3.0, Some(nearest[0]));
+    let centroid = (c[0] + c[1] + c[2]) / 3.0;
+    let (dc, tc) = distance(centroid, Some(nearest[0]));
     *lower = lower.max(dc);
+    let radius = c.iter().map(|p| p.distance(centroid)).fold(0.0, f32::max);
+    let upper = upper.min(dc + radius);
     if nearest.contains(&tc) {
         return upper;
     }
@@ -303,13 +583,12 @@ impl Ord for Open {
 ///   is exact where a triangle of A lies over a single triangle of B (above
 ///   all, coincident surfaces, where the first would need splitting down to
 ///   the tolerance);
-/// - the same for two of those triangles that share an edge and make a
-///   convex quadrilateral, flat within `delta` (see `flat_pair`): the
-///   distance to their union is then at most `2 delta` above a convex
-///   function's, so its maximum over `c` is at most the corners' largest
-///   plus `2 delta`. A rectangle's two halves (every face of a box, a wall,
-///   a slab) are such a pair; without this bound a triangle of A lying
-///   across their diagonal is split along it down to the tolerance.
+/// - two of those triangles that share an edge, each over its side of a
+///   plane through that edge (see `cut_pair_bound`). A rectangle's two
+///   halves (every face of a box, a wall, a slab) and the facets either
+///   side of a crease are such pairs; without this bound a triangle of A
+///   lying across their shared edge is split along it down to the
+///   tolerance.
 fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 3]) -> f32 {
     let lipschitz = (0..3)
         .map(|i| {
@@ -335,42 +614,74 @@ fn triangle_upper(b: &TriangleSet, c: &[Vec3; 3], d: &[f32; 3], nearest: &[u32; 
         }
     }
     for &(t, u) in &pairs[..count] {
-        if let Some(delta) = flat_pair(b, t, u) {
-            best =
-                best.min(union_bound(b, c, d, nearest, &[t, u], best - 2.0 * delta) + 2.0 * delta);
-        }
+        best = best.min(cut_pair_bound(b, c, d, nearest, t, u, best));
     }
     best
 }
 
-/// If triangles `t` and `u` of B share an edge and, with `u` projected onto
-/// `t`'s plane, make a convex quadrilateral, how far `u`'s far corner is
-/// from that plane (`delta`). Let `Q` be that quadrilateral and `T` the
-/// union of `t` and `u`: every point of `u` is within `delta` of `Q` and
-/// the other way round, so for any point `p`, `d(p, T) <= d(p, Q) + delta`,
-/// and `d(., Q)` is convex (`Q` is a convex set), so over a triangle it is
-/// at most its largest value at a corner, which is at most
-/// `d(corner, T) + delta`. In double
-/// precision: the side tests decide whether the argument holds.
-fn flat_pair(b: &TriangleSet, t: u32, u: u32) -> Option<f32> {
-    let tc = b.corners(t).map(|p| p.as_dvec3());
-    let uc = b.corners(u).map(|p| p.as_dvec3());
-    // The shared edge `p q`, `t`'s apex `r`, `u`'s apex `s`.
+/// For triangles `t` and `u` of B that share an edge, a bound of `d(p, B)`
+/// over triangle `c` from cutting `c` in two by a plane through that edge:
+/// the part on `t`'s side is bounded by `d(p, t)`, the other by `d(p, u)`.
+/// Each part is a convex polygon and `d(., t)` is convex, so its largest
+/// value over a part is at one of the part's corners: `c`'s own, or where
+/// `c`'s edges cross the plane. The plane runs along the shared edge,
+/// between the two apexes: where the triangles are coplanar it is the
+/// boundary between the points nearest to each, and across a crease it is
+/// near it. Without this bound, a triangle of A lying across a crease of
+/// B (the facets of a tube, a fillet, a chamfer) is split along the crease
+/// down to the tolerance: pieces by the tens of thousands along a steel
+/// section's length. `best` when the triangles share no edge or the bound
+/// would not beat it.
+fn cut_pair_bound(
+    b: &TriangleSet,
+    c: &[Vec3; 3],
+    d: &[f32; 3],
+    nearest: &[u32; 3],
+    t: u32,
+    u: u32,
+    best: f32,
+) -> f32 {
+    let (tc, uc) = (b.corners(t), b.corners(u));
     let mut shared = (0..3).filter(|&k| uc.contains(&tc[k]));
     let (Some(k0), Some(k1), None) = (shared.next(), shared.next(), shared.next()) else {
-        return None;
+        return best;
     };
     let (p, q, r) = (tc[k0], tc[k1], tc[3 - k0 - k1]);
-    let s = *uc.iter().find(|x| **x != p && **x != q)?;
-    let n = (q - p).cross(r - p).try_normalize()?;
-    let height = (s - p).dot(n);
-    let s = s - n * height;
-    let side =
-        |x: glam::DVec3, from: glam::DVec3, to: glam::DVec3| (to - from).cross(x - from).dot(n);
-    // `r` is on the positive side of `p q` by the choice of `n`; `s` must
-    // be on the other, and `p`, `q` on either side of `r s`.
-    let convex = side(s, p, q) <= 0.0 && side(p, r, s) * side(q, r, s) <= 0.0;
-    convex.then_some(height.abs() as f32)
+    let Some(s) = uc.iter().find(|x| **x != p && **x != q) else {
+        return best;
+    };
+    let edge = (q - p).normalize_or_zero();
+    let across = r - *s;
+    let Some(normal) = (across - edge * across.dot(edge)).try_normalize() else {
+        return best;
+    };
+    let sides = c.map(|x| normal.dot(x - p));
+    // The exact distance of corner `i` to `tri`: the one measured where
+    // that is its nearest.
+    let to = |i: usize, tri: u32| {
+        if nearest[i] == tri {
+            d[i]
+        } else {
+            b.distance_to(c[i], tri)
+        }
+    };
+    let mut worst = 0.0f32;
+    for (i, side) in sides.iter().enumerate() {
+        worst = worst.max(if *side >= 0.0 { to(i, t) } else { to(i, u) });
+        if worst >= best {
+            return best;
+        }
+    }
+    for (i, j) in [(0, 1), (1, 2), (2, 0)] {
+        if (sides[i] >= 0.0) != (sides[j] >= 0.0) {
+            let x = c[i] + (c[j] - c[i]) * (sides[i] / (sides[i] - sides[j]));
+            worst = worst.max(b.distance_to(x, t)).max(b.distance_to(x, u));
+            if worst >= best {
+                return best;
+            }
+        }
+    }
+    worst
 }
 
 /// `min(best, max_i d(c_i, T))` for `T` the union of the triangles `ts`,
@@ -443,8 +754,8 @@ fn one_way(
     // Meshes share corners between triangles: measure each distinct point
     // once, in triangle order so that consecutive queries are near each
     // other and the previous answer is a good starting radius.
-    let mut known: std::collections::HashMap<[u32; 3], (f32, u32)> =
-        std::collections::HashMap::with_capacity(a.len());
+    let mut known: rustc_hash::FxHashMap<[u32; 3], (f32, u32)> =
+        rustc_hash::FxHashMap::with_capacity_and_hasher(a.len(), Default::default());
     for t in a {
         let mut d = [0.0; 3];
         let mut near = [0; 3];
@@ -506,10 +817,7 @@ fn one_way(
         if lower > budget {
             return None;
         }
-        let mut upper = triangle_upper(b, t, d, near);
-        if upper > lower + tolerance {
-            upper = centroid_bound(&mut distance, b, t, d, near, upper, &mut lower);
-        }
+        let upper = piece_upper(&mut distance, b, t, d, near, &mut lower, tolerance);
         if upper <= lower + tolerance {
             settled = settled.max(upper);
         } else {
@@ -572,10 +880,7 @@ fn one_way(
         };
         let step = if count == 2 { 1 } else { 2 };
         for &(c, d, near) in &children[..count] {
-            let mut u = triangle_upper(b, &c, &d, &near);
-            if u > lower + tolerance {
-                u = centroid_bound(&mut distance, b, &c, &d, &near, u, &mut lower);
-            }
+            let u = piece_upper(&mut distance, b, &c, &d, &near, &mut lower, tolerance);
             if u <= lower + tolerance {
                 settled = settled.max(u);
             } else {
