@@ -76,6 +76,75 @@ fn cut_triangles(tree: &Tree, factor: f64, t: f64) -> u64 {
     cut(tree, &view, t).stats.triangles
 }
 
+/// Checks that every static or pseudo-dynamic cluster of `after` whose
+/// geometry is not one of `before_files` bounds the distance to the
+/// objects of `scene` below it; answers how many it checked.
+fn remade_bounds_hold(
+    after: &Tree,
+    dir: &Path,
+    scene: &Scene,
+    before_files: &HashSet<String>,
+) -> usize {
+    let mut checked = 0;
+    for c in after.clusters().filter(|c| {
+        !c.is_leaf()
+            && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic)
+            && !before_files.contains(c.geometry.as_ref().unwrap())
+    }) {
+        let geometry = read_mesh(&after.geometry_file(dir, c.geometry.as_ref().unwrap())).unwrap();
+        let objects = common::objects_below(after, scene, c.id);
+        let h = hausdorff(
+            &geometry,
+            &objects,
+            &HausdorffOptions {
+                tolerance: (c.eps * 0.01).max(1e-4) as f32,
+                seed: 1,
+            },
+        );
+        assert!(
+            f64::from(h.lower) <= c.eps + 1e-4,
+            "cluster {} (level {}): distance {} above its eps {}",
+            c.id,
+            c.level,
+            h.lower,
+            c.eps
+        );
+        checked += 1;
+    }
+    checked
+}
+
+/// Checks that the cuts of `after` are those of a full build of `scene`
+/// (made in `tmp`) within a few percent over the table's views, a cell of
+/// a few hundred triangles within a quarter.
+fn cuts_as_full(after: &Tree, scene: &Scene, config: &BuildConfig, tmp: &Path) {
+    let full_dir = tmp.join("full");
+    build_to(scene, config, &full_dir, &Silent).unwrap();
+    let full = load(&full_dir).unwrap();
+    let (mut ours_sum, mut theirs_sum) = (0, 0);
+    for factor in [1.0, 2.0, 4.0] {
+        for fraction in [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0] {
+            let t = scene.time.seconds * fraction;
+            let (ours, theirs) = (
+                cut_triangles(after, factor, t),
+                cut_triangles(&full, factor, t),
+            );
+            let ratio = ours as f64 / theirs.max(1) as f64;
+            assert!(
+                (0.75..=1.25).contains(&ratio),
+                "at {factor}x, {fraction:.2} of the period: {ours} triangles against {theirs}"
+            );
+            ours_sum += ours;
+            theirs_sum += theirs;
+        }
+    }
+    let ratio = ours_sum as f64 / theirs_sum as f64;
+    assert!(
+        (0.95..=1.05).contains(&ratio),
+        "{ours_sum} against {theirs_sum}"
+    );
+}
+
 #[test]
 fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
     let scene = tiny();
@@ -174,32 +243,7 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
 
     // Every cluster made again bounds the distance to its objects as
     // placed now.
-    let mut checked = 0;
-    for c in after.clusters().filter(|c| {
-        !c.is_leaf()
-            && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic)
-            && !before_files.contains(c.geometry.as_ref().unwrap())
-    }) {
-        let geometry = read_mesh(&after.geometry_file(&dir, c.geometry.as_ref().unwrap())).unwrap();
-        let objects = common::objects_below(&after, &changed, c.id);
-        let h = hausdorff(
-            &geometry,
-            &objects,
-            &HausdorffOptions {
-                tolerance: (c.eps * 0.01).max(1e-4) as f32,
-                seed: 1,
-            },
-        );
-        assert!(
-            f64::from(h.lower) <= c.eps + 1e-4,
-            "cluster {} (level {}): distance {} above its eps {}",
-            c.id,
-            c.level,
-            h.lower,
-            c.eps
-        );
-        checked += 1;
-    }
+    let checked = remade_bounds_hold(&after, &dir, &changed, &before_files);
     assert!(checked >= 3, "only {checked} clusters made again");
     // The edited storey's leaves stand where the scene now puts them.
     let moved = after
@@ -228,33 +272,8 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
     }
 
     // The cuts are those of a full build of the edited scene within a few
-    // percent over the table's views (a cell of a few hundred triangles
-    // within a quarter).
-    let full_dir = tmp.path().join("full");
-    build_to(&changed, &config, &full_dir, &Silent).unwrap();
-    let full = load(&full_dir).unwrap();
-    let (mut ours_sum, mut theirs_sum) = (0, 0);
-    for factor in [1.0, 2.0, 4.0] {
-        for fraction in [0.0, 1.0 / 3.0, 2.0 / 3.0, 1.0] {
-            let t = changed.time.seconds * fraction;
-            let (ours, theirs) = (
-                cut_triangles(&after, factor, t),
-                cut_triangles(&full, factor, t),
-            );
-            let ratio = ours as f64 / theirs.max(1) as f64;
-            assert!(
-                (0.75..=1.25).contains(&ratio),
-                "at {factor}x, {fraction:.2} of the period: {ours} triangles against {theirs}"
-            );
-            ours_sum += ours;
-            theirs_sum += theirs;
-        }
-    }
-    let ratio = ours_sum as f64 / theirs_sum as f64;
-    assert!(
-        (0.95..=1.05).contains(&ratio),
-        "{ours_sum} against {theirs_sum}"
-    );
+    // percent over the table's views.
+    cuts_as_full(&after, &changed, &config, tmp.path());
 
     // Updated again with the same scene: a schedule update, nothing made.
     let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
@@ -278,16 +297,6 @@ fn what_a_geometry_update_cannot_do_builds_in_full() {
         why
     };
 
-    let mut removed = scene.clone();
-    removed.objects.remove(10);
-    removed
-        .tasks
-        .iter_mut()
-        .for_each(|t| t.objects.retain(|o| scene.objects[10].id != *o));
-    removed.apply_schedule();
-    let why = full_why(&removed);
-    assert!(why.contains("removed"), "{why}");
-
     let mut crane = scene.clone();
     let moving = crane
         .objects
@@ -304,4 +313,160 @@ fn what_a_geometry_update_cannot_do_builds_in_full() {
     }
     let why = full_why(&most);
     assert!(why.contains("more than a quarter"), "{why}");
+}
+
+/// `scene` without the objects `gone` names, in the reverse order, its
+/// tasks no longer naming them.
+fn without(scene: &Scene, gone: &HashSet<String>) -> Scene {
+    let mut out = scene.clone();
+    out.objects.retain(|o| !gone.contains(&o.id));
+    out.objects.reverse();
+    for t in &mut out.tasks {
+        t.objects.retain(|o| !gone.contains(o));
+    }
+    out.apply_schedule();
+    out
+}
+
+#[test]
+fn removed_objects_leave_tombstones_and_the_others_keep_their_feature_ids() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let before = load(&dir).unwrap();
+    let before_files = files(&before);
+    let index_before: HashMap<String, u32> = (0..scene.objects.len())
+        .map(|i| (scene.objects[i].id.clone(), i as u32))
+        .collect();
+
+    // Every third object of one storey that stands still, and one moving
+    // object; the scene's order reversed, so only the ids say which is
+    // which.
+    let mut gone: HashSet<String> = scene
+        .objects
+        .iter()
+        .filter(|o| {
+            o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none()
+        })
+        .step_by(3)
+        .map(|o| o.id.clone())
+        .collect();
+    let moving = scene
+        .objects
+        .iter()
+        .find(|o| o.motion.as_ref().is_some_and(|m| m.moves()))
+        .expect("a moving object");
+    gone.insert(moving.id.clone());
+    let changed = without(&scene, &gone);
+    let gone_leaves = before
+        .clusters()
+        .filter(|c| c.is_leaf() && c.objects.iter().any(|o| gone.contains(o)))
+        .count();
+
+    let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
+    let How::GeometryUpdate {
+        edited_objects,
+        added_objects,
+        removed_objects,
+        rebuilt,
+        dropped,
+        dissolved,
+        ..
+    } = how
+    else {
+        panic!("{how:?}")
+    };
+    assert_eq!(
+        (edited_objects, added_objects, removed_objects),
+        (0, 0, gone.len())
+    );
+    assert!(
+        dropped >= gone_leaves,
+        "{dropped} dropped, {gone_leaves} leaves removed"
+    );
+    let after = load(&dir).expect("the updated tree passes every check of the loader");
+    assert_eq!(
+        after.cluster_count(),
+        before.cluster_count() - dropped - dissolved
+    );
+    assert!(
+        rebuilt < after.cluster_count() / 4,
+        "{rebuilt} of {} clusters made again",
+        after.cluster_count()
+    );
+
+    // Every object keeps its feature id; a removed one's row is empty.
+    let tables = after.objects.as_ref().expect("object tables");
+    assert_eq!(tables.object_count(), scene.objects.len());
+    for (id, &i) in &index_before {
+        assert_eq!(tables.object_index(id), Some(i), "{id}");
+        let row = tables.object(i);
+        if gone.contains(id) {
+            assert!(row.clusters.is_empty() && row.tasks.is_empty(), "{row:?}");
+            assert!(row.open_presence().is_empty(), "{row:?}");
+        } else {
+            let was = before.objects.as_ref().unwrap().object(i);
+            assert_eq!(row.clusters.len(), was.clusters.len(), "{id}");
+            assert_eq!(row.presence, was.presence, "{id}");
+        }
+    }
+    let absent = after.stats["absent_objects"].as_array().unwrap();
+    assert!(
+        absent.iter().all(|id| !gone.contains(id.as_str().unwrap())),
+        "{absent:?}"
+    );
+    // No cluster names a removed object, and each static or
+    // pseudo-dynamic leaf's vertices carry its object's feature id (a
+    // moving object's cluster names it).
+    for c in after.clusters() {
+        assert!(
+            c.objects.iter().all(|o| !gone.contains(o)),
+            "cluster {}",
+            c.id
+        );
+        if c.is_leaf() && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic) {
+            let mesh = read_mesh(&after.geometry_file(&dir, c.geometry.as_ref().unwrap())).unwrap();
+            let want = index_before[&c.objects[0]];
+            assert!(!mesh.features.is_empty(), "cluster {}", c.id);
+            assert!(
+                mesh.features.iter().all(|&f| f == want),
+                "cluster {} of {}",
+                c.id,
+                c.objects[0]
+            );
+        }
+    }
+    let checked = remade_bounds_hold(&after, &dir, &changed, &before_files);
+    assert!(checked >= 1, "only {checked} clusters made again");
+    cuts_as_full(&after, &changed, &config, tmp.path());
+
+    // The same scene again: a schedule update, the tombstones kept.
+    let (tree, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
+    assert!(matches!(how, How::ScheduleUpdate { .. }), "{how:?}");
+    assert_eq!(
+        tree.objects.as_ref().unwrap().object_count(),
+        scene.objects.len()
+    );
+
+    // A removed object back: its index is a tombstone, so in full.
+    let mut back = without(&scene, &gone);
+    let returned = scene
+        .objects
+        .iter()
+        .find(|o| o.id == moving.id)
+        .unwrap()
+        .clone();
+    back.objects.push(returned);
+    back.apply_schedule();
+    let (tree, _, how) = build_or_update_to(&back, &config, &dir, false, &Silent).unwrap();
+    let How::Full { why: Some(why) } = how else {
+        panic!("{how:?}")
+    };
+    assert!(why.contains(&moving.id) && why.contains("back"), "{why}");
+    assert_eq!(
+        tree.objects.as_ref().unwrap().object_count(),
+        back.objects.len()
+    );
 }

@@ -320,8 +320,8 @@ fn killed_updates(scenes: &[&std::path::Path], mode: &str) {
 }
 
 /// `hdlod bench build SCENE` times the scene's build and then schedule and
-/// geometry updates of its tree, and leaves nothing behind in its work
-/// directory.
+/// geometry updates of its tree (a storey moved, then removed), and leaves
+/// nothing behind in its work directory.
 #[test]
 fn bench_build_times_builds_and_updates() {
     let tmp = tempfile::tempdir().unwrap();
@@ -350,5 +350,22 @@ fn bench_build_times_builds_and_updates() {
     let rebuilt = report["rebuilt_clusters"].as_u64().unwrap();
     assert!(rebuilt > 0 && rebuilt < report["clusters"].as_u64().unwrap() / 2);
     assert!(report["table_largest_change_percent"].as_f64().unwrap() < 50.0);
+    // Then that storey removed: a geometry update that drops clusters.
+    assert_eq!(report["removed_storeys"], serde_json::json!(["Level 02"]));
+    assert_eq!(
+        report["removed_objects"],
+        report["geometry_edit_objects"]
+            .as_u64()
+            .map(|n| serde_json::json!([n]))
+            .unwrap()
+    );
+    assert_eq!(report["removal_runs"].as_array().unwrap().len(), 1);
+    assert!(report["removal_dropped_clusters"].as_u64().unwrap() > 0);
+    assert!(
+        report["removal_table_largest_change_percent"]
+            .as_f64()
+            .unwrap()
+            < 50.0
+    );
     assert!(!work.exists(), "the work directory is removed");
 }

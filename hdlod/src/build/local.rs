@@ -1,25 +1,26 @@
 //! Local geometry updates: a tree built from an earlier version of a scene
-//! in which some objects were edited (new mesh, placement or colour) or
-//! added is brought up to date by rebuilding only the clusters above them,
-//! up to the root, and reusing every other cluster and its geometry file
-//! (docs/method.md section 3, "Geometry updates").
+//! in which some objects were edited (new mesh, placement or colour),
+//! added or removed is brought up to date by rebuilding only the clusters
+//! above them, up to the root, and reusing every other cluster and its
+//! geometry file (docs/method.md section 3, "Geometry updates").
 //!
 //! The tree's groups stay as they were: an edited object's leaf is
-//! replaced in place, and an added object joins the parent of the nearest
-//! leaf of its class (nearest in time first for the pseudo-dynamic class,
-//! as the build ranks candidates). Each cluster above a changed leaf is
-//! made again from its children exactly as the build makes it (the union
-//! reduced within its level's budget, `eps_c` measured; a lone child's own
-//! parent reduced alone), the unchanged children read back from their
-//! geometry files. The schedule pass of [`super::update_schedule`] then
-//! recomputes every `v_c` and `gamma_c` from the leaves, so the scene's
-//! schedule may have moved too.
+//! replaced in place, an added object joins the parent of the nearest leaf
+//! of its class (nearest in time first for the pseudo-dynamic class, as
+//! the build ranks candidates), and a removed object's leaves go with
+//! every cluster left without children. The scene comes in the old tree's
+//! object order, removed objects as tombstones (`super::align`). Each
+//! cluster above a changed leaf is made again from its children exactly as
+//! the build makes it (the union reduced within its level's budget,
+//! `eps_c` measured; a lone child's own parent reduced alone), the
+//! unchanged children read back from their geometry files. The schedule
+//! pass of [`super::update_schedule`] then recomputes every `v_c` and
+//! `gamma_c` from the leaves, so the scene's schedule may have moved too.
 //!
-//! What it does not do, and leaves to a full build: objects removed (a
-//! feature id is the object's index in the scene, so every later object's
-//! would move), moving objects edited or added, objects that change class,
-//! trees with baked colour, and edits to more than a quarter of the
-//! objects. The levels and their thresholds are the old tree's.
+//! What it does not do, and leaves to a full build: moving objects edited
+//! or added, objects that change class, trees with baked colour, and
+//! changes to more than a quarter of the objects. The levels and their
+//! thresholds are the old tree's.
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -27,7 +28,9 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use rayon::prelude::*;
+use rustc_hash::FxHashSet;
 
+use super::align::TOMBSTONE;
 use super::config::{BuildConfig, thresholds};
 use super::context::{Active, Context, bounds_of};
 use super::instances::{Instance, shapes_of, single_parents};
@@ -51,17 +54,21 @@ pub struct Plan {
     scene: Scene,
     pieces: Vec<Piece>,
     sources: Vec<Digest>,
-    /// The static and pseudo-dynamic leaves are the clusters `0..leaves`,
-    /// in the order of their pieces `kept`.
+    /// The static and pseudo-dynamic leaves are the clusters `0..leaves`;
+    /// `kept[c]` is the piece leaf `c` stands for, none if its object was
+    /// removed.
     leaves: usize,
-    kept: Vec<usize>,
+    kept: Vec<Option<usize>>,
     /// Old leaves whose object was edited.
     edited: Vec<u32>,
+    /// Old leaves whose object was removed, moving objects' included.
+    removed: Vec<u32>,
     /// Pieces of the added objects, and the cluster each joins.
     added: Vec<(usize, u32)>,
     stats: BuildStats,
     pub edited_objects: usize,
     pub added_objects: usize,
+    pub removed_objects: usize,
 }
 
 /// What a geometry update made.
@@ -70,13 +77,23 @@ pub struct Updated {
     pub stats: BuildStats,
     /// Clusters made again (leaves included) and geometry files written.
     pub rebuilt: usize,
+    /// Clusters dropped: the removed objects' leaves and the clusters left
+    /// with no children.
+    pub dropped: usize,
     /// Groups dissolved by the schedule pass.
     pub dissolved: usize,
 }
 
 /// Whether `old` can be brought to `scene` by a local geometry update, and
-/// how; `Err` says why not, for the caller's report.
-pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Result<Plan, String> {
+/// how; `Err` says why not, for the caller's report. `scene` is in the
+/// order of the tree's objects, with `tombstones` where objects were
+/// removed (`super::align`).
+pub fn plan(
+    old: &Tree,
+    scene: &Scene,
+    tombstones: &[usize],
+    config: &BuildConfig,
+) -> std::result::Result<Plan, String> {
     let Some(before) = &old.sources else {
         return Err("the tree records no digests of its objects' sources (sources.bin)".into());
     };
@@ -92,23 +109,31 @@ pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Res
     let stats: BuildStats = serde_json::from_value(old.stats.clone())
         .map_err(|_| "the tree's statistics are not a build's".to_string())?;
     let scene = super::scheduled(scene, config).into_owned();
-    let sources = object_sources(&scene);
+    let mut sources = object_sources(&scene);
+    for &k in tombstones {
+        sources[k] = TOMBSTONE;
+    }
     if sources.len() < before.len() {
         return Err(format!(
-            "{} objects were removed: the feature ids of the objects after them would move",
+            "{} objects were removed and the tree has no object index to keep the others' \
+             feature ids by",
             before.len() - sources.len()
         ));
     }
     let touched: Vec<bool> = (0..sources.len())
         .map(|i| before.get(i) != Some(&sources[i]))
         .collect();
-    let edited_objects = (0..before.len()).filter(|&i| touched[i]).count();
+    let removed_ids: FxHashSet<&str> = (0..before.len())
+        .filter(|&k| touched[k] && sources[k] == TOMBSTONE)
+        .map(|k| scene.objects[k].id.as_str())
+        .collect();
+    let removed_objects = removed_ids.len();
+    let edited_objects = (0..before.len()).filter(|&i| touched[i]).count() - removed_objects;
     let added_objects = sources.len() - before.len();
-    let share = (edited_objects + added_objects) as f64 / sources.len().max(1) as f64;
-    if share > MAX_TOUCHED_SHARE {
+    let changes = edited_objects + added_objects + removed_objects;
+    if changes as f64 > MAX_TOUCHED_SHARE * sources.len().max(1) as f64 {
         return Err(format!(
-            "{} of {} objects were edited or added: more than a quarter",
-            edited_objects + added_objects,
+            "{changes} of {} objects were edited, added or removed: more than a quarter",
             sources.len()
         ));
     }
@@ -144,27 +169,41 @@ pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Res
     let (kept, new): (Vec<usize>, Vec<usize>) = (0..pieces.len())
         .filter(|&i| clustered(pieces[i].class))
         .partition(|&i| pieces[i].object < before.len());
-    let dynamic: Vec<usize> = (0..pieces.len())
-        .filter(|&i| pieces[i].class == Class::Dynamic)
-        .collect();
-    if kept.len() != leaves || dynamic.len() != old_leaves.len() - leaves {
-        return Err(changed_class().into());
-    }
+    let dynamic = (0..pieces.len()).filter(|&i| pieces[i].class == Class::Dynamic);
     let class_of = |p: &Piece| match p.class {
         Class::Static => ClusterClass::Static,
         Class::PseudoDynamic => ClusterClass::PseudoDynamic,
         _ => ClusterClass::Dynamic,
     };
-    for (&leaf, &p) in old_leaves.iter().zip(kept.iter().chain(&dynamic)) {
+    // Each old leaf and its piece, in order, but for the removed objects'.
+    let mut expected = kept.iter().copied().chain(dynamic);
+    let mut leaf_pieces = Vec::with_capacity(old_leaves.len());
+    let mut removed = Vec::new();
+    for &leaf in &old_leaves {
+        if old.object_count_of(leaf) == 1
+            && old.objects_of(leaf).iter().any(|o| removed_ids.contains(o))
+        {
+            removed.push(leaf);
+            leaf_pieces.push(None);
+            continue;
+        }
+        let Some(p) = expected.next() else {
+            return Err(changed_class().into());
+        };
         let piece = &pieces[p];
         if old.class_of(leaf) != class_of(piece)
             || !old.names_object(leaf, &scene.objects[piece.object].id)
         {
             return Err(changed_class().into());
         }
+        leaf_pieces.push(Some(p));
     }
+    if expected.next().is_some() {
+        return Err(changed_class().into());
+    }
+    let kept: Vec<Option<usize>> = leaf_pieces[..leaves].to_vec();
     let edited: Vec<u32> = (0..leaves as u32)
-        .filter(|&c| touched[pieces[kept[c as usize]].object])
+        .filter(|&c| kept[c as usize].is_some_and(|p| touched[pieces[p].object]))
         .collect();
 
     // Each added piece joins the parent of the nearest old leaf of its
@@ -174,9 +213,9 @@ pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Res
         .gamma
         .max(1e-9)
         / 4.0;
-    let leaf_steps: Vec<StepFunction> = kept
+    let leaf_steps: Vec<Option<StepFunction>> = kept
         .iter()
-        .map(|&p| StepFunction::of_visibility(&pieces[p].visibility, span))
+        .map(|p| p.map(|p| StepFunction::of_visibility(&pieces[p].visibility, span)))
         .collect();
     let centres: Vec<Vec3> = (0..leaves as u32)
         .map(|c| {
@@ -199,7 +238,8 @@ pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Res
         let steps = StepFunction::of_visibility(&piece.visibility, span);
         let apart = |leaf: usize| {
             if class == ClusterClass::PseudoDynamic && span > 0.0 {
-                (steps.l1_distance(&leaf_steps[leaf], span) / span / time_step).floor() as u32
+                let theirs = leaf_steps[leaf].as_ref().expect("a kept leaf");
+                (steps.l1_distance(theirs, span) / span / time_step).floor() as u32
             } else {
                 0
             }
@@ -207,7 +247,7 @@ pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Res
         // The nearest in space of each class of time, the nearest class
         // first.
         let mut near: Vec<(f32, usize)> = (0..leaves)
-            .filter(|&l| old.class_of(l as u32) == class)
+            .filter(|&l| kept[l].is_some() && old.class_of(l as u32) == class)
             .map(|l| (centres[l].distance_squared(centre), l))
             .collect();
         let take = near.len().min(64);
@@ -241,10 +281,12 @@ pub fn plan(old: &Tree, scene: &Scene, config: &BuildConfig) -> std::result::Res
         leaves,
         kept,
         edited,
+        removed,
         added,
         stats,
         edited_objects,
         added_objects,
+        removed_objects,
     })
 }
 
@@ -291,7 +333,7 @@ impl Plan {
         // The new leaves' repeated shapes: their own parents share one
         // reduction per shape, as in a full build (`instances`).
         let new_pieces: Vec<usize> = (self.edited.iter())
-            .map(|&c| self.kept[c as usize])
+            .map(|&c| self.kept_piece(c))
             .chain(self.added.iter().map(|&(p, _)| p))
             .collect();
         let placements: Vec<(usize, glam::Mat4, [f32; 4])> = new_pieces
@@ -336,7 +378,7 @@ impl Plan {
         let edited: HashMap<u32, Made> = self
             .edited
             .par_iter()
-            .map(|&c| Ok((c, leaf(self.kept[c as usize])?)))
+            .map(|&c| Ok((c, leaf(self.kept_piece(c))?)))
             .collect::<Result<_>>()?;
         let added: Vec<Made> = self
             .added
@@ -353,9 +395,7 @@ impl Plan {
         // (level, id) of each, so that the levels come out in order.
         let mut dirty: Vec<(u32, u32)> = Vec::new();
         let mut seen = vec![false; old.cluster_count()];
-        let starts = self
-            .edited
-            .iter()
+        let starts = (self.edited.iter().chain(&self.removed))
             .filter_map(|&c| old.cluster(c).parent)
             .chain(joined.keys().copied());
         for start in starts {
@@ -373,8 +413,12 @@ impl Plan {
         dirty.sort_unstable();
 
         // Level by level, each on every core: a cluster's children are at
-        // lower levels.
+        // lower levels. A cluster left with no children goes too.
         let mut made: HashMap<u32, Made> = HashMap::new();
+        let mut gone = vec![false; old.cluster_count()];
+        for &c in &self.removed {
+            gone[c as usize] = true;
+        }
         for of_level in dirty.chunk_by(|a, b| a.0 == b.0) {
             let level = of_level[0].0;
             progress.phase(&format!("rebuild level {level}"), of_level.len() as u64);
@@ -385,6 +429,7 @@ impl Plan {
                     let children: Vec<Child> = old
                         .children_of(c)
                         .iter()
+                        .filter(|&&k| !gone[k as usize])
                         .map(|&k| Child::Old(k))
                         .chain(
                             joined
@@ -410,6 +455,11 @@ impl Plan {
                     Ok((c, active))
                 })
                 .collect::<Result<_>>()?;
+            let (empty, children): (Vec<_>, Vec<_>) =
+                children.into_iter().partition(|(_, a)| a.is_empty());
+            for (c, _) in empty {
+                gone[c as usize] = true;
+            }
             let (lone, groups): (Vec<_>, Vec<_>) =
                 children.into_iter().partition(|(_, a)| a.len() == 1);
             let this: Vec<(u32, Made)> = groups
@@ -431,7 +481,8 @@ impl Plan {
         }
         let rebuilt = edited.len() + added.len() + made.len();
         lap("rebuild");
-        let mut updated = self.assemble(old, config, edited, added, joined, made, rebuilt)?;
+        let mut updated =
+            self.assemble(old, config, edited, added, joined, made, &gone, rebuilt)?;
         lap("schedule");
         // Each phase's own seconds, from the laps.
         let mut last = 0.0;
@@ -440,6 +491,11 @@ impl Plan {
             last = at;
         }
         Ok(updated)
+    }
+
+    /// The piece old clustered leaf `c` stands for, its object not removed.
+    fn kept_piece(&self, c: u32) -> usize {
+        self.kept[c as usize].expect("a leaf of an object still in the scene")
     }
 
     /// The unchanged cluster `id` of `old`: its geometry read back from its
@@ -491,14 +547,14 @@ impl Plan {
         Some(
             leaves
                 .into_iter()
-                .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept[c as usize]])))
+                .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept_piece(c)])))
                 .collect(),
         )
     }
 
-    /// The new tree: the old clusters in their order with the added leaves
-    /// after the old ones, the changed clusters' geometry replaced, then
-    /// the schedule pass over all of it.
+    /// The new tree: the old clusters in their order but the `gone` ones,
+    /// with the added leaves after the old ones, the changed clusters'
+    /// geometry replaced, then the schedule pass over all of it.
     #[allow(clippy::too_many_arguments)]
     fn assemble(
         self,
@@ -508,14 +564,27 @@ impl Plan {
         added: Vec<Made>,
         joined: HashMap<u32, Vec<usize>>,
         mut made: HashMap<u32, Made>,
+        gone: &[bool],
         rebuilt: usize,
     ) -> Result<Updated> {
-        let leaves = self.leaves as u32;
-        let shift = added.len() as u32;
-        let new_id = |c: u32| if c < leaves { c } else { c + shift };
+        let n = old.cluster_count();
+        // New ids: the old leaves that stay, the added leaves, the rest.
+        let mut new_ids = vec![None; n];
+        let mut next = 0u32;
+        let mut number = |range: std::ops::Range<usize>, next: &mut u32| {
+            for c in range.filter(|&c| !gone[c]) {
+                new_ids[c] = Some(*next);
+                *next += 1;
+            }
+        };
+        number(0..self.leaves, &mut next);
+        let first_added = next;
+        next += added.len() as u32;
+        number(self.leaves..n, &mut next);
+        let new_id = |c: u32| new_ids[c as usize];
         let scene = &self.scene;
         let span = scene.time.seconds;
-        let mut clusters: Vec<Cluster> = Vec::with_capacity(old.cluster_count() + added.len());
+        let mut clusters: Vec<Cluster> = Vec::with_capacity(next as usize);
         let replace = |c: &mut Cluster, m: Made| {
             c.bounds = Aabb::from_f32(m.lo, m.hi);
             c.w = f64::from((m.hi - m.lo).length());
@@ -523,7 +592,7 @@ impl Plan {
             c.triangles = m.mesh.triangle_count() as u64;
             c.geometry = Some(m.hash);
         };
-        for id in 0..leaves {
+        for id in (0..self.leaves as u32).filter(|&c| new_id(c).is_some()) {
             let mut c = old.cluster(id).into_owned();
             if let Some(m) = edited.remove(&id) {
                 replace(&mut c, m);
@@ -556,11 +625,11 @@ impl Plan {
             replace(&mut c, m);
             clusters.push(c);
         }
-        for id in leaves..old.cluster_count() as u32 {
+        for id in (self.leaves as u32..n as u32).filter(|&c| new_id(c).is_some()) {
             let mut c = old.cluster(id).into_owned();
-            c.children = c.children.iter().map(|&k| new_id(k)).collect();
+            c.children = c.children.iter().filter_map(|&k| new_id(k)).collect();
             if let Some(a) = joined.get(&id) {
-                c.children.extend(a.iter().map(|&a| leaves + a as u32));
+                c.children.extend(a.iter().map(|&a| first_added + a as u32));
             }
             if let Some(m) = made.remove(&id) {
                 replace(&mut c, m);
@@ -578,7 +647,7 @@ impl Plan {
         }
         // As `virtual_root` makes it, from its children's new boxes and
         // errors.
-        let root = new_id(old.root);
+        let root = new_id(old.root).expect("the root stays");
         let (bounds, eps) = super::root_extent(&clusters, &clusters[root as usize].children);
         {
             let r = &mut clusters[root as usize];
@@ -609,6 +678,7 @@ impl Plan {
                 tree: *tree,
                 stats,
                 rebuilt,
+                dropped: gone.iter().filter(|&&g| g).count(),
                 dissolved,
             }),
             Update::Rebuild(why) => Err(Error::argument("scene", why)),

@@ -10,6 +10,7 @@
 //! orchestrates them. `context` holds what they share, and the one
 //! constructor of a cluster record.
 
+mod align;
 mod config;
 mod context;
 mod dynamic;
@@ -207,7 +208,11 @@ fn update_geometry(
     progress: &dyn Progress,
 ) -> Result<(Tree, BuildStats, How)> {
     let clock = planned;
-    let (edited_objects, added_objects) = (plan.edited_objects, plan.added_objects);
+    let (edited_objects, added_objects, removed_objects) = (
+        plan.edited_objects,
+        plan.added_objects,
+        plan.removed_objects,
+    );
     let writer = TreeWriter::create(out)?;
     let old_files: rustc_hash::FxHashSet<String> = (0..old.cluster_count() as u32)
         .filter_map(|id| old.geometry_of(id).map(|h| h.into_owned()))
@@ -247,7 +252,9 @@ fn update_geometry(
     let how = How::GeometryUpdate {
         edited_objects,
         added_objects,
+        removed_objects,
         rebuilt: updated.rebuilt,
+        dropped: updated.dropped,
         geometry_files,
         dissolved: updated.dissolved,
     };
@@ -283,14 +290,18 @@ pub enum How {
         geometry_files: usize,
         dissolved: usize,
     },
-    /// The tree that was there, brought to the scene's edited or added
-    /// objects (`local.rs`): the clusters above them made again
-    /// (`rebuilt`, leaves included), every other cluster and geometry file
-    /// kept (`geometry_files` of the new tree's were the old tree's).
+    /// The tree that was there, brought to the scene's edited, added or
+    /// removed objects (`local.rs`): the clusters above them made again
+    /// (`rebuilt`, leaves included), the removed objects' leaves and the
+    /// clusters left with no children dropped (`dropped`), every other
+    /// cluster and geometry file kept (`geometry_files` of the new tree's
+    /// were the old tree's).
     GeometryUpdate {
         edited_objects: usize,
         added_objects: usize,
+        removed_objects: usize,
         rebuilt: usize,
+        dropped: usize,
         geometry_files: usize,
         dissolved: usize,
     },
@@ -319,75 +330,96 @@ pub fn build_or_update_to(
             Err(e) => Some(format!("the tree there does not load: {e}")),
             Ok(old) => {
                 let load = clock.elapsed().as_secs_f64();
-                let clock = Instant::now();
-                let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
-                let same = key == Some(geometry_key(scene, config).as_str());
-                let key_seconds = clock.elapsed().as_secs_f64();
-                if !same {
-                    match local::plan(&old, scene, config) {
-                        Err(why) => Some(format!(
-                            "the scene's geometry or the build configuration changed since it \
-                             was built, and the tree cannot be updated in place: {why}"
-                        )),
-                        Ok(plan) => {
-                            let (tree, stats, how) =
-                                update_geometry(&old, plan, config, out, load, clock, progress)?;
-                            return Ok((tree, stats, how));
-                        }
-                    }
-                } else {
-                    progress.phase("update", 1);
-                    let clock = Instant::now();
-                    match update_schedule(&old, scene, config) {
-                        Update::Rebuild(why) => Some(why),
-                        Update::Updated {
-                            tree,
-                            mut stats,
-                            dissolved,
-                        } => {
-                            stats.phases.push(("load tree".into(), load));
-                            stats.phases.push(("geometry key".into(), key_seconds));
-                            stats
-                                .phases
-                                .push(("update".into(), clock.elapsed().as_secs_f64()));
-                            let clock = Instant::now();
-                            progress.phase("write", 1);
-                            let writer = TreeWriter::create(out)?;
-                            let files: rustc_hash::FxHashSet<Cow<str>> = (0..tree.cluster_count()
-                                as u32)
-                                .filter_map(|id| tree.geometry_of(id))
-                                .collect();
-                            let geometry_files = files.len();
-                            // A flat (`hdlod-tree/1`) tree's files are linked
-                            // one by one into the new tree's shards.
-                            let shared = writer
-                                .share_geometry(old.layout, files.iter().map(|h| h.to_string()))?;
-                            if !shared {
-                                for hash in &files {
-                                    writer.reuse_geometry(out, old.layout, hash)?;
-                                }
-                            }
-                            stats
-                                .phases
-                                .push(("geometry".into(), clock.elapsed().as_secs_f64()));
-                            let clock = Instant::now();
-                            writer.finish(&tree)?;
-                            stats
-                                .phases
-                                .push(("write".into(), clock.elapsed().as_secs_f64()));
-                            let how = How::ScheduleUpdate {
-                                geometry_files,
-                                dissolved,
-                            };
-                            return Ok((*tree, stats, how));
-                        }
-                    }
+                match update_in_place(&old, scene, config, out, load, progress)? {
+                    Ok(done) => return Ok(done),
+                    Err(why) => Some(why),
                 }
             }
         }
     };
     let (tree, stats) = build_to(scene, config, out, progress)?;
     Ok((tree, stats, How::Full { why }))
+}
+
+/// The tree `old` at `out` brought to `scene` by a schedule update or a
+/// geometry update, or why neither can be done.
+fn update_in_place(
+    old: &Tree,
+    scene: &Scene,
+    config: &BuildConfig,
+    out: &Path,
+    load: f64,
+    progress: &dyn Progress,
+) -> Result<std::result::Result<(Tree, BuildStats, How), String>> {
+    let clock = Instant::now();
+    // The scene in the old tree's feature order, when the tree keeps one.
+    let aligned = match (crate::tree::store::object_ids(out), &old.sources) {
+        (Ok(Some(ids)), Some(sources)) => align::align(scene, &ids, sources),
+        _ => Ok(align::Aligned {
+            scene: Cow::Borrowed(scene),
+            tombstones: Vec::new(),
+        }),
+    };
+    let aligned = match aligned {
+        Ok(aligned) => aligned,
+        Err(why) => return Ok(Err(format!("the tree cannot be updated in place: {why}"))),
+    };
+    let scene = &*aligned.scene;
+    let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
+    let same = key == Some(geometry_key(scene, config).as_str());
+    let key_seconds = clock.elapsed().as_secs_f64();
+    if !same {
+        return match local::plan(old, scene, &aligned.tombstones, config) {
+            Err(why) => Ok(Err(format!(
+                "the scene's geometry or the build configuration changed since it was built, \
+                 and the tree cannot be updated in place: {why}"
+            ))),
+            Ok(plan) => update_geometry(old, plan, config, out, load, clock, progress).map(Ok),
+        };
+    }
+    progress.phase("update", 1);
+    let clock = Instant::now();
+    let (tree, mut stats, dissolved) = match update_schedule(old, scene, config) {
+        Update::Rebuild(why) => return Ok(Err(why)),
+        Update::Updated {
+            tree,
+            stats,
+            dissolved,
+        } => (tree, stats, dissolved),
+    };
+    stats.phases.push(("load tree".into(), load));
+    stats.phases.push(("geometry key".into(), key_seconds));
+    stats
+        .phases
+        .push(("update".into(), clock.elapsed().as_secs_f64()));
+    let clock = Instant::now();
+    progress.phase("write", 1);
+    let writer = TreeWriter::create(out)?;
+    let files: rustc_hash::FxHashSet<Cow<str>> = (0..tree.cluster_count() as u32)
+        .filter_map(|id| tree.geometry_of(id))
+        .collect();
+    let geometry_files = files.len();
+    // A flat (`hdlod-tree/1`) tree's files are linked one by one into the
+    // new tree's shards.
+    let shared = writer.share_geometry(old.layout, files.iter().map(|h| h.to_string()))?;
+    if !shared {
+        for hash in &files {
+            writer.reuse_geometry(out, old.layout, hash)?;
+        }
+    }
+    stats
+        .phases
+        .push(("geometry".into(), clock.elapsed().as_secs_f64()));
+    let clock = Instant::now();
+    writer.finish(&tree)?;
+    stats
+        .phases
+        .push(("write".into(), clock.elapsed().as_secs_f64()));
+    let how = How::ScheduleUpdate {
+        geometry_files,
+        dissolved,
+    };
+    Ok(Ok((*tree, stats, how)))
 }
 
 /// The virtual root over `roots`: no geometry, `w` and `v` aggregated like

@@ -323,12 +323,20 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
             level.max_eps = of_level().map(|c| c.eps).fold(0.0, f64::max);
         }
     }
+    // A removed object's tombstone (`super::align`) is no object of the
+    // scene's.
+    let tombstone = |k: usize| {
+        sources
+            .as_ref()
+            .is_some_and(|s| s.get(k) == Some(&super::align::TOMBSTONE))
+    };
     stats.absent_objects = scene
         .objects
         .iter()
         .zip(&classes)
-        .filter(|(_, c)| **c == Class::Absent)
-        .map(|(o, _)| o.id.clone())
+        .enumerate()
+        .filter(|&(k, (_, c))| *c == Class::Absent && !tombstone(k))
+        .map(|(_, (o, _))| o.id.clone())
         .collect();
     stats.phases.clear();
     let objects = ObjectTables::of(scene, &clusters);

@@ -433,6 +433,22 @@ pub fn load_to_update(dir: impl AsRef<Path>) -> Result<Tree> {
     Ok(tree)
 }
 
+/// The ids of the objects of the tree at `dir`, by feature id, read from
+/// its object index; `None` when it has none. What an update needs of the
+/// tables to keep the old tree's feature ids (`build::align`).
+pub fn object_ids(dir: impl AsRef<Path>) -> Result<Option<Vec<String>>> {
+    let path = dir.as_ref().join(OBJECTS_INDEX_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let rows = ObjectRows::open(&path)?;
+    Ok(Some(
+        (0..rows.len() as u32)
+            .map(|i| rows.id(i).to_string())
+            .collect(),
+    ))
+}
+
 fn load_from(dir: &Path, use_index: bool) -> Result<Tree> {
     // The directory, not its files: see [`load`].
     let geometry = dir.join(GEOMETRY_DIR);

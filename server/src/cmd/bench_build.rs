@@ -3,7 +3,9 @@
 //! and an SVG plot into docs/ on request; or, given a scene, that scene's
 //! build repeated: median wall and CPU time and the peak memory, the
 //! figures the build's speed targets are stated in, then as many
-//! schedule updates of the tree (a schedule edit and back).
+//! schedule updates of the tree (a schedule edit and back), geometry
+//! updates (a storey moved 2 cm and back) and removals (one more storey
+//! each).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -19,7 +21,8 @@ use serde::Serialize;
 pub struct Args {
     /// A scene (a directory with scene.json, or the file) to build
     /// `--repeats` times instead of the scaling series, then to update
-    /// `--repeats` times, to a schedule edit and back.
+    /// `--repeats` times each: to a schedule edit and back, to a storey
+    /// moved and back, and removing one more storey.
     scene: Option<PathBuf>,
     /// Builds of SCENE; the medians are reported.
     #[arg(long, default_value_t = 3)]
@@ -160,6 +163,19 @@ struct Repeated {
     /// of the same scene: the largest change of a cell's triangles, in
     /// percent (`hdlod bench paper`'s views).
     table_largest_change_percent: f64,
+    /// Geometry updates that each remove one more storey (every object of
+    /// it that stands still), from the storey the edit moved upwards.
+    removed_storeys: Vec<String>,
+    removed_objects: Vec<usize>,
+    removal_runs: Vec<Run>,
+    median_removal_wall_seconds: f64,
+    median_removal_cpu_seconds: f64,
+    /// Clusters the first removal made again and dropped.
+    removal_rebuilt_clusters: usize,
+    removal_dropped_clusters: usize,
+    /// Table 2 after the removals against a full build of the same scene,
+    /// as `table_largest_change_percent`.
+    removal_table_largest_change_percent: f64,
     /// The process's peak resident set over every build (and the scene's
     /// load), in bytes.
     peak_rss_bytes: u64,
@@ -261,6 +277,14 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         rebuilt_clusters: geometry.rebuilt,
         geometry_update_phases: geometry.phases,
         table_largest_change_percent: geometry.largest_change,
+        median_removal_wall_seconds: median_of(&geometry.removals.runs, |r| r.wall_seconds),
+        median_removal_cpu_seconds: median_of(&geometry.removals.runs, |r| r.cpu_seconds),
+        removed_storeys: geometry.removals.storeys,
+        removed_objects: geometry.removals.objects,
+        removal_runs: geometry.removals.runs,
+        removal_rebuilt_clusters: geometry.removals.rebuilt,
+        removal_dropped_clusters: geometry.removals.dropped,
+        removal_table_largest_change_percent: geometry.removals.largest_change,
         runs,
     };
     if args.json {
@@ -304,6 +328,20 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
                 .map(|(name, s)| format!("{name} {s:.2}"))
                 .collect();
             println!("  the first one's phases (s): {}", phases.join(", "));
+            println!(
+                "removals (one more storey each: {}; {:?} objects; the first made {} clusters \
+                 again and dropped {}): median of {}: {:.2} s wall, {:.2} s CPU ({:.1}% of a full \
+                 build's wall time); table 2 against a full build: cells within {:.2}%",
+                report.removed_storeys.join(", "),
+                report.removed_objects,
+                report.removal_rebuilt_clusters,
+                report.removal_dropped_clusters,
+                report.removal_runs.len(),
+                report.median_removal_wall_seconds,
+                report.median_removal_cpu_seconds,
+                100.0 * report.median_removal_wall_seconds / report.median_wall_seconds,
+                report.removal_table_largest_change_percent
+            );
         }
     }
     Ok(())
@@ -316,6 +354,17 @@ struct GeometryUpdates {
     runs: Vec<Run>,
     rebuilt: usize,
     phases: Vec<(String, f64)>,
+    largest_change: f64,
+    removals: Removals,
+}
+
+#[derive(Default)]
+struct Removals {
+    storeys: Vec<String>,
+    objects: Vec<usize>,
+    runs: Vec<Run>,
+    rebuilt: usize,
+    dropped: usize,
     largest_change: f64,
 }
 
@@ -394,22 +443,102 @@ fn geometry_updates(
     } else {
         scene
     };
+    result.largest_change = against_full(last, out, work)?;
+    let first = storeys
+        .iter()
+        .position(|s| *s == result.storey.as_deref().unwrap_or_default())
+        .unwrap_or(0);
+    let upwards: Vec<&str> = storeys[first..]
+        .iter()
+        .take(args.repeats.max(1))
+        .copied()
+        .collect();
+    result.removals = removals(args, last, &upwards, out, work)?;
+    Ok(result)
+}
+
+/// Geometry updates of the tree at `out`, which holds `scene`, each
+/// removing the objects that stand still on one more of `storeys`; then
+/// table 2 against a full build of what is left.
+fn removals(
+    args: &Args,
+    scene: &Scene,
+    storeys: &[&str],
+    out: &Path,
+    work: &Path,
+) -> anyhow::Result<Removals> {
+    let mut result = Removals::default();
+    let mut now = scene.clone();
+    for (k, storey) in storeys.iter().enumerate() {
+        let gone: std::collections::HashSet<String> = now
+            .objects
+            .iter()
+            .filter(|o| {
+                o.properties.get("storey").map(String::as_str) == Some(*storey)
+                    && o.motion.is_none()
+            })
+            .map(|o| o.id.clone())
+            .collect();
+        now.objects.retain(|o| !gone.contains(&o.id));
+        for task in &mut now.tasks {
+            task.objects.retain(|o| !gone.contains(o));
+        }
+        now.apply_schedule();
+        let (cpu, started) = (cpu_seconds(), Instant::now());
+        let (tree, _, how) = build_or_update_to(&now, &BuildConfig::default(), out, false, &Silent)
+            .with_context(|| format!("updating {}", out.display()))?;
+        let How::GeometryUpdate {
+            rebuilt, dropped, ..
+        } = how
+        else {
+            anyhow::bail!("the removal of {storey} was not a geometry update: {how:?}");
+        };
+        let run = Run {
+            wall_seconds: started.elapsed().as_secs_f64(),
+            cpu_seconds: cpu_seconds() - cpu,
+        };
+        drop(tree);
+        if k == 0 {
+            (result.rebuilt, result.dropped) = (rebuilt, dropped);
+        }
+        if !args.json {
+            eprintln!(
+                "removal {}/{} ({} objects of {storey}): {:.2} s wall, {:.2} s CPU, {rebuilt} \
+                 clusters made again, {dropped} dropped",
+                k + 1,
+                storeys.len(),
+                gone.len(),
+                run.wall_seconds,
+                run.cpu_seconds
+            );
+        }
+        result.storeys.push(storey.to_string());
+        result.objects.push(gone.len());
+        result.runs.push(run);
+    }
+    result.largest_change = against_full(&now, out, work)?;
+    Ok(result)
+}
+
+/// Table 2 of the tree at `out` against a full build of `scene`: the
+/// largest change of a cell's triangles, in percent.
+fn against_full(scene: &Scene, out: &Path, work: &Path) -> anyhow::Result<f64> {
     let full = work.join("full");
-    build_to(last, &BuildConfig::default(), &full, &Silent)
+    build_to(scene, &BuildConfig::default(), &full, &Silent)
         .with_context(|| format!("building {}", full.display()))?;
     let (updated, full_tree) = (hdlod::tree::load(out)?, hdlod::tree::load(&full)?);
     let table = |t: &hdlod::tree::Tree| {
         hdlod_fixtures::paper::table(t, &hdlod_fixtures::paper::Frame::whole(t), 30, 1)
     };
     let (a, b) = (table(&updated), table(&full_tree));
-    result.largest_change = a
+    let largest = a
         .rows
         .iter()
         .zip(&b.rows)
         .map(|(a, b)| 100.0 * (a.triangles - b.triangles).abs() / b.triangles.max(1.0))
         .fold(0.0, f64::max);
     std::fs::remove_dir_all(&full).with_context(|| format!("removing {}", full.display()))?;
-    Ok(result)
+    Ok(largest)
 }
 
 /// `scene` with every tenth construct task of objects that do not move a

@@ -65,6 +65,10 @@ struct Reused {
     edited_objects: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     added_objects: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    removed_objects: Option<usize>,
+    #[serde(skip_serializing_if = "Option::is_none")]
+    dropped_clusters: Option<usize>,
     geometry_files: usize,
     dissolved_groups: usize,
 }
@@ -115,6 +119,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rebuilt_clusters: None,
                 edited_objects: None,
                 added_objects: None,
+                removed_objects: None,
+                dropped_clusters: None,
                 geometry_files,
                 dissolved_groups: dissolved,
             }),
@@ -122,7 +128,9 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         How::GeometryUpdate {
             edited_objects,
             added_objects,
+            removed_objects,
             rebuilt,
+            dropped,
             geometry_files,
             dissolved,
         } => (
@@ -133,6 +141,8 @@ pub fn run(args: Args) -> anyhow::Result<()> {
                 rebuilt_clusters: Some(rebuilt),
                 edited_objects: Some(edited_objects),
                 added_objects: Some(added_objects),
+                removed_objects: Some(removed_objects),
+                dropped_clusters: Some(dropped),
                 geometry_files,
                 dissolved_groups: dissolved,
             }),
@@ -194,14 +204,17 @@ fn table(s: &Summary) -> String {
             s.scene, s.out, s.objects, s.clusters, s.levels, s.seconds
         ),
         Some(r) if r.rebuilt_clusters.is_some() => format!(
-            "updated the geometry of {} -> {}: {} objects ({} edited, {} added), {} clusters \
-             made again, {} kept with {} geometry files ({} groups dissolved), {:.2} s\n",
+            "updated the geometry of {} -> {}: {} objects ({} edited, {} added, {} removed), \
+             {} clusters made again, {} dropped, {} kept with {} geometry files ({} groups \
+             dissolved), {:.2} s\n",
             s.scene,
             s.out,
             s.objects,
             r.edited_objects.unwrap_or(0),
             r.added_objects.unwrap_or(0),
+            r.removed_objects.unwrap_or(0),
             r.rebuilt_clusters.unwrap_or(0),
+            r.dropped_clusters.unwrap_or(0),
             r.clusters,
             r.geometry_files,
             r.dissolved_groups,
