@@ -297,16 +297,6 @@ fn what_a_geometry_update_cannot_do_builds_in_full() {
         why
     };
 
-    let mut crane = scene.clone();
-    let moving = crane
-        .objects
-        .iter()
-        .position(|o| o.motion.is_some())
-        .expect("a moving object");
-    crane.objects[moving].color[0] *= 0.5;
-    let why = full_why(&crane);
-    assert!(why.contains("moving object"), "{why}");
-
     let mut most = scene.clone();
     for o in most.objects.iter_mut().filter(|o| o.motion.is_none()) {
         o.transform.w_axis.y += 0.1;
@@ -469,4 +459,82 @@ fn removed_objects_leave_tombstones_and_the_others_keep_their_feature_ids() {
         tree.objects.as_ref().unwrap().object_count(),
         back.objects.len()
     );
+}
+
+#[test]
+fn a_moving_object_edited_and_one_added_get_their_own_chains() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let before = load(&dir).unwrap();
+
+    let mut changed = scene.clone();
+    let moving = changed
+        .objects
+        .iter()
+        .position(|o| o.motion.as_ref().is_some_and(|m| m.moves()))
+        .expect("a moving object");
+    let id = changed.objects[moving].id.clone();
+    changed.objects[moving].color[0] *= 0.5;
+    let mut copy = changed.objects[moving].clone();
+    copy.id = "ADDED-MOVING".into();
+    copy.color = [0.9, 0.1, 0.1, 1.0];
+    changed.objects.push(copy);
+    // A second excavator on the first one's tasks.
+    for task in &mut changed.tasks {
+        if task.objects.contains(&id) {
+            task.objects.push("ADDED-MOVING".into());
+        }
+    }
+    changed.apply_schedule();
+    let old_leaves = before
+        .clusters()
+        .filter(|c| c.is_leaf() && c.objects == [id.clone()])
+        .count();
+    assert!(old_leaves > 0);
+
+    let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
+    let How::GeometryUpdate {
+        edited_objects,
+        added_objects,
+        removed_objects,
+        dropped,
+        ..
+    } = how
+    else {
+        panic!("{how:?}")
+    };
+    assert_eq!((edited_objects, added_objects, removed_objects), (1, 1, 0));
+    assert!(
+        dropped >= old_leaves,
+        "{dropped} dropped of {old_leaves} leaves"
+    );
+    let after = load(&dir).expect("the updated tree passes every check of the loader");
+    // Both objects have their leaves, each moving leaf under its own chain
+    // to the root, moving as its object.
+    for name in [id.as_str(), "ADDED-MOVING"] {
+        let leaves: Vec<_> = after
+            .clusters()
+            .filter(|c| c.is_leaf() && c.objects == [name])
+            .collect();
+        assert_eq!(leaves.len(), old_leaves, "{name}");
+        assert!(leaves.iter().any(|c| c.class == ClusterClass::Dynamic));
+        for leaf in leaves.iter().filter(|c| c.class == ClusterClass::Dynamic) {
+            assert_eq!(leaf.motion, changed.objects[moving].motion, "{name}");
+            let mut at = leaf.parent;
+            while let Some(c) = at.filter(|&c| c != after.root) {
+                assert_eq!(after.cluster(c).class, ClusterClass::Dynamic);
+                at = after.cluster(c).parent;
+            }
+        }
+    }
+    let tables = after.objects.as_ref().unwrap();
+    assert_eq!(tables.object_index(&id), Some(moving as u32));
+    cuts_as_full(&after, &changed, &config, tmp.path());
+
+    // The same scene again: a schedule update finds every leaf's piece.
+    let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
+    assert!(matches!(how, How::ScheduleUpdate { .. }), "{how:?}");
 }

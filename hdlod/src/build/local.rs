@@ -7,8 +7,10 @@
 //! The tree's groups stay as they were: an edited object's leaf is
 //! replaced in place, an added object joins the parent of the nearest leaf
 //! of its class (nearest in time first for the pseudo-dynamic class, as
-//! the build ranks candidates), and a removed object's leaves go with
-//! every cluster left without children. The scene comes in the old tree's
+//! the build ranks candidates), a moving piece gets its own LOD chain, and
+//! a removed object's leaves go with every cluster left without children.
+//! An edited object that is not one static or pseudo-dynamic leaf (a
+//! moving one) is removed and added again at its index. The scene comes in the old tree's
 //! object order, removed objects as tombstones (`super::align`). Each
 //! cluster above a changed leaf is made again from its children exactly as
 //! the build makes it (the union reduced within its level's budget,
@@ -17,8 +19,8 @@
 //! pass of [`super::update_schedule`] then recomputes every `v_c` and
 //! `gamma_c` from the leaves, so the scene's schedule may have moved too.
 //!
-//! What it does not do, and leaves to a full build: moving objects edited
-//! or added, objects that change class, trees with baked colour, and
+//! What it does not do, and leaves to a full build: objects whose geometry
+//! is the same but whose class changed, trees with baked colour, and
 //! changes to more than a quarter of the objects. The levels and their
 //! thresholds are the old tree's.
 
@@ -28,11 +30,12 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use rustc_hash::FxHashSet;
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use super::align::TOMBSTONE;
 use super::config::{BuildConfig, thresholds};
 use super::context::{Active, Context, bounds_of};
+use super::dynamic::dynamic_chains;
 use super::instances::{Instance, shapes_of, single_parents};
 use super::leaves::{Piece, leaf_mesh, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
@@ -41,7 +44,7 @@ use super::steps::StepFunction;
 use super::update::{Update, geometry_key, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
-use crate::scene::{Class, Scene};
+use crate::scene::{Class, Scene, Visibility};
 use crate::tree::sources::Digest;
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
 
@@ -61,10 +64,14 @@ pub struct Plan {
     kept: Vec<Option<usize>>,
     /// Old leaves whose object was edited.
     edited: Vec<u32>,
-    /// Old leaves whose object was removed, moving objects' included.
+    /// Old leaves of the removed and renewed objects.
     removed: Vec<u32>,
-    /// Pieces of the added objects, and the cluster each joins.
+    /// Static and pseudo-dynamic pieces of the added and renewed objects,
+    /// and the cluster each joins.
     added: Vec<(usize, u32)>,
+    /// Moving pieces of the added and renewed objects: each gets its LOD
+    /// chain under the root.
+    chains: Vec<usize>,
     stats: BuildStats,
     pub edited_objects: usize,
     pub added_objects: usize,
@@ -140,18 +147,13 @@ pub fn plan(
 
     let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
     let pieces = split_at_rest(&scene, &classes);
-    let clustered = |c: Class| matches!(c, Class::Static | Class::PseudoDynamic);
     let changed_class = || "an object changed class (static, pseudo-dynamic, dynamic or absent), so the leaves differ";
-    for p in pieces.iter().filter(|p| p.class == Class::Dynamic) {
-        if touched[p.object] {
-            return Err(format!(
-                "moving object {} was edited or added",
-                scene.objects[p.object].id
-            ));
-        }
-    }
-    // The build's order: the static and pseudo-dynamic leaves first, in
-    // the order of their pieces.
+    let class_of = |p: &Piece| match p.class {
+        Class::Static => ClusterClass::Static,
+        Class::PseudoDynamic => ClusterClass::PseudoDynamic,
+        _ => ClusterClass::Dynamic,
+    };
+    // The build's order: the static and pseudo-dynamic leaves first.
     let old_leaves: Vec<u32> = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root)
         .collect();
@@ -166,45 +168,83 @@ pub fn plan(
     {
         return Err("the tree's leaves are not in the build's order".into());
     }
-    let (kept, new): (Vec<usize>, Vec<usize>) = (0..pieces.len())
-        .filter(|&i| clustered(pieces[i].class))
-        .partition(|&i| pieces[i].object < before.len());
-    let dynamic = (0..pieces.len()).filter(|&i| pieces[i].class == Class::Dynamic);
-    let class_of = |p: &Piece| match p.class {
-        Class::Static => ClusterClass::Static,
-        Class::PseudoDynamic => ClusterClass::PseudoDynamic,
-        _ => ClusterClass::Dynamic,
-    };
-    // Each old leaf and its piece, in order, but for the removed objects'.
-    let mut expected = kept.iter().copied().chain(dynamic);
-    let mut leaf_pieces = Vec::with_capacity(old_leaves.len());
-    let mut removed = Vec::new();
+    let mut leaves_of: FxHashMap<&str, Vec<u32>> = FxHashMap::default();
     for &leaf in &old_leaves {
-        if old.object_count_of(leaf) == 1
-            && old.objects_of(leaf).iter().any(|o| removed_ids.contains(o))
-        {
-            removed.push(leaf);
-            leaf_pieces.push(None);
+        match old.objects_of(leaf)[..] {
+            [object] => leaves_of.entry(object).or_default().push(leaf),
+            _ => return Err(format!("leaf cluster {leaf} does not name one object")),
+        }
+    }
+    // An object's pieces in the order of its leaves: the static and
+    // pseudo-dynamic ones first, as the build numbers them.
+    let mut pieces_of: FxHashMap<usize, Vec<usize>> = FxHashMap::default();
+    for (i, p) in pieces.iter().enumerate() {
+        pieces_of.entry(p.object).or_default().push(i);
+    }
+    for of_object in pieces_of.values_mut() {
+        of_object.sort_by_key(|&i| pieces[i].class == Class::Dynamic);
+    }
+    let no_leaves: Vec<u32> = Vec::new();
+    let old_leaves_of = |k: usize| {
+        leaves_of
+            .get(scene.objects[k].id.as_str())
+            .unwrap_or(&no_leaves)
+    };
+    // An edited object that is one static or pseudo-dynamic leaf before and
+    // after is made again in place. Any other (a moving object, or one
+    // split where it stands still) is renewed: its old leaves go as a
+    // removed object's, its pieces come as an added object's.
+    let renewed: Vec<bool> = (0..sources.len())
+        .map(|k| {
+            if k >= before.len() || !touched[k] || sources[k] == TOMBSTONE {
+                return false;
+            }
+            let new = pieces_of.get(&k).map_or(&[][..], Vec::as_slice);
+            !matches!((&old_leaves_of(k)[..], new), ([leaf], [p])
+                if pieces[*p].class != Class::Dynamic
+                    && old.class_of(*leaf) == class_of(&pieces[*p]))
+        })
+        .collect();
+    // Each old leaf and its piece, but the removed and renewed objects':
+    // an object's leaves are its pieces in order.
+    let mut removed = Vec::new();
+    let mut leaf_pieces: FxHashMap<u32, usize> = FxHashMap::default();
+    for (k, new) in &pieces_of {
+        let old_ones = old_leaves_of(*k);
+        if *k >= before.len() || renewed[*k] {
             continue;
         }
-        let Some(p) = expected.next() else {
-            return Err(changed_class().into());
-        };
-        let piece = &pieces[p];
-        if old.class_of(leaf) != class_of(piece)
-            || !old.names_object(leaf, &scene.objects[piece.object].id)
-        {
+        if old_ones.len() != new.len() {
             return Err(changed_class().into());
         }
-        leaf_pieces.push(Some(p));
+        for (&leaf, &p) in old_ones.iter().zip(new) {
+            if old.class_of(leaf) != class_of(&pieces[p]) {
+                return Err(changed_class().into());
+            }
+            leaf_pieces.insert(leaf, p);
+        }
     }
-    if expected.next().is_some() {
+    for (k, _) in scene.objects.iter().enumerate().take(before.len()) {
+        if renewed[k] || removed_ids.contains(scene.objects[k].id.as_str()) {
+            removed.extend_from_slice(old_leaves_of(k));
+        }
+    }
+    if leaf_pieces.len() + removed.len() != old_leaves.len() {
         return Err(changed_class().into());
     }
-    let kept: Vec<Option<usize>> = leaf_pieces[..leaves].to_vec();
+    removed.sort_unstable();
+    let kept: Vec<Option<usize>> = (0..leaves as u32)
+        .map(|c| leaf_pieces.get(&c).copied())
+        .collect();
     let edited: Vec<u32> = (0..leaves as u32)
         .filter(|&c| kept[c as usize].is_some_and(|p| touched[pieces[p].object]))
         .collect();
+    // The pieces of the added and renewed objects: the static and
+    // pseudo-dynamic ones join a parent, the moving ones get a chain.
+    let fresh = |p: &Piece| p.object >= before.len() || renewed[p.object];
+    let (new, new_dynamic): (Vec<usize>, Vec<usize>) = (0..pieces.len())
+        .filter(|&i| fresh(&pieces[i]))
+        .partition(|&i| pieces[i].class != Class::Dynamic);
 
     // Each added piece joins the parent of the nearest old leaf of its
     // class.
@@ -283,11 +323,25 @@ pub fn plan(
         edited,
         removed,
         added,
+        chains: new_dynamic,
         stats,
         edited_objects,
         added_objects,
         removed_objects,
     })
+}
+
+/// What the update made, for the assembly: the edited leaves by old id, the
+/// added leaves, the added leaves each old cluster gains, the clusters
+/// made again by old id, and the new moving objects' chains (ids within
+/// `chains`) with their tops.
+struct Remade {
+    edited: HashMap<u32, Made>,
+    added: Vec<Made>,
+    joined: HashMap<u32, Vec<usize>>,
+    made: HashMap<u32, Made>,
+    chains: Vec<Cluster>,
+    tops: Vec<u32>,
 }
 
 /// A cluster's geometry while the update runs.
@@ -385,6 +439,14 @@ impl Plan {
             .par_iter()
             .map(|&(p, _)| leaf(p))
             .collect::<Result<_>>()?;
+        // The added and renewed moving objects' LOD chains, as the build
+        // makes them.
+        let moving: Vec<(usize, Visibility)> = (self.chains.iter())
+            .map(|&p| (self.pieces[p].object, self.pieces[p].visibility.clone()))
+            .collect();
+        progress.phase("dynamic", moving.len() as u64);
+        let mut chains = Vec::new();
+        let (tops, _) = dynamic_chains(scene, &moving, &ctx, &mut chains, progress)?;
         lap("leaves");
 
         // The clusters above a changed leaf, up to the root's children.
@@ -479,10 +541,17 @@ impl Plan {
                 clock.elapsed().as_secs_f64()
             );
         }
-        let rebuilt = edited.len() + added.len() + made.len();
+        let rebuilt = edited.len() + added.len() + made.len() + chains.len();
         lap("rebuild");
-        let mut updated =
-            self.assemble(old, config, edited, added, joined, made, &gone, rebuilt)?;
+        let remade = Remade {
+            edited,
+            added,
+            joined,
+            made,
+            chains,
+            tops,
+        };
+        let mut updated = self.assemble(old, config, remade, &gone, rebuilt)?;
         lap("schedule");
         // Each phase's own seconds, from the laps.
         let mut last = 0.0;
@@ -555,24 +624,29 @@ impl Plan {
     /// The new tree: the old clusters in their order but the `gone` ones,
     /// with the added leaves after the old ones, the changed clusters'
     /// geometry replaced, then the schedule pass over all of it.
-    #[allow(clippy::too_many_arguments)]
     fn assemble(
         self,
         old: &Tree,
         config: &BuildConfig,
-        mut edited: HashMap<u32, Made>,
-        added: Vec<Made>,
-        joined: HashMap<u32, Vec<usize>>,
-        mut made: HashMap<u32, Made>,
+        remade: Remade,
         gone: &[bool],
         rebuilt: usize,
     ) -> Result<Updated> {
+        let Remade {
+            mut edited,
+            added,
+            joined,
+            mut made,
+            chains,
+            tops,
+        } = remade;
         let n = old.cluster_count();
-        // New ids: the old leaves that stay, the added leaves, the rest.
+        // New ids: the old leaves that stay, the added leaves, the other
+        // old clusters, the new chains, the root.
         let mut new_ids = vec![None; n];
         let mut next = 0u32;
         let mut number = |range: std::ops::Range<usize>, next: &mut u32| {
-            for c in range.filter(|&c| !gone[c]) {
+            for c in range.filter(|&c| !gone[c] && c != old.root as usize) {
                 new_ids[c] = Some(*next);
                 *next += 1;
             }
@@ -581,6 +655,8 @@ impl Plan {
         let first_added = next;
         next += added.len() as u32;
         number(self.leaves..n, &mut next);
+        let first_chain = next;
+        new_ids[old.root as usize] = Some(next + chains.len() as u32);
         let new_id = |c: u32| new_ids[c as usize];
         let scene = &self.scene;
         let span = scene.time.seconds;
@@ -625,11 +701,23 @@ impl Plan {
             replace(&mut c, m);
             clusters.push(c);
         }
-        for id in (self.leaves as u32..n as u32).filter(|&c| new_id(c).is_some()) {
+        let root_last = (self.leaves as u32..n as u32)
+            .filter(|&c| c != old.root)
+            .chain([old.root]);
+        for id in root_last.filter(|&c| new_id(c).is_some()) {
+            if id == old.root {
+                clusters.extend(chains.iter().cloned().map(|mut c| {
+                    c.children.iter_mut().for_each(|k| *k += first_chain);
+                    c
+                }));
+            }
             let mut c = old.cluster(id).into_owned();
             c.children = c.children.iter().filter_map(|&k| new_id(k)).collect();
             if let Some(a) = joined.get(&id) {
                 c.children.extend(a.iter().map(|&a| first_added + a as u32));
+            }
+            if id == old.root {
+                c.children.extend(tops.iter().map(|&t| first_chain + t));
             }
             if let Some(m) = made.remove(&id) {
                 replace(&mut c, m);

@@ -361,32 +361,46 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
 }
 
 /// Each leaf cluster of `old` and the piece of `scene` it stands for, when
-/// the pieces are those the tree was built from: the same objects in the
-/// same classes, in the build's order (static and pseudo-dynamic leaves
-/// first, then the dynamic ones).
+/// the pieces are those the tree was built from: each object's leaves are
+/// its pieces, of the same classes, the static and pseudo-dynamic ones
+/// first. Matched by the objects'
+/// ids, as a geometry update may place an object's leaves after others'
+/// (`super::local`).
 fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap<u32, usize>> {
-    let clustered = (0..pieces.len())
-        .filter(|&i| matches!(pieces[i].class, Class::Static | Class::PseudoDynamic));
-    let dynamic = (0..pieces.len()).filter(|&i| pieces[i].class == Class::Dynamic);
+    let mut pieces_of: FxHashMap<&str, (Vec<usize>, usize)> = FxHashMap::default();
+    for (i, p) in pieces.iter().enumerate() {
+        let id = scene.objects[p.object].id.as_str();
+        pieces_of.entry(id).or_default().0.push(i);
+    }
+    // In the order of the object's leaves: the static and pseudo-dynamic
+    // ones first, as the build numbers them.
+    for (of_object, _) in pieces_of.values_mut() {
+        of_object.sort_by_key(|&i| pieces[i].class == Class::Dynamic);
+    }
     let leaves = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
     let mut out = FxHashMap::default();
-    let mut expected = clustered.chain(dynamic);
     for leaf in leaves {
-        let i = expected.next()?;
-        let piece = &pieces[i];
-        let class = match piece.class {
+        let [id] = old.objects_of(leaf)[..] else {
+            return None;
+        };
+        let (of_object, next) = pieces_of.get_mut(id)?;
+        let &i = of_object.get(*next)?;
+        *next += 1;
+        let class = match pieces[i].class {
             Class::Static => ClusterClass::Static,
             Class::PseudoDynamic => ClusterClass::PseudoDynamic,
             _ => ClusterClass::Dynamic,
         };
-        let id = scene.objects[piece.object].id.as_str();
-        if old.class_of(leaf) != class || old.objects_of(leaf) != [id] {
+        if old.class_of(leaf) != class {
             return None;
         }
         out.insert(leaf, i);
     }
-    expected.next().is_none().then_some(out)
+    pieces_of
+        .values()
+        .all(|(of_object, next)| *next == of_object.len())
+        .then_some(out)
 }
 
 /// The clusters without the dissolved ones, ids renumbered in the same
