@@ -481,7 +481,12 @@ fn a_moving_object_edited_and_one_added_get_their_own_chains() {
     let mut copy = changed.objects[moving].clone();
     copy.id = "ADDED-MOVING".into();
     copy.color = [0.9, 0.1, 0.1, 1.0];
+    // A third, without a task: there throughout, it stands still where
+    // its motion starts and ends, pieces that join groups.
+    let mut idle = copy.clone();
+    idle.id = "ADDED-IDLE".into();
     changed.objects.push(copy);
+    changed.objects.push(idle);
     // A second excavator on the first one's tasks.
     for task in &mut changed.tasks {
         if task.objects.contains(&id) {
@@ -506,7 +511,7 @@ fn a_moving_object_edited_and_one_added_get_their_own_chains() {
     else {
         panic!("{how:?}")
     };
-    assert_eq!((edited_objects, added_objects, removed_objects), (1, 1, 0));
+    assert_eq!((edited_objects, added_objects, removed_objects), (1, 2, 0));
     assert!(
         dropped >= old_leaves,
         "{dropped} dropped of {old_leaves} leaves"
@@ -530,6 +535,21 @@ fn a_moving_object_edited_and_one_added_get_their_own_chains() {
             }
         }
     }
+    let idle: Vec<_> = after
+        .clusters()
+        .filter(|c| c.is_leaf() && c.objects == ["ADDED-IDLE"])
+        .map(|c| c.class)
+        .collect();
+    assert_eq!(idle.len(), 3, "{idle:?}");
+    // Where it stands still before its motion it fits no group in time:
+    // that leaf has lone parents of its own, as a build gives it.
+    let lone = after.clusters().any(|c| {
+        c.is_leaf()
+            && c.objects == ["ADDED-IDLE"]
+            && c.class != ClusterClass::Dynamic
+            && after.cluster(c.parent.unwrap()).children.len() == 1
+    });
+    assert!(lone);
     let tables = after.objects.as_ref().unwrap();
     assert_eq!(tables.object_index(&id), Some(moving as u32));
     cuts_as_full(&after, &changed, &config, tmp.path());

@@ -7,7 +7,9 @@
 //! The tree's groups stay as they were: an edited object's leaf is
 //! replaced in place, an added object joins the parent of the nearest leaf
 //! of its class (nearest in time first for the pseudo-dynamic class, as
-//! the build ranks candidates), a moving piece gets its own LOD chain, and
+//! the build ranks candidates) or the first cluster above it that its
+//! visibility fits in time (else its own lone parents), a moving piece
+//! gets its own LOD chain, and
 //! a removed object's leaves go with every cluster left without children.
 //! An edited object that is not one static or pseudo-dynamic leaf (a
 //! moving one) is removed and added again at its index. The scene comes in the old tree's
@@ -67,8 +69,9 @@ pub struct Plan {
     /// Old leaves of the removed and renewed objects.
     removed: Vec<u32>,
     /// Static and pseudo-dynamic pieces of the added and renewed objects,
-    /// and the cluster each joins.
-    added: Vec<(usize, u32)>,
+    /// and the cluster each joins; none for a piece that fits no group in
+    /// time, which gets a chain of lone parents of its own.
+    added: Vec<(usize, Option<u32>)>,
     /// Moving pieces of the added and renewed objects: each gets its LOD
     /// chain under the root.
     chains: Vec<usize>,
@@ -303,16 +306,24 @@ pub fn plan(
             .iter()
             .min_by(|a, b| apart(a.1).cmp(&apart(b.1)).then(a.0.total_cmp(&b.0)))
             .expect("one at least");
-        let parent = old.cluster(best as u32).parent;
-        match parent {
-            Some(parent) if old.class_of(parent) != ClusterClass::Root => added.push((p, parent)),
-            _ => {
-                return Err(format!(
-                    "added object {} has no cluster to join",
-                    scene.objects[piece.object].id
-                ));
-            }
+        // Its parent, or the first cluster above it whose visibility the
+        // piece's is within that level's temporal threshold of: the group
+        // it joins would otherwise break it, and the schedule pass
+        // dissolve it and the groups above (the others' leaves handed up
+        // too), where only the new leaf need go up. A piece that fits none
+        // stands alone, as in a build it would group with none.
+        let mut at = old.cluster(best as u32).parent;
+        let fits = |c: u32| {
+            let cluster = old.cluster(c);
+            let gamma = thresholds(config, stats.scene_w, stats.levels, cluster.level).gamma;
+            span <= 0.0
+                || steps.l1_distance(&StepFunction::from_tree(&cluster.visibility), span) / span
+                    <= gamma
+        };
+        while let Some(c) = at.filter(|&c| old.class_of(c) != ClusterClass::Root && !fits(c)) {
+            at = old.cluster(c).parent;
         }
+        added.push((p, at.filter(|&c| old.class_of(c) != ClusterClass::Root)));
     }
     Ok(Plan {
         scene,
@@ -342,7 +353,12 @@ struct Remade {
     made: HashMap<u32, Made>,
     chains: Vec<Cluster>,
     tops: Vec<u32>,
+    /// The added leaves that fit no group, each with its lone parents.
+    alone: Vec<LoneChain>,
 }
+
+/// An added leaf (its place in the plan) and its lone parents by level.
+type LoneChain = (usize, Vec<(u32, Made)>);
 
 /// A cluster's geometry while the update runs.
 #[derive(Clone)]
@@ -452,8 +468,11 @@ impl Plan {
         // The clusters above a changed leaf, up to the root's children.
         let mut joined: HashMap<u32, Vec<usize>> = HashMap::new();
         for (a, &(_, parent)) in self.added.iter().enumerate() {
-            joined.entry(parent).or_default().push(a);
+            if let Some(parent) = parent {
+                joined.entry(parent).or_default().push(a);
+            }
         }
+        let alone = self.lone_chains(&ctx, &added, progress)?;
         // (level, id) of each, so that the levels come out in order.
         let mut dirty: Vec<(u32, u32)> = Vec::new();
         let mut seen = vec![false; old.cluster_count()];
@@ -541,7 +560,11 @@ impl Plan {
                 clock.elapsed().as_secs_f64()
             );
         }
-        let rebuilt = edited.len() + added.len() + made.len() + chains.len();
+        let rebuilt = edited.len()
+            + added.len()
+            + made.len()
+            + chains.len()
+            + alone.iter().map(|(_, c)| c.len()).sum::<usize>();
         lap("rebuild");
         let remade = Remade {
             edited,
@@ -550,6 +573,7 @@ impl Plan {
             made,
             chains,
             tops,
+            alone,
         };
         let mut updated = self.assemble(old, config, remade, &gone, rebuilt)?;
         lap("schedule");
@@ -560,6 +584,42 @@ impl Plan {
             last = at;
         }
         Ok(updated)
+    }
+
+    /// The lone parents of the added leaves that joined no group, level by
+    /// level as the build gives a cluster that groups with none: its own
+    /// parent reduced alone where that pays, else the cluster carried up
+    /// as it is.
+    fn lone_chains(
+        &self,
+        ctx: &Context,
+        added: &[Made],
+        progress: &dyn Progress,
+    ) -> Result<Vec<LoneChain>> {
+        let mut chains: Vec<LoneChain> = (self.added.iter().enumerate())
+            .filter(|(_, (_, parent))| parent.is_none())
+            .map(|(a, _)| (a, Vec::new()))
+            .collect();
+        if chains.is_empty() {
+            return Ok(chains);
+        }
+        let mut tops: Vec<Made> = chains.iter().map(|&(a, _)| added[a].clone()).collect();
+        for level in 1..=self.stats.levels {
+            progress.phase(&format!("lone level {level}"), tops.len() as u64);
+            let th = thresholds(ctx.config, self.stats.scene_w, self.stats.levels, level);
+            let children: Vec<Active> = tops.iter().cloned().map(active_of).collect();
+            let all: Vec<usize> = (0..children.len()).collect();
+            let singles = single_parents(ctx, &children, &all, &th);
+            for (k, single) in singles.into_iter().enumerate() {
+                if let Some(single) = single {
+                    let m = single_made(ctx, &children[k], single)?;
+                    chains[k].1.push((level, m.clone()));
+                    tops[k] = m;
+                }
+                progress.advance(1);
+            }
+        }
+        Ok(chains)
     }
 
     /// The piece old clustered leaf `c` stands for, its object not removed.
@@ -639,6 +699,7 @@ impl Plan {
             mut made,
             chains,
             tops,
+            alone,
         } = remade;
         let n = old.cluster_count();
         // New ids: the old leaves that stay, the added leaves, the other
@@ -656,7 +717,8 @@ impl Plan {
         next += added.len() as u32;
         number(self.leaves..n, &mut next);
         let first_chain = next;
-        new_ids[old.root as usize] = Some(next + chains.len() as u32);
+        let lone_parents: usize = alone.iter().map(|(_, c)| c.len()).sum();
+        new_ids[old.root as usize] = Some(next + (chains.len() + lone_parents) as u32);
         let new_id = |c: u32| new_ids[c as usize];
         let scene = &self.scene;
         let span = scene.time.seconds;
@@ -677,27 +739,9 @@ impl Plan {
         }
         for ((p, _), m) in self.added.iter().zip(added) {
             let piece = &self.pieces[*p];
-            let class = match piece.class {
-                Class::Static => ClusterClass::Static,
-                _ => ClusterClass::PseudoDynamic,
-            };
-            let steps = StepFunction::of_visibility(&piece.visibility, span);
-            let mut c = Cluster {
-                id: 0,
-                parent: None,
-                children: Vec::new(),
-                level: 0,
-                class,
-                bounds: Aabb::from_f32(m.lo, m.hi),
-                w: 0.0,
-                eps: 0.0,
-                gamma: 0.0,
-                visibility: steps.to_tree(),
-                motion: None,
-                geometry: None,
-                triangles: 0,
-                objects: vec![scene.objects[piece.object].id.clone()],
-            };
+            let mut c = lone_record(piece, 0, 0, span);
+            c.children.clear();
+            c.objects = vec![scene.objects[piece.object].id.clone()];
             replace(&mut c, m);
             clusters.push(c);
         }
@@ -705,11 +749,24 @@ impl Plan {
             .filter(|&c| c != old.root)
             .chain([old.root]);
         for id in root_last.filter(|&c| new_id(c).is_some()) {
+            let mut alone_tops = Vec::new();
             if id == old.root {
                 clusters.extend(chains.iter().cloned().map(|mut c| {
                     c.children.iter_mut().for_each(|k| *k += first_chain);
                     c
                 }));
+                for (a, parents) in &alone {
+                    let (p, _) = self.added[*a];
+                    let piece = &self.pieces[p];
+                    let mut below = first_added + *a as u32;
+                    for (level, m) in parents {
+                        let mut c = lone_record(piece, *level, below, span);
+                        replace(&mut c, m.clone());
+                        below = clusters.len() as u32;
+                        clusters.push(c);
+                    }
+                    alone_tops.push(below);
+                }
             }
             let mut c = old.cluster(id).into_owned();
             c.children = c.children.iter().filter_map(|&k| new_id(k)).collect();
@@ -718,6 +775,7 @@ impl Plan {
             }
             if id == old.root {
                 c.children.extend(tops.iter().map(|&t| first_chain + t));
+                c.children.extend(alone_tops);
             }
             if let Some(m) = made.remove(&id) {
                 replace(&mut c, m);
@@ -774,6 +832,50 @@ impl Plan {
     }
 }
 
+/// The record of a cluster of `piece`'s class at `level` over `child`
+/// (its geometry, box and errors set by the caller; its visibility the
+/// piece's until the schedule pass).
+fn lone_record(piece: &Piece, level: u32, child: u32, span: f64) -> Cluster {
+    Cluster {
+        id: 0,
+        parent: None,
+        children: vec![child],
+        level,
+        class: match piece.class {
+            Class::Static => ClusterClass::Static,
+            _ => ClusterClass::PseudoDynamic,
+        },
+        bounds: Aabb::from_f32(Vec3::ZERO, Vec3::ZERO),
+        w: 0.0,
+        eps: 0.0,
+        gamma: 0.0,
+        visibility: StepFunction::of_visibility(&piece.visibility, span).to_tree(),
+        motion: None,
+        geometry: None,
+        triangles: 0,
+        objects: Vec::new(),
+    }
+}
+
+/// `child`'s own parent, reduced alone to `single` as the build stores it.
+fn single_made(ctx: &Context, child: &Active, single: Single) -> Result<Made> {
+    let Single { mesh, eps, .. } = single;
+    let stored = ctx.sink.put(&mesh, None, eps * QUANTIZATION_SHARE)?;
+    let (lo, hi) = bounds_of(std::slice::from_ref(child));
+    let (lo, hi) = mesh
+        .bounds()
+        .map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi)));
+    Ok(Made {
+        mesh: Arc::new(mesh),
+        eps: eps + stored.moved,
+        lo,
+        hi,
+        hash: stored.hash,
+        originals: child.originals.clone(),
+        instance: None,
+    })
+}
+
 fn active_of(m: Made) -> Active {
     Active {
         id: 0,
@@ -827,22 +929,7 @@ fn lone_remade(
         .zip(singles)
         .map(|((c, child), single)| {
             let out = match single {
-                Some(Single { mesh, eps, .. }) => {
-                    let stored = ctx.sink.put(&mesh, None, eps * QUANTIZATION_SHARE)?;
-                    let (lo, hi) = bounds_of(std::slice::from_ref(child));
-                    let (lo, hi) = mesh
-                        .bounds()
-                        .map_or((lo, hi), |(l, h)| (l.min(lo), h.max(hi)));
-                    Made {
-                        mesh: Arc::new(mesh),
-                        eps: eps + stored.moved,
-                        lo,
-                        hi,
-                        hash: stored.hash,
-                        originals: child.originals.clone(),
-                        instance: None,
-                    }
-                }
+                Some(single) => single_made(ctx, child, single)?,
                 None => remade(ctx, std::slice::from_ref(child), th)?,
             };
             progress.advance(1);
