@@ -125,7 +125,7 @@ pub fn hausdorff(a: &Mesh, b: &Mesh, options: &HausdorffOptions) -> Hausdorff {
     let set_a = TriangleSet::new(tris_a.iter().copied());
     let set_b = TriangleSet::new(tris_b.iter().copied());
     let full = |a, b, seed| {
-        one_way(a, b, tolerance, Some(seed), f32::INFINITY)
+        one_way(a, b, tolerance, Some(seed), f32::INFINITY, 0.0)
             .expect("no distance exceeds an infinite budget")
     };
     let ab = full(&tris_a, &set_b, options.seed);
@@ -162,7 +162,7 @@ pub fn one_sided_bound(a: &Mesh, b: &TriangleSet, tolerance: f32) -> f32 {
     // rounding scale.
     let max_coordinate = lo.abs().max(hi.abs()).max_element();
     let tolerance = tolerance.max(MIN_RELATIVE_TOLERANCE * (hi - lo).length());
-    one_way(&tris, b, tolerance, None, f32::INFINITY)
+    one_way(&tris, b, tolerance, None, f32::INFINITY, 0.0)
         .expect("no distance exceeds an infinite budget")
         .upper
         + ROUNDING_SLACK * max_coordinate
@@ -198,7 +198,9 @@ pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f
     let mut bound = 0.0f32;
     for (from, to) in [(second, first), (first, second)] {
         let set = TriangleSet::new(to.iter().copied());
-        bound = bound.max(one_way(from, &set, tolerance, None, within)?.upper);
+        // The second direction need only be measured as far as it could
+        // raise the first's bound.
+        bound = bound.max(one_way(from, &set, tolerance, None, within, bound)?.upper);
     }
     let bound = bound + slack;
     (bound <= budget).then_some(bound)
@@ -253,16 +255,32 @@ fn piece_upper(
     d: &[f32; 3],
     nearest: &[u32; 3],
     lower: &mut f32,
-    tolerance: f32,
+    settle: Settle,
 ) -> f32 {
     let mut upper = triangle_upper(b, c, d, nearest);
-    if upper > *lower + tolerance {
+    if upper > settle.at(*lower) {
         upper = centroid_bound(distance, b, c, d, nearest, upper, lower);
     }
-    if upper > *lower + tolerance {
+    if upper > settle.at(*lower) {
         upper = star_bound(b, c, nearest, upper);
     }
     upper
+}
+
+/// When a piece is settled: its bound within the tolerance of the lower
+/// bound, or within the `floor` below which the caller need not know the
+/// distance.
+#[derive(Clone, Copy)]
+struct Settle {
+    tolerance: f32,
+    floor: f32,
+}
+
+impl Settle {
+    /// The largest bound of a settled piece, given the lower bound.
+    fn at(self, lower: f32) -> f32 {
+        (lower + self.tolerance).max(self.floor)
+    }
 }
 
 /// Where the corners' nearest triangles meet at a corner `v` of B (a fan:
@@ -724,21 +742,25 @@ pub(super) fn one_way_within(
     if b.is_empty() {
         return None;
     }
-    one_way(a, b, tolerance, None, within)
+    one_way(a, b, tolerance, None, within, 0.0)
         .map(|w| w.upper)
         .filter(|&d| d <= within)
 }
 
 /// Bounds `sup_{a in A} d(a, B)` for the triangles `a` of A against the
 /// non-empty set `b`, and, given a seed, samples A's surface for the mean
-/// and RMS. `None` as soon as a measured distance exceeds `budget`.
+/// and RMS. `None` as soon as a measured distance exceeds `budget`. A piece
+/// whose bound is within `floor` is settled however far it is from the
+/// lower bound: the caller takes the larger of the result and `floor`.
 fn one_way(
     a: &[[Vec3; 3]],
     b: &TriangleSet,
     tolerance: f32,
     seed: Option<u64>,
     budget: f32,
+    floor: f32,
 ) -> Option<OneWay> {
+    let settle = Settle { tolerance, floor };
     let mut hint = None;
     let mut distance = |p: Vec3, h: Option<u32>| -> (f32, u32) {
         // `b` is not empty, so a nearest triangle always exists.
@@ -817,8 +839,8 @@ fn one_way(
         if lower > budget {
             return None;
         }
-        let upper = piece_upper(&mut distance, b, t, d, near, &mut lower, tolerance);
-        if upper <= lower + tolerance {
+        let upper = piece_upper(&mut distance, b, t, d, near, &mut lower, settle);
+        if upper <= settle.at(lower) {
             settled = settled.max(upper);
         } else {
             open.push(Open {
@@ -834,7 +856,7 @@ fn one_way(
         if lower > budget {
             return None;
         }
-        if t.upper <= lower + tolerance || t.depth >= MAX_DEPTH || open.len() >= MAX_OPEN {
+        if t.upper <= settle.at(lower) || t.depth >= MAX_DEPTH || open.len() >= MAX_OPEN {
             // The largest open bound: nothing left open can exceed it.
             settled = settled.max(t.upper);
             break;
@@ -880,8 +902,8 @@ fn one_way(
         };
         let step = if count == 2 { 1 } else { 2 };
         for &(c, d, near) in &children[..count] {
-            let u = piece_upper(&mut distance, b, &c, &d, &near, &mut lower, tolerance);
-            if u <= lower + tolerance {
+            let u = piece_upper(&mut distance, b, &c, &d, &near, &mut lower, settle);
+            if u <= settle.at(lower) {
                 settled = settled.max(u);
             } else {
                 open.push(Open {
