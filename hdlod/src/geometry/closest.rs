@@ -19,6 +19,11 @@ use obvhs::ploc::{PlocBuilder, PlocSearchDistance, SortPrecision};
 /// builder calls the Hausdorff bound on thousands of small clusters.
 const BRUTE_FORCE_MAX: usize = 32;
 
+/// How much farther than the best distance (squared) a triangle's box must
+/// be to be passed over: the box distance in `f32` is within a few units
+/// in the last place of the true one, far less than this.
+const BOX_MARGIN: f32 = 1.0 + 1e-4;
+
 /// The point of triangle `abc` closest to `p`. Degenerate triangles (points,
 /// segments) are handled: the answer is then the closest point of the
 /// triangle's edges.
@@ -342,6 +347,15 @@ impl TriangleSet {
         };
         let visit = |i: usize, best: &mut Nearest| {
             let t = &self.tris[i];
+            // The triangle's box is no farther than the triangle: a box
+            // farther than the best so far, by more than rounding in `f32`
+            // could make it seem, holds no nearer point, and the closest
+            // point in double precision is not needed.
+            let (lo, hi) = (t.a.min(t.b).min(t.c), t.a.max(t.b).max(t.c));
+            let to_box = (lo - p).max(p - hi).max(Vec3A::ZERO).length_squared();
+            if to_box > best.distance_squared * BOX_MARGIN {
+                return;
+            }
             let d = closest_point_on_triangle(p, t.a, t.b, t.c).distance_squared(p);
             if d < best.distance_squared {
                 *best = Nearest {
