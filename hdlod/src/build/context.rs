@@ -2,7 +2,7 @@
 //! while the level above it is made (`Active`), and the one place a
 //! cluster record is written (`Node`, `add`).
 
-use std::sync::Arc;
+use std::sync::{Arc, Mutex, OnceLock};
 
 use glam::Vec3;
 
@@ -10,8 +10,8 @@ use super::config::BuildConfig;
 use super::instances::Instance;
 use super::outputs::GeometrySink;
 use super::steps::StepFunction;
-use crate::geometry::Mesh;
 use crate::geometry::bake::{Baked, Source};
+use crate::geometry::{Mesh, Parts};
 use crate::scene::Motion;
 use crate::tree::{Aabb, Cluster, ClusterClass};
 
@@ -49,6 +49,9 @@ pub(super) struct Active {
     pub originals: Option<Vec<Arc<Mesh>>>,
     /// A leaf's shape and place, when other leaves share the shape.
     pub instance: Option<Instance>,
+    /// Its mesh's parts and what their stand-ins measured, once it has been
+    /// reduced alone (`parent::single_parent`): kept while it stays alone.
+    pub parts: OnceLock<Mutex<Parts<Arc<Mesh>>>>,
 }
 
 /// The box around the boxes of `children`.

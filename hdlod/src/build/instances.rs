@@ -26,7 +26,7 @@ use rayon::prelude::*;
 use super::config::Thresholds;
 use super::context::{Active, Context};
 use super::parent::{Single, bake_colour, reduce_lone, single_parent};
-use crate::geometry::{self, Mesh, Part};
+use crate::geometry::{self, Mesh, Part, Parts};
 
 /// A leaf's shape (an index into `Context::shapes`) and where it is.
 #[derive(Debug, Clone, Copy)]
@@ -95,7 +95,10 @@ pub(super) fn single_parents(
     shapes.dedup();
     let reduced: HashMap<u32, Option<(Mesh, f32)>> = shapes
         .par_iter()
-        .map(|&s| (s, reduce_lone(ctx, &ctx.shapes[s as usize], 0.0, th)))
+        .map(|&s| {
+            let mut parts = Parts::new(&*ctx.shapes[s as usize]);
+            (s, reduce_lone(ctx, &mut parts, 0.0, th))
+        })
         .collect();
     alone
         .par_iter()

@@ -180,6 +180,7 @@ pub(super) fn leaves(
             mesh,
             baked: None,
             instance,
+            parts: Default::default(),
         });
     }
     Ok(leaves)

@@ -112,6 +112,7 @@ pub(super) fn cluster_class(
                 mesh: Arc::new(mesh),
                 baked: baked.map(Arc::new),
                 instance: None,
+                parts: Default::default(),
             });
         }
         let grouped = clock.elapsed();
@@ -177,6 +178,7 @@ pub(super) fn cluster_class(
                 mesh: Arc::new(mesh),
                 baked: baked.map(Arc::new),
                 instance: None,
+                parts: Default::default(),
                 ..a
             });
         }

@@ -889,6 +889,7 @@ fn active_of(m: Made) -> Active {
         baked: None,
         originals: m.originals,
         instance: m.instance,
+        parts: Default::default(),
     }
 }
 

@@ -3,7 +3,8 @@
 //! (docs/method.md section 2). Also the parent a lone cluster gets of its
 //! own, and the reduction the dynamic LOD chains share.
 
-use std::sync::Arc;
+use std::borrow::Borrow;
+use std::sync::{Arc, Mutex};
 
 use glam::Mat4;
 
@@ -12,7 +13,7 @@ use super::context::{Active, Context};
 use super::outputs::QUANTIZATION_SHARE;
 use crate::Result;
 use crate::geometry::bake::{self, BakeOptions, Baked, Source};
-use crate::geometry::{self, ErrorMetric, Mesh, Part, SimplifyOptions, Strategy};
+use crate::geometry::{self, ErrorMetric, Mesh, Part, Parts, SimplifyOptions, Strategy};
 
 /// A parent made by `make_parent`: its geometry, `eps_c`, geometry hash,
 /// baked colour and the originals below it (if kept).
@@ -197,7 +198,15 @@ pub(super) struct Single {
 /// within `eps(l)`, when that keeps at most `min_reduction` of its
 /// triangles.
 pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> Option<Single> {
-    let (mesh, h) = reduce_lone(ctx, &child.mesh, child.eps, th)?;
+    // A cluster that stays alone keeps its parts from level to level: the
+    // next level's budget is about twice this one's, so its half is
+    // answered by what this one measured.
+    let cache = child
+        .parts
+        .get_or_init(|| Mutex::new(Parts::new(child.mesh.clone())));
+    let mut parts = cache.lock().expect("no panic while holding");
+    let (mesh, h) = reduce_lone(ctx, &mut parts, child.eps, th)?;
+    drop(parts);
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
     let eps = stored_eps(
         &mesh,
@@ -220,19 +229,19 @@ pub(super) fn single_parent(ctx: &Context, child: &Active, th: &Thresholds) -> O
 /// A lone cluster's `mesh` (of error `child_eps`) reduced within the
 /// level's budget and the measured bound, when that keeps at most
 /// `min_reduction` of its triangles.
-pub(super) fn reduce_lone(
+pub(super) fn reduce_lone<M: Borrow<Mesh>>(
     ctx: &Context,
-    mesh: &Mesh,
+    parts: &mut Parts<M>,
     child_eps: f64,
     th: &Thresholds,
 ) -> Option<(Mesh, f32)> {
-    let triangles = mesh.triangle_count();
+    let triangles = parts.mesh().triangle_count();
     if (triangles as f64) * ctx.config.min_reduction < QUAD_TRIANGLES {
         return None;
     }
     let budget = (th.eps - child_eps) as f32;
     let tolerance = (ctx.config.hausdorff_fraction * th.eps) as f32;
-    let (reduced, h) = reduce_within(mesh, budget, tolerance, ctx.config.error_metric)?;
+    let (reduced, h) = reduce_parts_within(parts, budget, tolerance, ctx.config.error_metric)?;
     (reduced.triangle_count() as f64 <= triangles as f64 * ctx.config.min_reduction)
         .then_some((reduced, h))
 }
@@ -257,6 +266,17 @@ pub(super) fn reduce_within(
     tolerance: f32,
     metric: ErrorMetric,
 ) -> Option<(Mesh, f32)> {
+    reduce_parts_within(&mut Parts::new(mesh), budget, tolerance, metric)
+}
+
+/// [`reduce_within`] of the mesh of `parts`, with what they measured
+/// before.
+fn reduce_parts_within<M: Borrow<Mesh>>(
+    parts: &mut Parts<M>,
+    budget: f32,
+    tolerance: f32,
+    metric: ErrorMetric,
+) -> Option<(Mesh, f32)> {
     if budget <= 0.0 {
         return None;
     }
@@ -266,7 +286,6 @@ pub(super) fn reduce_within(
     // is over the half; one measured within half of it fits the half).
     // The other order measured twice what failed the half and fits the
     // whole, the most common outcome.
-    let mut parts = geometry::Parts::new(mesh);
     for share in [1.0, 0.5] {
         let r = parts.reduce(budget * share, tolerance * share, metric);
         if share == 1.0
@@ -276,6 +295,7 @@ pub(super) fn reduce_within(
         }
         candidates.push((r.mesh, r.bound));
     }
+    let mesh = parts.mesh();
     // Worth its cost only where the parts gave little.
     if candidates
         .iter()

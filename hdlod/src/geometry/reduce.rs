@@ -23,6 +23,8 @@
 //! point lies on a kept part's output, every input point is either on a
 //! kept part or covered), so the bound returned is a bound.
 
+use std::borrow::Borrow;
+
 use glam::Vec3;
 
 use super::Mesh;
@@ -66,9 +68,11 @@ pub fn reduce_parts(mesh: &Mesh, budget: f32, tolerance: f32, metric: ErrorMetri
 /// smaller budget fits a larger one; one over a larger budget is over a
 /// smaller one). A builder reduces every cluster at two shares of its
 /// budget, and the Hausdorff bounds of the candidates are most of a
-/// build's time.
-pub struct Parts<'a> {
-    mesh: &'a Mesh,
+/// build's time. The mesh is borrowed or owned (`M`): a builder keeps the
+/// parts of a cluster that stays alone from level to level, and measures
+/// only what the larger budget asks anew.
+pub struct Parts<M: Borrow<Mesh>> {
+    mesh: M,
     parts: Vec<PartState>,
 }
 
@@ -259,15 +263,16 @@ impl PartState {
     }
 }
 
-impl<'a> Parts<'a> {
-    pub fn new(mesh: &'a Mesh) -> Self {
-        let parts = parts(mesh)
+impl<M: Borrow<Mesh>> Parts<M> {
+    pub fn new(mesh: M) -> Self {
+        let whole: &Mesh = mesh.borrow();
+        let parts = parts(whole)
             .into_iter()
             .map(|triangles| {
                 let mut input = Mesh::default();
-                push_triangles(&mut input, mesh, &triangles);
-                let (lo, hi) = part_bounds(mesh, &triangles);
-                let look = part_look(mesh, &triangles);
+                push_triangles(&mut input, whole, &triangles);
+                let (lo, hi) = part_bounds(whole, &triangles);
+                let look = part_look(whole, &triangles);
                 PartState {
                     input,
                     welded: None,
@@ -281,12 +286,17 @@ impl<'a> Parts<'a> {
         Parts { mesh, parts }
     }
 
+    /// The mesh the parts are of.
+    pub fn mesh(&self) -> &Mesh {
+        self.mesh.borrow()
+    }
+
     /// The mesh reduced part by part within `budget` (scene units) of
     /// `metric`; `tolerance` is the gap allowed between the measured
     /// bounds and the true distances. Never returns more triangles than it
     /// was given.
     pub fn reduce(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
-        let mesh = self.mesh;
+        let mesh: &Mesh = self.mesh.borrow();
         let stand_ins: Vec<(Mesh, f32)> = self
             .parts
             .iter_mut()
