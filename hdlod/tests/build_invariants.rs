@@ -9,8 +9,8 @@ use std::sync::OnceLock;
 
 use glam::Vec3;
 use hdlod::build::{BuildConfig, Silent, StepFunction, build_to};
+use hdlod::geometry::ErrorMetric;
 use hdlod::geometry::Mesh;
-use hdlod::geometry::{ErrorMetric, HausdorffOptions, hausdorff};
 use hdlod::io::gltf::{read_mesh, read_textured_mesh};
 use hdlod::io::texture::decode_png;
 use hdlod::scene::{Class, Scene, format};
@@ -268,25 +268,7 @@ fn eps_bounds_the_distance(b: &Built) {
         if c.id % 5 != 0 {
             continue;
         }
-        let geometry = read_mesh(&b.tree.geometry_file(&b.dir, c.geometry.as_ref().unwrap()))
-            .expect("cluster geometry reads");
-        let union = common::objects_below(&b.tree, &b.scene, c.id);
-        let h = hausdorff(
-            &geometry,
-            &union,
-            &HausdorffOptions {
-                tolerance: (c.eps * 0.01).max(1e-4) as f32,
-                seed: 1,
-            },
-        );
-        assert!(
-            f64::from(h.lower) <= c.eps + 1e-4,
-            "cluster {} (level {}): distance {} to its objects above its eps {}",
-            c.id,
-            c.level,
-            h.lower,
-            c.eps
-        );
+        common::assert_eps_bound(&b.tree, &b.dir, &b.scene, &c);
         checked += 1;
     }
     assert!(checked >= 10, "only {checked} clusters checked");

@@ -9,7 +9,6 @@ use std::path::Path;
 
 use glam::{DVec3, Vec3};
 use hdlod::build::{BuildConfig, How, Silent, build_or_update_to, build_to};
-use hdlod::geometry::{HausdorffOptions, hausdorff};
 use hdlod::io::gltf::read_mesh;
 use hdlod::scene::{Scene, format};
 use hdlod::tree::cut::cut;
@@ -43,6 +42,35 @@ fn edited(scene: &Scene) -> (Scene, usize) {
     scene.objects.push(added);
     scene.apply_schedule();
     (scene, edited)
+}
+
+/// The tiny site built into a temporary directory (removed when `tmp` is
+/// dropped): its tree and the tree's geometry files.
+struct Built {
+    scene: Scene,
+    config: BuildConfig,
+    tmp: tempfile::TempDir,
+    dir: std::path::PathBuf,
+    before: Tree,
+    before_files: HashSet<String>,
+}
+
+fn built() -> Built {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    build_to(&scene, &config, &dir, &Silent).unwrap();
+    let before = load(&dir).unwrap();
+    let before_files = files(&before);
+    Built {
+        scene,
+        config,
+        tmp,
+        dir,
+        before,
+        before_files,
+    }
 }
 
 fn files(tree: &Tree) -> HashSet<String> {
@@ -91,24 +119,7 @@ fn remade_bounds_hold(
             && matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic)
             && !before_files.contains(c.geometry.as_ref().unwrap())
     }) {
-        let geometry = read_mesh(&after.geometry_file(dir, c.geometry.as_ref().unwrap())).unwrap();
-        let objects = common::objects_below(after, scene, c.id);
-        let h = hausdorff(
-            &geometry,
-            &objects,
-            &HausdorffOptions {
-                tolerance: (c.eps * 0.01).max(1e-4) as f32,
-                seed: 1,
-            },
-        );
-        assert!(
-            f64::from(h.lower) <= c.eps + 1e-4,
-            "cluster {} (level {}): distance {} above its eps {}",
-            c.id,
-            c.level,
-            h.lower,
-            c.eps
-        );
+        common::assert_eps_bound(after, dir, scene, &c);
         checked += 1;
     }
     checked
@@ -147,13 +158,14 @@ fn cuts_as_full(after: &Tree, scene: &Scene, config: &BuildConfig, tmp: &Path) {
 
 #[test]
 fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
-    let scene = tiny();
-    let config = BuildConfig::default();
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("tree");
-    build_to(&scene, &config, &dir, &Silent).unwrap();
-    let before = load(&dir).unwrap();
-    let before_files = files(&before);
+    let Built {
+        scene,
+        config,
+        tmp,
+        dir,
+        before,
+        before_files,
+    } = built();
 
     let (changed, storey) = edited(&scene);
     let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
@@ -320,13 +332,14 @@ fn without(scene: &Scene, gone: &HashSet<String>) -> Scene {
 
 #[test]
 fn removed_objects_leave_tombstones_and_the_others_keep_their_feature_ids() {
-    let scene = tiny();
-    let config = BuildConfig::default();
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("tree");
-    build_to(&scene, &config, &dir, &Silent).unwrap();
-    let before = load(&dir).unwrap();
-    let before_files = files(&before);
+    let Built {
+        scene,
+        config,
+        tmp,
+        dir,
+        before,
+        before_files,
+    } = built();
     let index_before: HashMap<String, u32> = (0..scene.objects.len())
         .map(|i| (scene.objects[i].id.clone(), i as u32))
         .collect();
@@ -463,12 +476,14 @@ fn removed_objects_leave_tombstones_and_the_others_keep_their_feature_ids() {
 
 #[test]
 fn a_moving_object_edited_and_one_added_get_their_own_chains() {
-    let scene = tiny();
-    let config = BuildConfig::default();
-    let tmp = tempfile::tempdir().unwrap();
-    let dir = tmp.path().join("tree");
-    build_to(&scene, &config, &dir, &Silent).unwrap();
-    let before = load(&dir).unwrap();
+    let Built {
+        scene,
+        config,
+        tmp,
+        dir,
+        before,
+        ..
+    } = built();
 
     let mut changed = scene.clone();
     let moving = changed

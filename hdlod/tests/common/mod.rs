@@ -449,6 +449,35 @@ pub fn leaves_below(tree: &hdlod::tree::Tree, id: u32) -> Vec<u32> {
 /// each placed where it is at a time its leaf shows it (a moving object's
 /// resting part at its held pose): what the cluster's `eps` bounds the
 /// distance to.
+/// Checks that the geometry of cluster `c` of the tree at `dir` lies within
+/// its `eps` of the objects of `scene` below it, measured to 1% of it.
+pub fn assert_eps_bound(
+    tree: &hdlod::tree::Tree,
+    dir: &Path,
+    scene: &Scene,
+    c: &hdlod::tree::Cluster,
+) {
+    let file = tree.geometry_file(dir, c.geometry.as_ref().expect("geometry"));
+    let geometry = hdlod::io::gltf::read_mesh(&file).expect("cluster geometry reads");
+    let union = objects_below(tree, scene, c.id);
+    let h = hdlod::geometry::hausdorff(
+        &geometry,
+        &union,
+        &hdlod::geometry::HausdorffOptions {
+            tolerance: (c.eps * 0.01).max(1e-4) as f32,
+            seed: 1,
+        },
+    );
+    assert!(
+        f64::from(h.lower) <= c.eps + 1e-4,
+        "cluster {} (level {}): distance {} to its objects above its eps {}",
+        c.id,
+        c.level,
+        h.lower,
+        c.eps
+    );
+}
+
 pub fn objects_below(tree: &hdlod::tree::Tree, scene: &Scene, id: u32) -> Mesh {
     let objects: std::collections::HashMap<&str, &Object> =
         scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
