@@ -26,6 +26,31 @@ pub(super) struct Piece {
     pub visibility: Visibility,
 }
 
+impl Piece {
+    /// The class of the leaf cluster it becomes.
+    pub fn cluster_class(&self) -> ClusterClass {
+        match self.class {
+            Class::Static => ClusterClass::Static,
+            Class::PseudoDynamic => ClusterClass::PseudoDynamic,
+            _ => ClusterClass::Dynamic,
+        }
+    }
+}
+
+/// Each object's pieces (by object index), in the order of its leaves in a
+/// built tree: the static and pseudo-dynamic ones first, as the build
+/// numbers the leaves. What an update matches an object's old leaves with.
+pub(super) fn pieces_by_object(pieces: &[Piece]) -> FxHashMap<usize, Vec<usize>> {
+    let mut out: FxHashMap<usize, Vec<usize>> = FxHashMap::default();
+    for (i, p) in pieces.iter().enumerate() {
+        out.entry(p.object).or_default().push(i);
+    }
+    for of_object in out.values_mut() {
+        of_object.sort_by_key(|&i| pieces[i].class == Class::Dynamic);
+    }
+    out
+}
+
 /// Splits each moving object where it stands still. Before its first and
 /// after its last keyframe its pose is held, so those parts of its
 /// visibility are a pseudo-dynamic (or static) object at that pose, which

@@ -32,14 +32,14 @@ use std::sync::Arc;
 
 use glam::Vec3;
 use rayon::prelude::*;
-use rustc_hash::{FxHashMap, FxHashSet};
+use rustc_hash::FxHashMap;
 
 use super::align::TOMBSTONE;
 use super::config::{BuildConfig, thresholds};
 use super::context::{Active, Context, bounds_of};
 use super::dynamic::dynamic_chains;
 use super::instances::{Instance, shapes_of, single_parents};
-use super::leaves::{Piece, leaf_mesh, split_at_rest};
+use super::leaves::{Piece, leaf_mesh, pieces_by_object, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
 use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
@@ -133,11 +133,9 @@ pub fn plan(
     let touched: Vec<bool> = (0..sources.len())
         .map(|i| before.get(i) != Some(&sources[i]))
         .collect();
-    let removed_ids: FxHashSet<&str> = (0..before.len())
-        .filter(|&k| touched[k] && sources[k] == TOMBSTONE)
-        .map(|k| scene.objects[k].id.as_str())
-        .collect();
-    let removed_objects = removed_ids.len();
+    // Removed since: a tombstone now, an object before.
+    let removed_object = |k: usize| k < before.len() && touched[k] && sources[k] == TOMBSTONE;
+    let removed_objects = (0..before.len()).filter(|&k| removed_object(k)).count();
     let edited_objects = (0..before.len()).filter(|&i| touched[i]).count() - removed_objects;
     let added_objects = sources.len() - before.len();
     let changes = edited_objects + added_objects + removed_objects;
@@ -151,11 +149,6 @@ pub fn plan(
     let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
     let pieces = split_at_rest(&scene, &classes);
     let changed_class = || "an object changed class (static, pseudo-dynamic, dynamic or absent), so the leaves differ";
-    let class_of = |p: &Piece| match p.class {
-        Class::Static => ClusterClass::Static,
-        Class::PseudoDynamic => ClusterClass::PseudoDynamic,
-        _ => ClusterClass::Dynamic,
-    };
     // The build's order: the static and pseudo-dynamic leaves first.
     let old_leaves: Vec<u32> = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root)
@@ -178,15 +171,7 @@ pub fn plan(
             _ => return Err(format!("leaf cluster {leaf} does not name one object")),
         }
     }
-    // An object's pieces in the order of its leaves: the static and
-    // pseudo-dynamic ones first, as the build numbers them.
-    let mut pieces_of: FxHashMap<usize, Vec<usize>> = FxHashMap::default();
-    for (i, p) in pieces.iter().enumerate() {
-        pieces_of.entry(p.object).or_default().push(i);
-    }
-    for of_object in pieces_of.values_mut() {
-        of_object.sort_by_key(|&i| pieces[i].class == Class::Dynamic);
-    }
+    let pieces_of = pieces_by_object(&pieces);
     let no_leaves: Vec<u32> = Vec::new();
     let old_leaves_of = |k: usize| {
         leaves_of
@@ -205,7 +190,7 @@ pub fn plan(
             let new = pieces_of.get(&k).map_or(&[][..], Vec::as_slice);
             !matches!((&old_leaves_of(k)[..], new), ([leaf], [p])
                 if pieces[*p].class != Class::Dynamic
-                    && old.class_of(*leaf) == class_of(&pieces[*p]))
+                    && old.class_of(*leaf) == pieces[*p].cluster_class())
         })
         .collect();
     // Each old leaf and its piece, but the removed and renewed objects':
@@ -221,16 +206,14 @@ pub fn plan(
             return Err(changed_class().into());
         }
         for (&leaf, &p) in old_ones.iter().zip(new) {
-            if old.class_of(leaf) != class_of(&pieces[p]) {
+            if old.class_of(leaf) != pieces[p].cluster_class() {
                 return Err(changed_class().into());
             }
             leaf_pieces.insert(leaf, p);
         }
     }
-    for (k, _) in scene.objects.iter().enumerate().take(before.len()) {
-        if renewed[k] || removed_ids.contains(scene.objects[k].id.as_str()) {
-            removed.extend_from_slice(old_leaves_of(k));
-        }
+    for k in (0..before.len()).filter(|&k| renewed[k] || removed_object(k)) {
+        removed.extend_from_slice(old_leaves_of(k));
     }
     if leaf_pieces.len() + removed.len() != old_leaves.len() {
         return Err(changed_class().into());
@@ -277,7 +260,7 @@ pub fn plan(
             ));
         };
         let centre = (lo + hi) * 0.5;
-        let class = class_of(piece);
+        let class = piece.cluster_class();
         let steps = StepFunction::of_visibility(&piece.visibility, span);
         let apart = |leaf: usize| {
             if class == ClusterClass::PseudoDynamic && span > 0.0 {
@@ -739,8 +722,7 @@ impl Plan {
         }
         for ((p, _), m) in self.added.iter().zip(added) {
             let piece = &self.pieces[*p];
-            let mut c = lone_record(piece, 0, 0, span);
-            c.children.clear();
+            let mut c = piece_record(piece, 0, Vec::new(), span);
             c.objects = vec![scene.objects[piece.object].id.clone()];
             replace(&mut c, m);
             clusters.push(c);
@@ -760,7 +742,7 @@ impl Plan {
                     let piece = &self.pieces[p];
                     let mut below = first_added + *a as u32;
                     for (level, m) in parents {
-                        let mut c = lone_record(piece, *level, below, span);
+                        let mut c = piece_record(piece, *level, vec![below], span);
                         replace(&mut c, m.clone());
                         below = clusters.len() as u32;
                         clusters.push(c);
@@ -832,19 +814,16 @@ impl Plan {
     }
 }
 
-/// The record of a cluster of `piece`'s class at `level` over `child`
-/// (its geometry, box and errors set by the caller; its visibility the
-/// piece's until the schedule pass).
-fn lone_record(piece: &Piece, level: u32, child: u32, span: f64) -> Cluster {
+/// The record of a cluster of `piece`'s class at `level` over `children`
+/// (its leaf, or one of its lone parents): its geometry, box and errors
+/// set by the caller, its visibility the piece's until the schedule pass.
+fn piece_record(piece: &Piece, level: u32, children: Vec<u32>, span: f64) -> Cluster {
     Cluster {
         id: 0,
         parent: None,
-        children: vec![child],
+        children,
         level,
-        class: match piece.class {
-            Class::Static => ClusterClass::Static,
-            _ => ClusterClass::PseudoDynamic,
-        },
+        class: piece.cluster_class(),
         bounds: Aabb::from_f32(Vec3::ZERO, Vec3::ZERO),
         w: 0.0,
         eps: 0.0,

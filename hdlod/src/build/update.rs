@@ -19,7 +19,7 @@ use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 
 use super::config::{BuildConfig, thresholds};
-use super::leaves::{Piece, split_at_rest};
+use super::leaves::{Piece, pieces_by_object, split_at_rest};
 use super::outputs::BuildStats;
 use super::scheduled;
 use super::steps::StepFunction;
@@ -367,16 +367,11 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
 /// ids, as a geometry update may place an object's leaves after others'
 /// (`super::local`).
 fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap<u32, usize>> {
-    let mut pieces_of: FxHashMap<&str, (Vec<usize>, usize)> = FxHashMap::default();
-    for (i, p) in pieces.iter().enumerate() {
-        let id = scene.objects[p.object].id.as_str();
-        pieces_of.entry(id).or_default().0.push(i);
-    }
-    // In the order of the object's leaves: the static and pseudo-dynamic
-    // ones first, as the build numbers them.
-    for (of_object, _) in pieces_of.values_mut() {
-        of_object.sort_by_key(|&i| pieces[i].class == Class::Dynamic);
-    }
+    // Each object's pieces, and how many of them its leaves took so far.
+    let mut pieces_of: FxHashMap<&str, (Vec<usize>, usize)> = pieces_by_object(pieces)
+        .into_iter()
+        .map(|(k, of_object)| (scene.objects[k].id.as_str(), (of_object, 0)))
+        .collect();
     let leaves = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
     let mut out = FxHashMap::default();
@@ -387,12 +382,7 @@ fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap
         let (of_object, next) = pieces_of.get_mut(id)?;
         let &i = of_object.get(*next)?;
         *next += 1;
-        let class = match pieces[i].class {
-            Class::Static => ClusterClass::Static,
-            Class::PseudoDynamic => ClusterClass::PseudoDynamic,
-            _ => ClusterClass::Dynamic,
-        };
-        if old.class_of(leaf) != class {
+        if old.class_of(leaf) != pieces[i].cluster_class() {
             return None;
         }
         out.insert(leaf, i);

@@ -11,7 +11,7 @@ use std::path::{Path, PathBuf};
 use std::time::Instant;
 
 use anyhow::Context;
-use hdlod::build::{BuildConfig, How, Silent, build_or_update_to, build_to};
+use hdlod::build::{BuildConfig, BuildStats, How, Silent, build_or_update_to, build_to};
 use hdlod::scene::{Scene, TaskType};
 use hdlod_fixtures::{Scale, skyscraper};
 use plotters::prelude::*;
@@ -410,18 +410,10 @@ fn geometry_updates(
     };
     for k in 0..args.repeats.max(1) {
         let next = if k % 2 == 0 { &edited } else { scene };
-        let (cpu, started) = (cpu_seconds(), Instant::now());
-        let (tree, stats, how) =
-            build_or_update_to(next, &BuildConfig::default(), out, false, &Silent)
-                .with_context(|| format!("updating {}", out.display()))?;
+        let (how, stats, run) = timed_update(next, out)?;
         let How::GeometryUpdate { rebuilt, .. } = how else {
             anyhow::bail!("the geometry edit was not a geometry update: {how:?}");
         };
-        let run = Run {
-            wall_seconds: started.elapsed().as_secs_f64(),
-            cpu_seconds: cpu_seconds() - cpu,
-        };
-        drop(tree);
         if k == 0 {
             result.rebuilt = rebuilt;
             result.phases = stats.phases;
@@ -484,20 +476,13 @@ fn removals(
             task.objects.retain(|o| !gone.contains(o));
         }
         now.apply_schedule();
-        let (cpu, started) = (cpu_seconds(), Instant::now());
-        let (tree, _, how) = build_or_update_to(&now, &BuildConfig::default(), out, false, &Silent)
-            .with_context(|| format!("updating {}", out.display()))?;
+        let (how, _, run) = timed_update(&now, out)?;
         let How::GeometryUpdate {
             rebuilt, dropped, ..
         } = how
         else {
             anyhow::bail!("the removal of {storey} was not a geometry update: {how:?}");
         };
-        let run = Run {
-            wall_seconds: started.elapsed().as_secs_f64(),
-            cpu_seconds: cpu_seconds() - cpu,
-        };
-        drop(tree);
         if k == 0 {
             (result.rebuilt, result.dropped) = (rebuilt, dropped);
         }
@@ -518,6 +503,21 @@ fn removals(
     }
     result.largest_change = against_full(&now, out, work)?;
     Ok(result)
+}
+
+/// The tree at `out` updated (or built) to `scene`, timed up to the
+/// returned tree, which is dropped untimed.
+fn timed_update(scene: &Scene, out: &Path) -> anyhow::Result<(How, BuildStats, Run)> {
+    let (cpu, started) = (cpu_seconds(), Instant::now());
+    let (tree, stats, how) =
+        build_or_update_to(scene, &BuildConfig::default(), out, false, &Silent)
+            .with_context(|| format!("updating {}", out.display()))?;
+    let run = Run {
+        wall_seconds: started.elapsed().as_secs_f64(),
+        cpu_seconds: cpu_seconds() - cpu,
+    };
+    drop(tree);
+    Ok((how, stats, run))
 }
 
 /// Table 2 of the tree at `out` against a full build of `scene`: the
