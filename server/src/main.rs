@@ -11,6 +11,14 @@ use std::process::ExitCode;
 
 use clap::{Parser, Subcommand};
 
+// mimalloc rather than the system allocator: the build's many small meshes
+// and the update's large tables spent a fifth of their time in glibc's
+// malloc and free (docs/benchmarks.md, "The allocator"). `no_thp` keeps it
+// off transparent huge pages, whose zeroing on first touch cost more
+// system time than the allocator saved.
+#[global_allocator]
+static ALLOCATOR: mimalloc::MiMalloc = mimalloc::MiMalloc;
+
 #[derive(Parser)]
 #[command(
     name = "hdlod",
