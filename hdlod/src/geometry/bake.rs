@@ -24,7 +24,7 @@
 //! are filled block by block (`Surface::fill`), so only colour borders
 //! cost a query per texel.
 
-use std::collections::{HashMap, HashSet};
+use rustc_hash::{FxHashMap, FxHashSet};
 
 use glam::{DVec3, Vec2, Vec3, Vec3A};
 
@@ -257,7 +257,7 @@ fn charts(mesh: &Mesh, todo: &[usize]) -> Vec<Chart> {
         (b - a).cross(c - a).try_normalize()
     };
     // Triangles by their edges (corner positions, either way round).
-    let mut by_edge: HashMap<([u32; 3], [u32; 3]), Vec<usize>> = HashMap::new();
+    let mut by_edge: FxHashMap<([u32; 3], [u32; 3]), Vec<usize>> = FxHashMap::default();
     let edge = |p: Vec3, q: Vec3| {
         let (a, b) = (
             p.to_array().map(f32::to_bits),
@@ -271,7 +271,8 @@ fn charts(mesh: &Mesh, todo: &[usize]) -> Vec<Chart> {
             by_edge.entry(edge(p, q)).or_default().push(k);
         }
     }
-    let mut seen: HashSet<usize> = HashSet::with_capacity(todo.len());
+    let mut seen: FxHashSet<usize> =
+        FxHashSet::with_capacity_and_hasher(todo.len(), Default::default());
     let mut out = Vec::new();
     for &seed in todo {
         if !seen.insert(seed) {
@@ -804,7 +805,7 @@ pub fn drawn(mesh: &Mesh, baked: &Baked) -> (Mesh, Vec<Vec2>) {
     );
     let mut out = Mesh::default();
     let mut uvs = Vec::new();
-    let mut shared: HashMap<u32, u32> = HashMap::new();
+    let mut shared: FxHashMap<u32, u32> = FxHashMap::default();
     let mut push = |out: &mut Mesh, i: usize, colour: Option<[f32; 4]>, uv: Vec2| {
         out.positions.push(mesh.positions[i]);
         if let Some(n) = mesh.normals.get(i) {

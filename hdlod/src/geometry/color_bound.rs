@@ -24,7 +24,7 @@
 //! per channel; a triangle whose corners differ in colour is a blend and
 //! matches only the same blend.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use glam::Vec3;
 use serde::{Deserialize, Serialize};
@@ -95,7 +95,8 @@ impl Colored {
     fn region_sizes(&self) -> Vec<f32> {
         let n = self.triangles.len();
         let mut sets = UnionFind::new(n);
-        let mut first: HashMap<([u32; 3], Class), u32> = HashMap::with_capacity(3 * n);
+        let mut first: FxHashMap<([u32; 3], Class), u32> =
+            FxHashMap::with_capacity_and_hasher(3 * n, Default::default());
         for (k, (t, class)) in self.triangles.iter().zip(&self.classes).enumerate() {
             for p in t {
                 let at = *first
@@ -105,7 +106,7 @@ impl Colored {
             }
         }
         let roots: Vec<u32> = (0..n as u32).map(|k| sets.find(k)).collect();
-        let mut areas: HashMap<u32, f32> = HashMap::new();
+        let mut areas: FxHashMap<u32, f32> = FxHashMap::default();
         for (t, root) in self.triangles.iter().zip(&roots) {
             *areas.entry(*root).or_default() += (t[1] - t[0]).cross(t[2] - t[0]).length() / 2.0;
         }
@@ -118,7 +119,7 @@ impl Colored {
 pub(crate) struct ColoredSet {
     all: TriangleSet,
     /// `None` when every triangle has the one class `single`.
-    by_class: Option<HashMap<Class, TriangleSet>>,
+    by_class: Option<FxHashMap<Class, TriangleSet>>,
     single: Option<Class>,
     /// How the triangles measured against the set are classed.
     metric: ErrorMetric,
@@ -133,7 +134,7 @@ impl ColoredSet {
         let all = TriangleSet::new(c.triangles.iter().copied());
         let single = c.single();
         let by_class = single.is_none().then(|| {
-            let mut groups: HashMap<Class, Vec<[Vec3; 3]>> = HashMap::new();
+            let mut groups: FxHashMap<Class, Vec<[Vec3; 3]>> = FxHashMap::default();
             for (t, class) in c.triangles.iter().zip(&c.classes) {
                 groups.entry(*class).or_default().push(*t);
             }
@@ -165,7 +166,7 @@ impl ColoredSet {
     /// A bound of `sup_{p in A} e(p)` for the triangles of `a` against this
     /// set, if at most `within` (no slack added).
     fn one_sided(&self, a: &Colored, tolerance: f32, within: f32) -> Option<f32> {
-        let mut groups: HashMap<Class, Vec<usize>> = HashMap::new();
+        let mut groups: FxHashMap<Class, Vec<usize>> = FxHashMap::default();
         for (k, class) in a.classes.iter().enumerate() {
             groups.entry(*class).or_default().push(k);
         }
@@ -230,7 +231,7 @@ pub fn feature_bound_within(
     metric: ErrorMetric,
 ) -> Option<f32> {
     let feature_of = |m: &Mesh, k: usize| m.features.get(m.indices[k * 3] as usize).copied();
-    let mut triangles: HashMap<Option<u32>, Vec<usize>> = HashMap::new();
+    let mut triangles: FxHashMap<Option<u32>, Vec<usize>> = FxHashMap::default();
     for k in 0..mesh.triangle_count() {
         triangles.entry(feature_of(mesh, k)).or_default().push(k);
     }
@@ -238,7 +239,7 @@ pub fn feature_bound_within(
         // One object: the whole mesh's bound is its own.
         return Some(0.0);
     }
-    let mut by_feature: HashMap<Option<u32>, Vec<&Mesh>> = HashMap::new();
+    let mut by_feature: FxHashMap<Option<u32>, Vec<&Mesh>> = FxHashMap::default();
     for o in originals.iter().filter(|o| o.triangle_count() > 0) {
         by_feature.entry(feature_of(o, 0)).or_default().push(o);
     }

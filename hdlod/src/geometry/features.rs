@@ -15,7 +15,7 @@
 //! `one_per_triangle` remains as the guard for any step that still joins
 //! two objects in one triangle.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use glam::Vec3;
 
@@ -54,19 +54,19 @@ pub(super) fn one_per_triangle(out: &mut Mesh, input: &Mesh) -> usize {
         .collect();
     wanted.sort_unstable();
     wanted.dedup();
-    let mut triangles: HashMap<u32, Vec<[Vec3; 3]>> =
+    let mut triangles: FxHashMap<u32, Vec<[Vec3; 3]>> =
         wanted.iter().map(|&f| (f, Vec::new())).collect();
     for t in input.indices.chunks_exact(3) {
         if let Some(list) = triangles.get_mut(&input.features[t[0] as usize]) {
             list.push([0, 1, 2].map(|c| input.positions[t[c] as usize]));
         }
     }
-    let sets: HashMap<u32, TriangleSet> = triangles
+    let sets: FxHashMap<u32, TriangleSet> = triangles
         .into_iter()
         .map(|(f, list)| (f, TriangleSet::new(list.into_iter())))
         .collect();
     // A corner moved onto another feature, once per (vertex, feature).
-    let mut copies: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut copies: FxHashMap<(u32, u32), u32> = FxHashMap::default();
     for &k in &mixed {
         let corners: [u32; 3] = out.indices[3 * k..3 * k + 3].try_into().expect("3 corners");
         let points = corners.map(|i| out.positions[i as usize]);
@@ -116,7 +116,7 @@ pub(super) fn clustering_per_feature(
     target: usize,
     sloppy: impl Fn(&Mesh, usize) -> Vec<u32>,
 ) -> Vec<u32> {
-    let mut groups: HashMap<u32, Vec<u32>> = HashMap::new();
+    let mut groups: FxHashMap<u32, Vec<u32>> = FxHashMap::default();
     for t in mesh.indices.chunks_exact(3) {
         groups
             .entry(mesh.features[t[0] as usize])
@@ -129,7 +129,7 @@ pub(super) fn clustering_per_feature(
     groups.sort_unstable_by_key(|(f, _)| *f);
     for (_, indices) in groups {
         let mut global = Vec::new();
-        let mut local: HashMap<u32, u32> = HashMap::new();
+        let mut local: FxHashMap<u32, u32> = FxHashMap::default();
         let mut part = Mesh::default();
         for &i in &indices {
             let at = *local.entry(i).or_insert_with(|| {

@@ -9,7 +9,7 @@
 //! grid would miss those pairs). Written here because meshoptimizer's
 //! vertex remap only merges bit-identical vertices.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use glam::{Mat4, Vec3};
 
@@ -129,17 +129,17 @@ fn vertex_normals(positions: &[Vec3], indices: &[u32]) -> Vec<Vec3> {
 struct Welder {
     tolerance: f32,
     /// Cell -> welded vertices in it.
-    cells: HashMap<[i32; 3], Vec<u32>>,
+    cells: FxHashMap<[i32; 3], Vec<u32>>,
     /// With a zero tolerance only identical vertices weld: exact keys.
-    exact: HashMap<[u32; 11], u32>,
+    exact: FxHashMap<[u32; 11], u32>,
 }
 
 impl Welder {
     fn new(tolerance: f32) -> Self {
         Welder {
             tolerance,
-            cells: HashMap::new(),
-            exact: HashMap::new(),
+            cells: FxHashMap::default(),
+            exact: FxHashMap::default(),
         }
     }
 

@@ -1,5 +1,5 @@
 use crate::error::{Error, Result};
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use glam::{Mat4, Vec3};
 
@@ -141,7 +141,8 @@ impl Mesh {
     /// flat-shaded mesh repeats each corner per face, and edge collapse
     /// cannot move a vertex along such a seam.
     pub fn welded(&self) -> Mesh {
-        let mut index: HashMap<([u32; 3], u32), u32> = HashMap::with_capacity(self.positions.len());
+        let mut index: FxHashMap<([u32; 3], u32), u32> =
+            FxHashMap::with_capacity_and_hasher(self.positions.len(), Default::default());
         let mut out = Mesh::default();
         for &i in &self.indices {
             let p = self.positions[i as usize];

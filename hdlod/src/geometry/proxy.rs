@@ -8,7 +8,7 @@
 //! (round columns, tubes, frames).
 //! `reduce::reduce_parts` decides part by part and measures the result.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use glam::Vec3;
 
@@ -22,7 +22,8 @@ use super::union_find::UnionFind;
 pub(super) fn parts(mesh: &Mesh) -> Vec<Vec<usize>> {
     let n = mesh.positions.len();
     let mut sets = UnionFind::new(n);
-    let mut same_place: HashMap<([u32; 3], u32), u32> = HashMap::with_capacity(n);
+    let mut same_place: FxHashMap<([u32; 3], u32), u32> =
+        FxHashMap::with_capacity_and_hasher(n, Default::default());
     for (i, p) in mesh.positions.iter().enumerate() {
         let feature = mesh.features.get(i).copied().unwrap_or(0);
         let key = (p.to_array().map(f32::to_bits), feature);
@@ -33,7 +34,7 @@ pub(super) fn parts(mesh: &Mesh) -> Vec<Vec<usize>> {
         sets.union(t[0], t[1]);
         sets.union(t[0], t[2]);
     }
-    let mut index: HashMap<u32, usize> = HashMap::new();
+    let mut index: FxHashMap<u32, usize> = FxHashMap::default();
     let mut out: Vec<Vec<usize>> = Vec::new();
     for (k, t) in mesh.indices.chunks_exact(3).enumerate() {
         let root = sets.find(t[0]);

@@ -13,7 +13,7 @@
 //! checks, on a mapping it then drops: the mapping served afterwards starts
 //! with no page resident.
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 use std::fs::File;
 use std::path::{Path, PathBuf};
 use std::sync::Arc;
@@ -215,19 +215,23 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
     let mut records = Vec::with_capacity(n);
     let mut keys: Vec<Key> = Vec::new();
     let mut hashes: Vec<[u8; 32]> = Vec::new();
-    let mut hash_ids: HashMap<String, u32> = HashMap::new();
+    let mut hash_ids: FxHashMap<String, u32> = FxHashMap::default();
     let mut objects: Vec<u32> = Vec::new();
     let mut string_starts: Vec<u32> = vec![0];
     let mut strings: Vec<u8> = Vec::new();
-    let mut string_ids: HashMap<String, u32> = HashMap::new();
-    let mut ranges: HashMap<u32, (u32, u32)> = HashMap::new();
+    let mut string_ids: FxHashMap<String, u32> = FxHashMap::default();
+    let mut ranges: FxHashMap<u32, (u32, u32)> = FxHashMap::default();
     for c in tree.clusters() {
         let geometry = match &c.geometry {
             None => NONE,
-            Some(h) => *hash_ids.entry(h.clone()).or_insert_with(|| {
-                hashes.push(hash_bytes(h).expect("a valid tree's hashes are hex"));
-                hashes.len() as u32 - 1
-            }),
+            Some(h) => match hash_ids.get(h.as_str()) {
+                Some(&i) => i,
+                None => {
+                    hashes.push(hash_bytes(h).expect("a valid tree's hashes are hex"));
+                    hash_ids.insert(h.clone(), hashes.len() as u32 - 1);
+                    hashes.len() as u32 - 1
+                }
+            },
         };
         // A LOD chain's keyframes are stored once: every cluster of it names
         // the range of its top's (`Tree::motion_source`).
@@ -248,11 +252,16 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
         };
         let first_object = objects.len() as u32;
         for id in &c.objects {
-            let s = *string_ids.entry(id.clone()).or_insert_with(|| {
-                strings.extend_from_slice(id.as_bytes());
-                string_starts.push(strings.len() as u32);
-                string_starts.len() as u32 - 2
-            });
+            let s = match string_ids.get(id.as_str()) {
+                Some(&s) => s,
+                None => {
+                    strings.extend_from_slice(id.as_bytes());
+                    string_starts.push(strings.len() as u32);
+                    let s = string_starts.len() as u32 - 2;
+                    string_ids.insert(id.clone(), s);
+                    s
+                }
+            };
             objects.push(s);
         }
         records.push(Record {

@@ -12,7 +12,9 @@
 //! invariant the rows' accessors rely on: no access panics on a file that
 //! loaded.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
+
+use rustc_hash::FxHashMap;
 use std::fs::File;
 use std::path::Path;
 use std::sync::Arc;
@@ -150,7 +152,7 @@ pub(crate) fn encode<'a>(objects: &'a [ObjectEntry]) -> Vec<u8> {
     let mut text = String::new();
     let mut string_starts: Vec<u64> = vec![0];
     let mut strings: Vec<u8> = Vec::new();
-    let mut string_ids: HashMap<&str, u32> = HashMap::new();
+    let mut string_ids: FxHashMap<&str, u32> = FxHashMap::default();
     let mut string = |s: &'a str| -> u32 {
         *string_ids.entry(s).or_insert_with_key(|s| {
             strings.extend_from_slice(s.as_bytes());

@@ -12,7 +12,9 @@
 //! ([`super::object_index`]), made in memory from the JSON or mapped from
 //! that file: one form for both, read row by row.
 
-use std::collections::{BTreeMap, HashMap};
+use std::collections::BTreeMap;
+
+use rustc_hash::FxHashMap;
 use std::path::Path;
 
 use serde::{Deserialize, Serialize};
@@ -184,7 +186,7 @@ impl ObjectTables {
     /// The tables of `scene` (as built: its schedule applied) over the
     /// leaf clusters that name its objects.
     pub fn of(scene: &Scene, clusters: &[Cluster]) -> ObjectTables {
-        let index: HashMap<&str, u32> = scene
+        let index: FxHashMap<&str, u32> = scene
             .objects
             .iter()
             .enumerate()
@@ -199,7 +201,7 @@ impl ObjectTables {
             }
         }
         let mut acting: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
-        let task_index: HashMap<&str, u32> = scene
+        let task_index: FxHashMap<&str, u32> = scene
             .tasks
             .iter()
             .enumerate()
