@@ -26,6 +26,7 @@
 //! changes to more than a quarter of the objects. The levels and their
 //! thresholds are the old tree's.
 
+use std::borrow::Cow;
 use std::collections::HashMap;
 use std::path::Path;
 use std::sync::Arc;
@@ -43,7 +44,7 @@ use super::leaves::{Piece, leaf_mesh, pieces_by_object, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
 use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
-use super::update::{Update, geometry_key, object_sources, update_schedule_of};
+use super::update::{Update, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
 use crate::scene::{Class, Scene, Visibility};
@@ -55,8 +56,8 @@ use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
 const MAX_TOUCHED_SHARE: f64 = 0.25;
 
 /// What a geometry update will do, decided before anything is written.
-pub struct Plan {
-    scene: Scene,
+pub struct Plan<'a> {
+    scene: Cow<'a, Scene>,
     pieces: Vec<Piece>,
     sources: Vec<Digest>,
     /// The static and pseudo-dynamic leaves are the clusters `0..leaves`;
@@ -97,13 +98,14 @@ pub struct Updated {
 /// Whether `old` can be brought to `scene` by a local geometry update, and
 /// how; `Err` says why not, for the caller's report. `scene` is in the
 /// order of the tree's objects, with `tombstones` where objects were
-/// removed (`super::align`).
-pub fn plan(
+/// removed (`super::align`); `key`: its [`super::geometry_key`].
+pub fn plan<'a>(
     old: &Tree,
-    scene: &Scene,
+    scene: &'a Scene,
     tombstones: &[usize],
     config: &BuildConfig,
-) -> std::result::Result<Plan, String> {
+    key: String,
+) -> std::result::Result<Plan<'a>, String> {
     let Some(before) = &old.sources else {
         return Err("the tree records no digests of its objects' sources (sources.bin)".into());
     };
@@ -118,7 +120,7 @@ pub fn plan(
     }
     let stats: BuildStats = serde_json::from_value(old.stats.clone())
         .map_err(|_| "the tree's statistics are not a build's".to_string())?;
-    let scene = super::scheduled(scene, config).into_owned();
+    let scene = super::scheduled(scene, config);
     let mut sources = object_sources(&scene);
     for &k in tombstones {
         sources[k] = TOMBSTONE;
@@ -308,6 +310,8 @@ pub fn plan(
         }
         added.push((p, at.filter(|&c| old.class_of(c) != ClusterClass::Root)));
     }
+    let mut stats = stats;
+    stats.geometry_key = key;
     Ok(Plan {
         scene,
         pieces,
@@ -364,7 +368,7 @@ enum Child {
     Added(usize),
 }
 
-impl Plan {
+impl Plan<'_> {
     /// Carries the plan out: the new leaves and the clusters above them
     /// made and stored in `sink`, the unchanged geometry read from the old
     /// tree's files in `old_dir`.
@@ -706,6 +710,16 @@ impl Plan {
         let scene = &self.scene;
         let span = scene.time.seconds;
         let mut clusters: Vec<Cluster> = Vec::with_capacity(next as usize);
+        // The old clusters that stay, decoded from a mapped tree's index on
+        // every core: one by one, that was most of the assembly.
+        let mut kept: Vec<Option<Cluster>> = {
+            use rayon::prelude::*;
+            (0..n as u32)
+                .into_par_iter()
+                .map(|c| new_id(c).map(|_| old.cluster(c).into_owned()))
+                .collect()
+        };
+        let mut take = |c: u32| kept[c as usize].take().expect("a kept cluster is taken once");
         let replace = |c: &mut Cluster, m: Made| {
             c.bounds = Aabb::from_f32(m.lo, m.hi);
             c.w = f64::from((m.hi - m.lo).length());
@@ -714,7 +728,7 @@ impl Plan {
             c.geometry = Some(m.hash);
         };
         for id in (0..self.leaves as u32).filter(|&c| new_id(c).is_some()) {
-            let mut c = old.cluster(id).into_owned();
+            let mut c = take(id);
             if let Some(m) = edited.remove(&id) {
                 replace(&mut c, m);
             }
@@ -750,7 +764,7 @@ impl Plan {
                     alone_tops.push(below);
                 }
             }
-            let mut c = old.cluster(id).into_owned();
+            let mut c = take(id);
             c.children = c.children.iter().filter_map(|&k| new_id(k)).collect();
             if let Some(a) = joined.get(&id) {
                 c.children.extend(a.iter().map(|&a| first_added + a as u32));
@@ -784,8 +798,7 @@ impl Plan {
             r.eps = eps;
         }
 
-        let mut stats = self.stats;
-        stats.geometry_key = geometry_key(scene, config);
+        let stats = self.stats;
         let mut tree = Tree::new(
             scene.name.clone(),
             scene.time,

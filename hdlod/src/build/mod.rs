@@ -200,7 +200,7 @@ pub(super) fn scheduled<'a>(scene: &'a Scene, config: &BuildConfig) -> Cow<'a, S
 /// store and adds its new files to it.
 fn update_geometry(
     old: &Tree,
-    plan: local::Plan,
+    plan: local::Plan<'_>,
     config: &BuildConfig,
     out: &Path,
     load: f64,
@@ -366,10 +366,11 @@ fn update_in_place(
     };
     let scene = &*aligned.scene;
     let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
-    let same = key == Some(geometry_key(scene, config).as_str());
+    let new_key = geometry_key(scene, config);
+    let same = key == Some(new_key.as_str());
     let key_seconds = clock.elapsed().as_secs_f64();
     if !same {
-        return match local::plan(old, scene, &aligned.tombstones, config) {
+        return match local::plan(old, scene, &aligned.tombstones, config, new_key) {
             Err(why) => Ok(Err(format!(
                 "the scene's geometry or the build configuration changed since it was built, \
                  and the tree cannot be updated in place: {why}"

@@ -20,7 +20,7 @@ use rustc_hash::FxHashMap;
 
 use super::config::{BuildConfig, thresholds};
 use super::leaves::{Piece, pieces_by_object, split_at_rest};
-use super::outputs::BuildStats;
+use super::outputs::{BuildStats, LevelStats};
 use super::scheduled;
 use super::steps::StepFunction;
 use crate::scene::{Class, Scene};
@@ -298,31 +298,11 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
         .position(|c| c.class == ClusterClass::Root)
         .expect("a built tree has its virtual root") as u32;
 
-    for (levels, class) in [
-        (&mut stats.static_levels, ClusterClass::Static),
-        (
-            &mut stats.pseudo_dynamic_levels,
-            ClusterClass::PseudoDynamic,
-        ),
-    ] {
-        for level in levels {
-            let of_level = || {
-                clusters
-                    .iter()
-                    .filter(|c| c.class == class && c.level == level.level)
-            };
-            level.clusters = of_level().count() as u64;
-            level.triangles = of_level().map(|c| c.triangles).sum();
-            level.children_triangles = of_level()
-                .flat_map(|c| &c.children)
-                .map(|&k| clusters[k as usize].triangles)
-                .sum();
-            level.max_gamma = of_level().map(|c| c.gamma).fold(0.0, f64::max);
-            // The same as built for a schedule update; a geometry update
-            // (`local.rs`) made some clusters again.
-            level.max_eps = of_level().map(|c| c.eps).fold(0.0, f64::max);
-        }
-    }
+    // The object tables, made beside the levels' figures.
+    let (objects, ()) = rayon::join(
+        || ObjectTables::of(scene, &clusters),
+        || level_stats(&clusters, &mut stats),
+    );
     // A removed object's tombstone (`super::align`) is no object of the
     // scene's.
     let tombstone = |k: usize| {
@@ -339,7 +319,6 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
         .map(|(_, (o, _))| o.id.clone())
         .collect();
     stats.phases.clear();
-    let objects = ObjectTables::of(scene, &clusters);
     let mut tree = Tree::new(
         scene.name.clone(),
         scene.time,
@@ -357,6 +336,44 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
         tree: Box::new(tree),
         stats,
         dissolved: gone,
+    }
+}
+
+/// Sets the static and pseudo-dynamic levels' figures in `stats` from
+/// `clusters`, in one pass over them.
+fn level_stats(clusters: &[Cluster], stats: &mut BuildStats) {
+    let mut of: FxHashMap<(ClusterClass, u32), LevelStats> = FxHashMap::default();
+    for c in clusters {
+        if !matches!(c.class, ClusterClass::Static | ClusterClass::PseudoDynamic) {
+            continue;
+        }
+        let l = of.entry((c.class, c.level)).or_default();
+        l.clusters += 1;
+        l.triangles += c.triangles;
+        l.children_triangles += c
+            .children
+            .iter()
+            .map(|&k| clusters[k as usize].triangles)
+            .sum::<u64>();
+        l.max_gamma = l.max_gamma.max(c.gamma);
+        // The same as built for a schedule update; a geometry update
+        // (`local.rs`) made some clusters again.
+        l.max_eps = l.max_eps.max(c.eps);
+    }
+    for (levels, class) in [
+        (&mut stats.static_levels, ClusterClass::Static),
+        (
+            &mut stats.pseudo_dynamic_levels,
+            ClusterClass::PseudoDynamic,
+        ),
+    ] {
+        for level in levels {
+            let figures = of.remove(&(class, level.level)).unwrap_or_default();
+            *level = LevelStats {
+                level: level.level,
+                ..figures
+            };
+        }
     }
 }
 

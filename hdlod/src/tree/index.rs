@@ -326,6 +326,13 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
     out
 }
 
+/// Sets, in the bytes of an index, the length of the `clusters.json` it
+/// was made beside, and seals it again.
+pub(crate) fn set_json_len(bytes: &mut [u8], json_len: u64) {
+    sections::set_json_len(bytes, json_len);
+    sections::seal(bytes);
+}
+
 /// A checked, memory-mapped `clusters.bin`.
 #[derive(Clone)]
 pub struct Index {

@@ -709,7 +709,10 @@ impl Tree {
         let Clusters::Built(clusters) = &self.clusters else {
             return Ok(());
         };
-        for (i, c) in clusters.iter().enumerate() {
+        // Each cluster checked against its neighbours on every core; the
+        // error reported is the lowest cluster's, as a loop would find.
+        use rayon::prelude::*;
+        let check = |i: usize, c: &Cluster| -> Result<()> {
             if c.id as usize != i {
                 return Err(bad(
                     i,
@@ -799,6 +802,14 @@ impl Tree {
                 }
                 _ => {}
             }
+            Ok(())
+        };
+        if let Some(e) = clusters
+            .par_iter()
+            .enumerate()
+            .find_map_first(|(i, c)| check(i, c).err())
+        {
+            return Err(e);
         }
         // Every cluster has one parent that lists it; all reachable from the
         // root means there is no cycle and no stray subtree.

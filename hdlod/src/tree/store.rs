@@ -182,6 +182,23 @@ impl TreeWriter {
         Ok(hash)
     }
 
+    /// An error unless every geometry hash of `tree` was stored.
+    fn check_stored(&self, tree: &Tree, clusters_path: &Path) -> Result<()> {
+        let stored = self.stored.lock().expect("no panic while holding");
+        for c in tree.clusters() {
+            if let Some(h) = &c.geometry
+                && !stored.contains(h)
+            {
+                return Err(Error::invalid(
+                    clusters_path,
+                    format!("clusters[{}].geometry", c.id),
+                    format!("geometry {h} was not stored with put_geometry"),
+                ));
+            }
+        }
+        Ok(())
+    }
+
     /// Validates the tree (including that every geometry hash was stored),
     /// writes the manifest, the cluster table and the object and task
     /// tables when the tree has them, and moves the directory into place.
@@ -197,37 +214,37 @@ impl TreeWriter {
             }
         };
         let clusters_path = self.target.join(CLUSTERS_FILE);
-        tree.validate(&clusters_path)?;
-        if let Some(tables) = &tree.objects {
-            tables.validate(tree, &self.target.join(OBJECTS_FILE))?;
-        }
-        {
-            let stored = self.stored.lock().expect("no panic while holding");
-            for c in tree.clusters() {
-                if let Some(h) = &c.geometry
-                    && !stored.contains(h)
-                {
-                    return Err(Error::invalid(
-                        &clusters_path,
-                        format!("clusters[{}].geometry", c.id),
-                        format!("geometry {h} was not stored with put_geometry"),
-                    ));
-                }
-            }
-        }
+        let objects_path = self.target.join(OBJECTS_FILE);
+        let (clusters_valid, (objects_valid, stored_valid)) = rayon::join(
+            || tree.validate(&clusters_path),
+            || {
+                rayon::join(
+                    || match &tree.objects {
+                        Some(tables) => tables.validate(tree, &objects_path),
+                        None => Ok(()),
+                    },
+                    || self.check_stored(tree, &clusters_path),
+                )
+            },
+        );
+        clusters_valid?;
+        objects_valid?;
+        stored_valid?;
         let validated = lap();
         write_json(&self.tmp.join(MANIFEST_FILE), &tree.manifest_record(), true)?;
         // The cluster table is most of the time at paper scale (hundreds of
-        // megabytes): serialised in chunks on every core, then written
-        // while the index and the object tables are made beside it.
-        let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE))?;
-        let json_len = table.len();
-        let serialised = lap();
-        let (table, others) = rayon::join(
-            || table.write(&self.tmp.join(CLUSTERS_FILE)),
+        // megabytes): serialised in chunks on every core and written while
+        // the index and the object tables are made beside it. The index
+        // names the table's length, known last, so it is set afterwards.
+        let (table, (index_bytes, objects)) = rayon::join(
+            || -> Result<u64> {
+                let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE))?;
+                table.write(&self.tmp.join(CLUSTERS_FILE))?;
+                Ok(table.len())
+            },
             || {
                 rayon::join(
-                    || write_bytes(&self.tmp.join(INDEX_FILE), &index::encode(tree, json_len)),
+                    || index::encode(tree, 0),
                     || match &tree.objects {
                         Some(tables) => write_json(
                             &self.tmp.join(OBJECTS_FILE),
@@ -245,9 +262,13 @@ impl TreeWriter {
                 )
             },
         );
-        table?;
-        others.0?;
-        others.1?;
+        let json_len = table?;
+        objects?;
+        let mut index_bytes = index_bytes;
+        index::set_json_len(&mut index_bytes, json_len);
+        write_bytes(&self.tmp.join(INDEX_FILE), &index_bytes)?;
+        drop(index_bytes);
+        let serialised = lap();
         if let Some(digests) = &tree.sources {
             write_bytes(
                 &self.tmp.join(SOURCES_FILE),
@@ -280,9 +301,9 @@ impl TreeWriter {
             fs::remove_dir_all(&store).map_err(|e| Error::io(&store, e))?;
         }
         tracing::debug!(
-            "{}: validated in {validated:.2} s, the cluster table serialised in \
-             {serialised:.2} s, the files written in {written:.2} s, moved into place \
-             and the old tree removed in {:.2} s",
+            "{}: validated in {validated:.2} s, the tables and the indexes made and \
+             written in {serialised:.2} s, the sources in {written:.2} s, moved into \
+             place and the old tree removed in {:.2} s",
             self.target.display(),
             lap()
         );
