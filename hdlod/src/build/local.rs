@@ -719,7 +719,11 @@ impl Plan<'_> {
                 .map(|c| new_id(c).map(|_| old.cluster(c).into_owned()))
                 .collect()
         };
-        let mut take = |c: u32| kept[c as usize].take().expect("a kept cluster is taken once");
+        let mut take = |c: u32| {
+            kept[c as usize]
+                .take()
+                .expect("a kept cluster is taken once")
+        };
         let replace = |c: &mut Cluster, m: Made| {
             c.bounds = Aabb::from_f32(m.lo, m.hi);
             c.w = f64::from((m.hi - m.lo).length());

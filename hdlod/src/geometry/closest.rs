@@ -25,69 +25,119 @@ const BRUTE_FORCE_MAX: usize = 32;
 const BOX_MARGIN: f32 = 1.0 + 1e-4;
 
 /// The point of triangle `abc` closest to `p`. Degenerate triangles (points,
-/// segments) are handled: the answer is then the closest point of the
-/// triangle's edges.
+/// segments) and slivers are handled: the answer is then the closest point
+/// of the triangle's edges.
 pub fn closest_point_on_triangle(p: Vec3A, a: Vec3A, b: Vec3A, c: Vec3A) -> Vec3A {
-    // In double precision: on long thin triangles (scaffold tubes, rails)
-    // the barycentric terms cancel badly in f32, which moved the answer by
-    // millimetres, more than the error budgets the bound must respect.
-    let q = closest_point_f64(p.as_dvec3(), a.as_dvec3(), b.as_dvec3(), c.as_dvec3());
-    q.as_vec3a()
+    Prepared::new(a, b, c).closest(p)
 }
 
-fn closest_point_f64(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
-    let ab = b - a;
-    let ac = c - a;
-    let ap = p - a;
-    let d1 = ab.dot(ap);
-    let d2 = ac.dot(ap);
-    if d1 <= 0.0 && d2 <= 0.0 {
-        return a;
+/// Below this squared sine of the angle between its edges at `a`, a
+/// triangle is taken for its edges: its face's barycentric terms cancel
+/// even in double precision (they moved the answer by half a millimetre on
+/// a 40 m sliver), while its edges lie within a millionth of its length
+/// of every point of it, and a distance to them is never less than the
+/// true one.
+const SLIVER_SINE_SQUARED: f64 = 1e-12;
+
+/// A triangle as closest-point queries use it (Ericson, "Real-Time
+/// Collision Detection", 2005, section 5.1.5), in double precision: on
+/// long thin triangles (scaffold tubes, rails) the terms cancel badly in
+/// `f32`, which moved the answer by millimetres, more than the error
+/// budgets the bound must respect. A corner, the two edges from it and
+/// their dot products are computed once rather than at every query (a tree
+/// build makes millions of them): the dot products with `p - b` and `p -
+/// c` follow from those with `p - a`.
+#[derive(Clone, Copy)]
+struct Prepared {
+    a: DVec3,
+    ab: DVec3,
+    ac: DVec3,
+    ab_ab: f64,
+    ab_ac: f64,
+    ac_ac: f64,
+    /// `|ab x ac|^2`, the sum of the face region's terms; zero for a
+    /// sliver, answered by its edges.
+    area: f64,
+}
+
+impl Prepared {
+    fn new(a: Vec3A, b: Vec3A, c: Vec3A) -> Prepared {
+        // Exact: an `f32`'s difference with another fits in an `f64`.
+        let a = a.as_dvec3();
+        let (ab, ac) = (b.as_dvec3() - a, c.as_dvec3() - a);
+        let (ab_ab, ac_ac) = (ab.dot(ab), ac.dot(ac));
+        let area = ab.cross(ac).length_squared();
+        let sliver = !(area > SLIVER_SINE_SQUARED * ab_ab * ac_ac);
+        Prepared {
+            a,
+            ab,
+            ac,
+            ab_ab,
+            ab_ac: ab.dot(ac),
+            ac_ac,
+            area: if sliver { 0.0 } else { area },
+        }
     }
-    let bp = p - b;
-    let d3 = ab.dot(bp);
-    let d4 = ac.dot(bp);
-    if d3 >= 0.0 && d4 <= d3 {
-        return b;
+
+    fn of(t: &Tri) -> Prepared {
+        Prepared::new(t.a, t.b, t.c)
     }
-    let vc = d1 * d4 - d3 * d2;
-    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
-        let v = d1 / (d1 - d3);
-        return a + ab * v;
+
+    fn closest(&self, p: Vec3A) -> Vec3A {
+        let Prepared {
+            a,
+            ab,
+            ac,
+            ab_ab,
+            ab_ac,
+            ac_ac,
+            area,
+        } = *self;
+        let p = p.as_dvec3();
+        let ap = p - a;
+        let d1 = ab.dot(ap);
+        let d2 = ac.dot(ap);
+        if d1 <= 0.0 && d2 <= 0.0 {
+            return a.as_vec3a();
+        }
+        let (d3, d4) = (d1 - ab_ab, d2 - ab_ac);
+        if d3 >= 0.0 && d4 <= d3 {
+            return (a + ab).as_vec3a();
+        }
+        if area == 0.0 {
+            return edges_f64(p, a, a + ab, a + ac).as_vec3a();
+        }
+        let vc = d1 * d4 - d3 * d2;
+        if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+            return (a + ab * (d1 / ab_ab)).as_vec3a();
+        }
+        let (d5, d6) = (d1 - ab_ac, d2 - ac_ac);
+        if d6 >= 0.0 && d5 <= d6 {
+            return (a + ac).as_vec3a();
+        }
+        let vb = d5 * d2 - d1 * d6;
+        if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+            return (a + ac * (d2 / ac_ac)).as_vec3a();
+        }
+        let va = d3 * d6 - d5 * d4;
+        if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
+            let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
+            return (a + ab + (ac - ab) * w).as_vec3a();
+        }
+        (a + ab * (vb / area) + ac * (vc / area)).as_vec3a()
     }
-    let cp = p - c;
-    let d5 = ab.dot(cp);
-    let d6 = ac.dot(cp);
-    if d6 >= 0.0 && d5 <= d6 {
-        return c;
-    }
-    let vb = d5 * d2 - d1 * d6;
-    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
-        let w = d2 / (d2 - d6);
-        return a + ac * w;
-    }
-    let va = d3 * d6 - d5 * d4;
-    if va <= 0.0 && (d4 - d3) >= 0.0 && (d5 - d6) >= 0.0 {
-        let w = (d4 - d3) / ((d4 - d3) + (d5 - d6));
-        return b + (c - b) * w;
-    }
-    let denom = va + vb + vc;
-    let q = a + ab * (vb / denom) + ac * (vc / denom);
-    // Rounding can send a (nearly) degenerate triangle here with a zero or
-    // tiny denominator; the edges then hold the true closest point.
-    if denom > 0.0 && q.is_finite() {
-        q
-    } else {
-        let candidates = [
-            segment_f64(p, a, b),
-            segment_f64(p, b, c),
-            segment_f64(p, c, a),
-        ];
-        candidates
-            .into_iter()
-            .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
-            .unwrap_or(a)
-    }
+}
+
+/// The closest point to `p` on the edges of `abc`.
+fn edges_f64(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> DVec3 {
+    [
+        segment_f64(p, a, b),
+        segment_f64(p, b, c),
+        segment_f64(p, c, a),
+    ]
+    .into_iter()
+    .min_by(|x, y| x.distance_squared(p).total_cmp(&y.distance_squared(p)))
+    .unwrap_or(a)
 }
 
 fn segment_f64(p: DVec3, a: DVec3, b: DVec3) -> DVec3 {
@@ -125,6 +175,8 @@ impl obvhs::Boundable for Tri {
 pub struct TriangleSet {
     /// In BVH leaf order, so that a leaf's range indexes this directly.
     tris: Vec<Tri>,
+    /// `tris` prepared for closest-point queries.
+    prepared: Vec<Prepared>,
     /// Each triangle's position in the input, for `input_index`.
     inputs: Vec<u32>,
     bvh: Option<Bvh2>,
@@ -167,6 +219,7 @@ impl TriangleSet {
             .unzip();
         if tris.len() <= BRUTE_FORCE_MAX {
             return TriangleSet {
+                prepared: tris.iter().map(Prepared::of).collect(),
                 tris,
                 inputs,
                 bvh: None,
@@ -183,7 +236,7 @@ impl TriangleSet {
             0,
         );
         obvhs::bvh2::leaf_collapser::collapse(&mut bvh, 4, 1.0);
-        let tris = bvh
+        let tris: Vec<Tri> = bvh
             .primitive_indices
             .iter()
             .map(|&i| tris[i as usize])
@@ -194,6 +247,7 @@ impl TriangleSet {
             .map(|&i| inputs[i as usize])
             .collect();
         TriangleSet {
+            prepared: tris.iter().map(Prepared::of).collect(),
             tris,
             inputs,
             bvh: Some(bvh),
@@ -213,9 +267,8 @@ impl TriangleSet {
 
     /// The exact distance from `p` to `triangle` (a handle from `nearest`).
     pub fn distance_to(&self, p: Vec3, triangle: u32) -> f32 {
-        let t = &self.tris[triangle as usize];
         let p = Vec3A::from(p);
-        closest_point_on_triangle(p, t.a, t.b, t.c).distance(p)
+        self.prepared[triangle as usize].closest(p).distance(p)
     }
 
     /// The triangles (handles) with a corner at exactly `p`.
@@ -311,10 +364,8 @@ impl TriangleSet {
     pub fn all_within(&self, p: Vec3, radius: f32, mut visit: impl FnMut(u32) -> bool) -> bool {
         let p = Vec3A::from(p);
         let r2 = radius * radius;
-        let mut check = |i: usize| {
-            let t = &self.tris[i];
-            closest_point_on_triangle(p, t.a, t.b, t.c).distance_squared(p) > r2 || visit(i as u32)
-        };
+        let mut check =
+            |i: usize| self.prepared[i].closest(p).distance_squared(p) > r2 || visit(i as u32);
         let Some(bvh) = &self.bvh else {
             return (0..self.tris.len()).all(check);
         };
@@ -356,7 +407,7 @@ impl TriangleSet {
             if to_box > best.distance_squared * BOX_MARGIN {
                 return;
             }
-            let d = closest_point_on_triangle(p, t.a, t.b, t.c).distance_squared(p);
+            let d = self.prepared[i].closest(p).distance_squared(p);
             if d < best.distance_squared {
                 *best = Nearest {
                     distance_squared: d,
@@ -435,6 +486,70 @@ mod tests {
         let q = closest_point_on_triangle(p, a, b, c);
         assert!((q - Vec3A::new(1.5, 0.0, 0.0)).length() < 1e-6);
         assert_eq!(closest_point_on_triangle(p, a, a, a), a);
+    }
+
+    /// The distance from `p` to `abc` the plain way, in double precision:
+    /// to the plane where the foot is inside (the signs of the three
+    /// sub-triangles' normals), else to the nearest edge.
+    fn reference_distance(p: DVec3, a: DVec3, b: DVec3, c: DVec3) -> f64 {
+        let n = (b - a).cross(c - a);
+        let edges = edges_f64(p, a, b, c).distance(p);
+        if n.length_squared() == 0.0 {
+            return edges;
+        }
+        let foot = p - n * (n.dot(p - a) / n.length_squared());
+        let inside = [(a, b), (b, c), (c, a)]
+            .iter()
+            .all(|&(u, v)| (v - u).cross(foot - u).dot(n) >= 0.0);
+        if inside {
+            edges.min(foot.distance(p))
+        } else {
+            edges
+        }
+    }
+
+    #[test]
+    fn closest_points_hold_on_slivers_and_degenerate_triangles() {
+        // Corners and points on a coarse lattice: long slivers among them
+        // (three corners on one line 45 m long), triangles with two corners
+        // at one point, and ordinary ones; every region of each is met.
+        let coords = [-20.0f32, -0.001, 0.0, 0.3, 1.0, 20.0];
+        let point = |i: usize| {
+            Vec3A::new(
+                coords[i % 6],
+                coords[(i / 6) % 6],
+                coords[(i / 36) % 6] * 0.5,
+            )
+        };
+        for t in (0..216).step_by(7) {
+            for u in (0..216).step_by(11) {
+                let (a, b) = (point(t), point(u));
+                for c in [
+                    point((t * 5 + u) % 216),
+                    a,
+                    (a + b) * 0.5 + Vec3A::Y * 0.001,
+                ] {
+                    let longest = a.distance(b).max(b.distance(c)).max(c.distance(a));
+                    for i in (0..216).step_by(5) {
+                        let p = point(i) + Vec3A::new(0.37, -0.21, 0.13);
+                        let want = reference_distance(
+                            p.as_dvec3(),
+                            a.as_dvec3(),
+                            b.as_dvec3(),
+                            c.as_dvec3(),
+                        );
+                        let got = f64::from(closest_point_on_triangle(p, a, b, c).distance(p));
+                        // A sliver's edges are within a millionth of its
+                        // length of it; the point is rounded to `f32`.
+                        let slack = 1e-6 * f64::from(longest) + 1e-5;
+                        assert!(
+                            (got - want).abs() <= slack,
+                            "{a} {b} {c} from {p}: {got} against {want}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     /// 400 small triangles on a staggered grid: enough for a BVH.
