@@ -67,7 +67,9 @@ impl Prepared {
         let (ab, ac) = (b.as_dvec3() - a, c.as_dvec3() - a);
         let (ab_ab, ac_ac) = (ab.dot(ab), ac.dot(ac));
         let area = ab.cross(ac).length_squared();
-        let sliver = !(area > SLIVER_SINE_SQUARED * ab_ab * ac_ac);
+        // NaN (a corner at infinity) too.
+        let sliver = area.partial_cmp(&(SLIVER_SINE_SQUARED * ab_ab * ac_ac))
+            != Some(std::cmp::Ordering::Greater);
         Prepared {
             a,
             ab,
