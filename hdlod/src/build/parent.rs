@@ -172,21 +172,15 @@ fn direct_eps(
             feature: None,
         })
         .collect();
+    let union = geometry::merge(&parts, 0.0);
+    let whole = geometry::bound_within(mesh, &union, tolerance, budget as f32, metric)?;
     // The recursive bound holds object by object as well (each object's
     // triangles come from that object's below), and a viewer picks and
     // hides objects inside a cluster: the direct bound stands in for it
-    // only where it does too (docs/method.md, "Object identity"). The two
-    // are measured side by side: a level's few largest clusters, measured
-    // one bound after the other, kept one core waiting at its end.
+    // only where it does too (docs/method.md, "Object identity").
     let originals: Vec<&Mesh> = originals.iter().map(|m| m.as_ref()).collect();
-    let (whole, own) = rayon::join(
-        || {
-            let union = geometry::merge(&parts, 0.0);
-            geometry::bound_within(mesh, &union, tolerance, budget as f32, metric)
-        },
-        || geometry::feature_bound_within(mesh, &originals, tolerance, budget as f32, metric),
-    );
-    Some(f64::from(whole?.max(own?)))
+    let own = geometry::feature_bound_within(mesh, &originals, tolerance, budget as f32, metric)?;
+    Some(f64::from(whole.max(own)))
 }
 
 /// A parent of its own for a lone cluster: its geometry, error and baked
