@@ -110,7 +110,6 @@ fn serve_trees(
     cors: Cors,
     limits: Limits,
 ) -> anyhow::Result<()> {
-    api::memory::limit_arenas();
     let state = AppState::load(trees.clone(), &limits)?;
     if watching {
         watch(state.clone(), &trees)?;
