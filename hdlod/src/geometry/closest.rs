@@ -184,8 +184,11 @@ pub struct TriangleSet {
     bvh: Option<Bvh2>,
     /// Every (corner, triangle) pair, sorted by the corner's bits: the
     /// triangles around a corner (`around`). Made on first use, since most
-    /// sets are never asked.
-    corners: OnceLock<Vec<([u32; 3], u32)>>,
+    /// sets are never asked. Each pair packed into one `u128` (the
+    /// corner's three coordinates' bits, then the triangle), so that the
+    /// sort compares integers: compared as tuples, the sort was 3.6% of a
+    /// steel model's build.
+    corners: OnceLock<Vec<u128>>,
 }
 
 thread_local! {
@@ -275,24 +278,26 @@ impl TriangleSet {
 
     /// The triangles (handles) with a corner at exactly `p`.
     pub fn around(&self, p: Vec3) -> impl Iterator<Item = u32> + '_ {
+        let corner = |c: Vec3A| {
+            let [x, y, z] = c.to_array().map(|v| u128::from(v.to_bits()));
+            x << 96 | y << 64 | z << 32
+        };
         let corners = self.corners.get_or_init(|| {
-            let mut all: Vec<([u32; 3], u32)> = self
+            let mut all: Vec<u128> = self
                 .tris
                 .iter()
                 .enumerate()
-                .flat_map(|(i, t)| {
-                    [t.a, t.b, t.c].map(|c| (c.to_array().map(f32::to_bits), i as u32))
-                })
+                .flat_map(|(i, t)| [t.a, t.b, t.c].map(|c| corner(c) | i as u128))
                 .collect();
             all.sort_unstable();
             all
         });
-        let key = p.to_array().map(f32::to_bits);
-        let first = corners.partition_point(|(k, _)| *k < key);
+        let key = corner(p.into());
+        let first = corners.partition_point(|&k| k < key);
         corners[first..]
             .iter()
-            .take_while(move |(k, _)| *k == key)
-            .map(|&(_, t)| t)
+            .take_while(move |&&k| k >> 32 == key >> 32)
+            .map(|&k| k as u32)
     }
 
     /// The corners of `triangle` (a handle from `nearest`).
