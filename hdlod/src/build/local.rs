@@ -118,8 +118,9 @@ pub fn plan<'a>(
     if scene.up != old.up {
         return Err("the scene's up axis changed".into());
     }
-    let stats: BuildStats = serde_json::from_value(old.stats.clone())
+    let mut stats: BuildStats = serde_json::from_value(old.stats.clone())
         .map_err(|_| "the tree's statistics are not a build's".to_string())?;
+    stats.geometry_key = key;
     let scene = super::scheduled(scene, config);
     let mut sources = object_sources(&scene);
     for &k in tombstones {
@@ -310,8 +311,6 @@ pub fn plan<'a>(
         }
         added.push((p, at.filter(|&c| old.class_of(c) != ClusterClass::Root)));
     }
-    let mut stats = stats;
-    stats.geometry_key = key;
     Ok(Plan {
         scene,
         pieces,
@@ -712,13 +711,10 @@ impl Plan<'_> {
         let mut clusters: Vec<Cluster> = Vec::with_capacity(next as usize);
         // The old clusters that stay, decoded from a mapped tree's index on
         // every core: one by one, that was most of the assembly.
-        let mut kept: Vec<Option<Cluster>> = {
-            use rayon::prelude::*;
-            (0..n as u32)
-                .into_par_iter()
-                .map(|c| new_id(c).map(|_| old.cluster(c).into_owned()))
-                .collect()
-        };
+        let mut kept: Vec<Option<Cluster>> = (0..n as u32)
+            .into_par_iter()
+            .map(|c| new_id(c).map(|_| old.cluster(c).into_owned()))
+            .collect();
         let mut take = |c: u32| {
             kept[c as usize]
                 .take()

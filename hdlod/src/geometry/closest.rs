@@ -81,10 +81,6 @@ impl Prepared {
         }
     }
 
-    fn of(t: &Tri) -> Prepared {
-        Prepared::new(t.a, t.b, t.c)
-    }
-
     fn closest(&self, p: Vec3A) -> Vec3A {
         let Prepared {
             a,
@@ -224,7 +220,7 @@ impl TriangleSet {
             .unzip();
         if tris.len() <= BRUTE_FORCE_MAX {
             return TriangleSet {
-                prepared: tris.iter().map(Prepared::of).collect(),
+                prepared: tris.iter().map(|t| Prepared::new(t.a, t.b, t.c)).collect(),
                 tris,
                 inputs,
                 bvh: None,
@@ -252,7 +248,7 @@ impl TriangleSet {
             .map(|&i| inputs[i as usize])
             .collect();
         TriangleSet {
-            prepared: tris.iter().map(Prepared::of).collect(),
+            prepared: tris.iter().map(|t| Prepared::new(t.a, t.b, t.c)).collect(),
             tris,
             inputs,
             bvh: Some(bvh),

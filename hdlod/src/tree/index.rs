@@ -210,6 +210,15 @@ fn hex(bytes: &[u8; 32]) -> String {
 /// The index of a valid tree, as the file's bytes; `json_len` is the
 /// length of the `clusters.json` written beside it.
 pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
+    let mut out = unsealed(tree);
+    set_json_len(&mut out, json_len);
+    out
+}
+
+/// The index of a valid tree but its `clusters.json` length and checksum,
+/// for [`set_json_len`] once the length is known: a writer makes it while
+/// it writes that file.
+pub(crate) fn unsealed(tree: &Tree) -> Vec<u8> {
     let n = tree.cluster_count();
     let nodes = Nodes::new(tree);
     let mut records = Vec::with_capacity(n);
@@ -321,13 +330,11 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
         bytemuck::cast_slice(&levels),
         bytemuck::cast_slice(&baseline),
     ];
-    let mut out = sections::write(MAGIC, VERSION, n as u32, tree.root, json_len, &sections);
-    sections::seal(&mut out);
-    out
+    sections::write(MAGIC, VERSION, n as u32, tree.root, 0, &sections)
 }
 
 /// Sets, in the bytes of an index, the length of the `clusters.json` it
-/// was made beside, and seals it again.
+/// was made beside, and seals it with its checksum.
 pub(crate) fn set_json_len(bytes: &mut [u8], json_len: u64) {
     sections::set_json_len(bytes, json_len);
     sections::seal(bytes);

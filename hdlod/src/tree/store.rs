@@ -236,7 +236,7 @@ impl TreeWriter {
         // megabytes): serialised in chunks on every core and written while
         // the index and the object tables are made beside it. The index
         // names the table's length, known last, so it is set afterwards.
-        let (table, (index_bytes, objects)) = rayon::join(
+        let (table, (mut index_bytes, objects)) = rayon::join(
             || -> Result<u64> {
                 let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE))?;
                 table.write(&self.tmp.join(CLUSTERS_FILE))?;
@@ -244,7 +244,7 @@ impl TreeWriter {
             },
             || {
                 rayon::join(
-                    || index::encode(tree, 0),
+                    || index::unsealed(tree),
                     || match &tree.objects {
                         Some(tables) => write_json(
                             &self.tmp.join(OBJECTS_FILE),
@@ -264,7 +264,6 @@ impl TreeWriter {
         );
         let json_len = table?;
         objects?;
-        let mut index_bytes = index_bytes;
         index::set_json_len(&mut index_bytes, json_len);
         write_bytes(&self.tmp.join(INDEX_FILE), &index_bytes)?;
         drop(index_bytes);

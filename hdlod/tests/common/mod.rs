@@ -445,10 +445,6 @@ pub fn leaves_below(tree: &hdlod::tree::Tree, id: u32) -> Vec<u32> {
         .collect()
 }
 
-/// The original objects of `scene` below cluster `id` of `tree`, merged,
-/// each placed where it is at a time its leaf shows it (a moving object's
-/// resting part at its held pose): what the cluster's `eps` bounds the
-/// distance to.
 /// Checks that the geometry of cluster `c` of the tree at `dir` lies within
 /// its `eps` of the objects of `scene` below it, measured to 1% of it.
 pub fn assert_eps_bound(
@@ -478,6 +474,10 @@ pub fn assert_eps_bound(
     );
 }
 
+/// The original objects of `scene` below cluster `id` of `tree`, merged,
+/// each placed where it is at a time its leaf shows it (a moving object's
+/// resting part at its held pose): what the cluster's `eps` bounds the
+/// distance to.
 pub fn objects_below(tree: &hdlod::tree::Tree, scene: &Scene, id: u32) -> Mesh {
     let objects: std::collections::HashMap<&str, &Object> =
         scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
