@@ -12,7 +12,7 @@ use hdlod::build::{BuildConfig, How, Silent, build_or_update_to, build_to};
 use hdlod::io::gltf::read_mesh;
 use hdlod::scene::{Scene, format};
 use hdlod::tree::cut::cut;
-use hdlod::tree::{CameraSpec, ClusterClass, Tree, View, Viewport, load};
+use hdlod::tree::{CameraSpec, ClusterClass, Previous, Tree, TreeWriter, View, Viewport, load};
 
 mod common;
 
@@ -125,6 +125,26 @@ fn remade_bounds_hold(
     checked
 }
 
+/// Checks that `clusters.json` at `dir`, whose unchanged records an update
+/// copies from the tree it replaced (its ids written afresh where they
+/// changed), is the file a fresh write of the tree makes, byte for byte.
+fn table_as_fresh(dir: &Path, tree: &Tree) {
+    let fresh = dir.with_file_name("fresh");
+    let writer = TreeWriter::create(&fresh).unwrap();
+    for c in tree.clusters() {
+        if let Some(hash) = &c.geometry {
+            writer.reuse_geometry(dir, tree.layout, hash).unwrap();
+        }
+    }
+    writer.finish(tree).unwrap();
+    let read = |d: &Path| std::fs::read(d.join("clusters.json")).unwrap();
+    assert!(
+        read(dir) == read(&fresh),
+        "the updated clusters.json is not the one a fresh write makes"
+    );
+    std::fs::remove_dir_all(&fresh).unwrap();
+}
+
 /// Checks that the cuts of `after` are those of a full build of `scene`
 /// (made in `tmp`) within a few percent over the table's views, a cell of
 /// a few hundred triangles within a quarter.
@@ -181,6 +201,7 @@ fn a_storey_edited_and_an_object_added_rebuild_only_what_is_above_them() {
     };
     assert_eq!((edited_objects, added_objects), (storey, 1));
     let after = load(&dir).expect("the updated tree passes every check of the loader");
+    table_as_fresh(&dir, &after);
     assert_eq!(after.cluster_count(), before.cluster_count() + 1);
     assert!(
         rebuilt < after.cluster_count() / 2,
@@ -390,6 +411,7 @@ fn removed_objects_leave_tombstones_and_the_others_keep_their_feature_ids() {
         "{dropped} dropped, {gone_leaves} leaves removed"
     );
     let after = load(&dir).expect("the updated tree passes every check of the loader");
+    table_as_fresh(&dir, &after);
     assert_eq!(
         after.cluster_count(),
         before.cluster_count() - dropped - dissolved
@@ -532,6 +554,7 @@ fn a_moving_object_edited_and_one_added_get_their_own_chains() {
         "{dropped} dropped of {old_leaves} leaves"
     );
     let after = load(&dir).expect("the updated tree passes every check of the loader");
+    table_as_fresh(&dir, &after);
     // Both objects have their leaves, each moving leaf under its own chain
     // to the root, moving as its object.
     for name in [id.as_str(), "ADDED-MOVING"] {
@@ -572,4 +595,63 @@ fn a_moving_object_edited_and_one_added_get_their_own_chains() {
     // The same scene again: a schedule update finds every leaf's piece.
     let (_, _, how) = build_or_update_to(&changed, &config, &dir, false, &Silent).unwrap();
     assert!(matches!(how, How::ScheduleUpdate { .. }), "{how:?}");
+}
+
+/// A write that replaces a tree copies every record whose content did not
+/// change, writing only its ids, and the file is the one a fresh write
+/// makes, byte for byte: here with one cluster's error changed and the
+/// others as they were (the moving objects' chains among them, whose
+/// records name the top of their chain).
+#[test]
+fn a_write_that_replaces_a_tree_copies_its_unchanged_records() {
+    let Built {
+        tmp, dir, before, ..
+    } = built();
+    let mut tree = hdlod::tree::store::load_json(&dir).unwrap();
+    let n = tree.cluster_count();
+    let changed = tree
+        .clusters()
+        .position(|c| c.eps > 0.0 && c.motion.is_none())
+        .expect("a reduced cluster");
+    tree.clusters_mut()[changed].eps *= 1.5;
+    assert!(tree.clusters().any(|c| c.motion.is_some() && !c.is_leaf()));
+    let write = |to: &Path| {
+        let writer = TreeWriter::create(to).unwrap();
+        for c in tree.clusters() {
+            if let Some(hash) = &c.geometry {
+                writer.reuse_geometry(&dir, before.layout, hash).unwrap();
+            }
+        }
+        writer
+    };
+    let (fresh, replacing) = (tmp.path().join("fresh"), tmp.path().join("replacing"));
+    write(&fresh).finish(&tree).unwrap();
+    let origin: Vec<Option<u32>> = (0..n as u32).map(Some).collect();
+    let previous = Previous {
+        tree: &before,
+        dir: &dir,
+        origin: &origin,
+    };
+    let copied = write(&replacing)
+        .finish_replacing(&tree, &previous)
+        .unwrap();
+    assert_eq!(copied, n - 1, "every record but the changed one copied");
+    let read = |d: &Path| std::fs::read(d.join("clusters.json")).unwrap();
+    assert!(
+        read(&fresh) == read(&replacing),
+        "the copied table differs from a fresh one"
+    );
+    // Nothing is copied from a cluster said to come from another one.
+    let shifted: Vec<Option<u32>> = (0..n as u32).map(|c| Some((c + 1) % n as u32)).collect();
+    let previous = Previous {
+        origin: &shifted,
+        ..previous
+    };
+    let other = tmp.path().join("other");
+    let copied = write(&other).finish_replacing(&tree, &previous).unwrap();
+    assert!(
+        copied * 100 < n,
+        "{copied} of {n} records copied from the wrong clusters"
+    );
+    assert!(read(&fresh) == read(&other));
 }

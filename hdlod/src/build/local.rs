@@ -93,6 +93,9 @@ pub struct Updated {
     pub dropped: usize,
     /// Groups dissolved by the schedule pass.
     pub dissolved: usize,
+    /// Per cluster of the new tree, the old tree's it was made from: kept,
+    /// or made again over the same children (its record may have changed).
+    pub origin: Vec<Option<u32>>,
 }
 
 /// Whether `old` can be brought to `scene` by a local geometry update, and
@@ -709,6 +712,7 @@ impl Plan<'_> {
         let scene = &self.scene;
         let span = scene.time.seconds;
         let mut clusters: Vec<Cluster> = Vec::with_capacity(next as usize);
+        let mut origin: Vec<Option<u32>> = Vec::with_capacity(next as usize);
         // The old clusters that stay, decoded from a mapped tree's index on
         // every core: one by one, that was most of the assembly.
         let mut kept: Vec<Option<Cluster>> = (0..n as u32)
@@ -733,6 +737,7 @@ impl Plan<'_> {
                 replace(&mut c, m);
             }
             clusters.push(c);
+            origin.push(Some(id));
         }
         for ((p, _), m) in self.added.iter().zip(added) {
             let piece = &self.pieces[*p];
@@ -740,6 +745,7 @@ impl Plan<'_> {
             c.objects = vec![scene.objects[piece.object].id.clone()];
             replace(&mut c, m);
             clusters.push(c);
+            origin.push(None);
         }
         let root_last = (self.leaves as u32..n as u32)
             .filter(|&c| c != old.root)
@@ -751,6 +757,7 @@ impl Plan<'_> {
                     c.children.iter_mut().for_each(|k| *k += first_chain);
                     c
                 }));
+                origin.resize(clusters.len(), None);
                 for (a, parents) in &alone {
                     let (p, _) = self.added[*a];
                     let piece = &self.pieces[p];
@@ -760,6 +767,7 @@ impl Plan<'_> {
                         replace(&mut c, m.clone());
                         below = clusters.len() as u32;
                         clusters.push(c);
+                        origin.push(None);
                     }
                     alone_tops.push(below);
                 }
@@ -777,6 +785,7 @@ impl Plan<'_> {
                 replace(&mut c, m);
             }
             clusters.push(c);
+            origin.push(Some(id));
         }
         for (i, c) in clusters.iter_mut().enumerate() {
             c.id = i as u32;
@@ -815,12 +824,14 @@ impl Plan<'_> {
                 tree,
                 stats,
                 dissolved,
+                origin: passed,
             } => Ok(Updated {
                 tree: *tree,
                 stats,
                 rebuilt,
                 dropped: gone.iter().filter(|&&g| g).count(),
                 dissolved,
+                origin: passed.iter().map(|&c| origin[c as usize]).collect(),
             }),
             Update::Rebuild(why) => Err(Error::argument("scene", why)),
         }

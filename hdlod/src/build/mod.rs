@@ -31,7 +31,7 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 
 use crate::scene::{Class, Scene, Visibility};
-use crate::tree::{Aabb, Cluster, ClusterClass, ObjectTables, Tree, TreeWriter};
+use crate::tree::{Aabb, Cluster, ClusterClass, ObjectTables, Previous, Tree, TreeWriter};
 use crate::{Error, Result};
 use context::{Context, Node, add};
 
@@ -245,7 +245,12 @@ fn update_geometry(
     }
     let geometry_files = kept.len();
     drop(files);
-    writer.finish(&updated.tree)?;
+    let previous = Previous {
+        tree: old,
+        dir: out,
+        origin: &updated.origin,
+    };
+    writer.finish_replacing(&updated.tree, &previous)?;
     stats
         .phases
         .push(("write".into(), clock.elapsed().as_secs_f64()));
@@ -380,13 +385,14 @@ fn update_in_place(
     }
     progress.phase("update", 1);
     let clock = Instant::now();
-    let (tree, mut stats, dissolved) = match update_schedule(old, scene, config) {
+    let (tree, mut stats, dissolved, origin) = match update_schedule(old, scene, config) {
         Update::Rebuild(why) => return Ok(Err(why)),
         Update::Updated {
             tree,
             stats,
             dissolved,
-        } => (tree, stats, dissolved),
+            origin,
+        } => (tree, stats, dissolved, origin),
     };
     stats.phases.push(("load tree".into(), load));
     stats.phases.push(("geometry key".into(), key_seconds));
@@ -412,7 +418,13 @@ fn update_in_place(
         .phases
         .push(("geometry".into(), clock.elapsed().as_secs_f64()));
     let clock = Instant::now();
-    writer.finish(&tree)?;
+    let origin: Vec<Option<u32>> = origin.into_iter().map(Some).collect();
+    let previous = Previous {
+        tree: old,
+        dir: out,
+        origin: &origin,
+    };
+    writer.finish_replacing(&tree, &previous)?;
     stats
         .phases
         .push(("write".into(), clock.elapsed().as_secs_f64()));

@@ -36,6 +36,8 @@ pub enum Update {
         tree: Box<Tree>,
         stats: BuildStats,
         dissolved: usize,
+        /// Per cluster of the new tree, its id in the tree updated.
+        origin: Vec<u32>,
     },
     /// The groups would change: why, for the caller's report.
     Rebuild(String),
@@ -201,11 +203,102 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
     let (levels, scene_w) = (stats.levels, stats.scene_w);
     let n = old.cluster_count();
     let (bounds, old_config, sources) = (old.bounds, old.config.clone(), old.sources.clone());
-    let records: Box<dyn Iterator<Item = Cluster> + '_> = match old {
-        Cow::Borrowed(t) => Box::new(t.clusters().map(Cow::into_owned)),
-        Cow::Owned(mut t) => Box::new(std::mem::take(t.clusters_mut()).into_iter()),
+    let mut records: Vec<Cluster> = match old {
+        // Decoded on every core: one by one, that was a third of the pass.
+        Cow::Borrowed(t) => (0..n as u32)
+            .into_par_iter()
+            .map(|c| t.cluster(c).into_owned())
+            .collect(),
+        Cow::Owned(mut t) => std::mem::take(t.clusters_mut()),
     };
+    // The object tables need the leaves' objects and ids alone: made on
+    // one core while the other recomputes the visibility, the objects put
+    // back after.
+    let leaf_objects: Vec<(u32, Vec<String>)> = (records.iter_mut())
+        .filter(|c| !c.objects.is_empty())
+        .map(|c| (c.id, std::mem::take(&mut c.objects)))
+        .collect();
+    let (objects, visibility) = rayon::join(
+        || ObjectTables::of_leaves(scene, leaf_objects.iter().map(|(c, o)| (*c, o.as_slice()))),
+        || {
+            visibility_pass(
+                records,
+                &leaf_pieces,
+                &pieces,
+                config,
+                (span, scene_w, levels),
+            )
+        },
+    );
+    let (mut clusters, dissolved) = visibility;
+    for (c, o) in leaf_objects {
+        clusters[c as usize].objects = o;
+    }
+    let gone = dissolved.iter().filter(|d| d.is_some()).count();
+    let origin = (0..n as u32)
+        .filter(|&c| dissolved[c as usize].is_none())
+        .collect();
+    let clusters = renumbered(clusters, &dissolved);
+    let root = clusters
+        .iter()
+        .position(|c| c.class == ClusterClass::Root)
+        .expect("a built tree has its virtual root") as u32;
+    // A dissolved group may come before a leaf, whose id then changed.
+    let objects = if gone == 0 {
+        objects
+    } else {
+        ObjectTables::of(scene, &clusters)
+    };
+    level_stats(&clusters, &mut stats);
+    // A removed object's tombstone (`super::align`) is no object of the
+    // scene's.
+    let tombstone = |k: usize| {
+        sources
+            .as_ref()
+            .is_some_and(|s| s.get(k) == Some(&super::align::TOMBSTONE))
+    };
+    stats.absent_objects = scene
+        .objects
+        .iter()
+        .zip(&classes)
+        .enumerate()
+        .filter(|&(k, (_, c))| *c == Class::Absent && !tombstone(k))
+        .map(|(_, (o, _))| o.id.clone())
+        .collect();
+    stats.phases.clear();
+    let mut tree = Tree::new(
+        scene.name.clone(),
+        scene.time,
+        bounds,
+        scene.up,
+        root,
+        clusters,
+    );
+    tree.georeference = scene.georeference;
+    tree.config = old_config;
+    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+    tree.objects = Some(objects);
+    tree.sources = sources;
+    Update::Updated {
+        tree: Box::new(tree),
+        stats,
+        dissolved: gone,
+        origin,
+    }
+}
 
+/// The visibility, `v_c` and `gamma_c`, of every cluster of `records`
+/// (children before parents) recomputed from the leaves' `pieces`; the
+/// groups that no longer fit their level, dissolved (`Some` of the children
+/// handed to the parent).
+fn visibility_pass(
+    records: Vec<Cluster>,
+    leaf_pieces: &FxHashMap<u32, usize>,
+    pieces: &[Piece],
+    config: &BuildConfig,
+    (span, scene_w, levels): (f64, f64, u32),
+) -> (Vec<Cluster>, Vec<Option<Vec<u32>>>) {
+    let n = records.len();
     // Distinct leaf visibilities, as the build numbers them, and per
     // cluster the ones below it. A group whose recomputed `gamma_c` breaks
     // its level's threshold is dissolved: its children join its parent's
@@ -291,52 +384,7 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
         below.push(vis);
         clusters.push(c);
     }
-    let gone = dissolved.iter().filter(|d| d.is_some()).count();
-    let clusters = renumbered(clusters, &dissolved);
-    let root = clusters
-        .iter()
-        .position(|c| c.class == ClusterClass::Root)
-        .expect("a built tree has its virtual root") as u32;
-
-    // The object tables, made beside the levels' figures.
-    let (objects, ()) = rayon::join(
-        || ObjectTables::of(scene, &clusters),
-        || level_stats(&clusters, &mut stats),
-    );
-    // A removed object's tombstone (`super::align`) is no object of the
-    // scene's.
-    let tombstone = |k: usize| {
-        sources
-            .as_ref()
-            .is_some_and(|s| s.get(k) == Some(&super::align::TOMBSTONE))
-    };
-    stats.absent_objects = scene
-        .objects
-        .iter()
-        .zip(&classes)
-        .enumerate()
-        .filter(|&(k, (_, c))| *c == Class::Absent && !tombstone(k))
-        .map(|(_, (o, _))| o.id.clone())
-        .collect();
-    stats.phases.clear();
-    let mut tree = Tree::new(
-        scene.name.clone(),
-        scene.time,
-        bounds,
-        scene.up,
-        root,
-        clusters,
-    );
-    tree.georeference = scene.georeference;
-    tree.config = old_config;
-    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
-    tree.objects = Some(objects);
-    tree.sources = sources;
-    Update::Updated {
-        tree: Box::new(tree),
-        stats,
-        dissolved: gone,
-    }
+    (clusters, dissolved)
 }
 
 /// Sets the static and pseudo-dynamic levels' figures in `stats` from

@@ -25,7 +25,9 @@ use memmap2::Mmap;
 use super::baseline::{Baseline, Present};
 use super::nodes::{Node, Nodes, Step, triangle_count};
 use super::sections::{self, Layout};
-use super::{Aabb, Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary};
+use super::{
+    Aabb, Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary, keyframe_bits, step_bits,
+};
 use crate::error::{Error, Result};
 use crate::scene::{Keyframe, Motion, keys_until};
 
@@ -181,20 +183,34 @@ fn class_of(code: u32) -> Option<ClusterClass> {
 
 /// A blake3 hex hash (64 lowercase digits) as its 32 bytes.
 pub(crate) fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
-    let digit = |b: u8| match b {
-        b'0'..=b'9' => Some(b - b'0'),
-        b'a'..=b'f' => Some(b - b'a' + 10),
-        _ => None,
+    // Each byte's digit value, 16 where it is none: a table rather than a
+    // match, as an update compares every cluster's hash this way.
+    const DIGIT: [u8; 256] = {
+        let mut table = [16u8; 256];
+        let mut d = 0;
+        while d < 10 {
+            table[b'0' as usize + d] = d as u8;
+            d += 1;
+        }
+        let mut d = 0;
+        while d < 6 {
+            table[b'a' as usize + d] = 10 + d as u8;
+            d += 1;
+        }
+        table
     };
     let hex = hex.as_bytes();
     if hex.len() != 64 {
         return None;
     }
     let mut out = [0u8; 32];
+    let mut bad = 0;
     for (byte, pair) in out.iter_mut().zip(hex.chunks_exact(2)) {
-        *byte = digit(pair[0])? << 4 | digit(pair[1])?;
+        let (hi, lo) = (DIGIT[usize::from(pair[0])], DIGIT[usize::from(pair[1])]);
+        bad |= hi | lo;
+        *byte = hi << 4 | (lo & 15);
     }
-    Some(out)
+    (bad < 16).then_some(out)
 }
 
 fn hex(bytes: &[u8; 32]) -> String {
@@ -220,73 +236,20 @@ pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
 /// it writes that file.
 pub(crate) fn unsealed(tree: &Tree) -> Vec<u8> {
     let n = tree.cluster_count();
-    let nodes = Nodes::new(tree);
-    let mut records = Vec::with_capacity(n);
-    let mut keys: Vec<Key> = Vec::new();
-    let mut hashes: Vec<[u8; 32]> = Vec::new();
-    let mut hash_ids: FxHashMap<String, u32> = FxHashMap::default();
-    let mut objects: Vec<u32> = Vec::new();
-    let mut string_starts: Vec<u32> = vec![0];
-    let mut strings: Vec<u8> = Vec::new();
-    let mut string_ids: FxHashMap<String, u32> = FxHashMap::default();
-    let mut ranges: FxHashMap<u32, (u32, u32)> = FxHashMap::default();
-    for c in tree.clusters() {
-        let geometry = match &c.geometry {
-            None => NONE,
-            Some(h) => match hash_ids.get(h.as_str()) {
-                Some(&i) => i,
-                None => {
-                    hashes.push(hash_bytes(h).expect("a valid tree's hashes are hex"));
-                    hash_ids.insert(h.clone(), hashes.len() as u32 - 1);
-                    hashes.len() as u32 - 1
-                }
-            },
-        };
-        // A LOD chain's keyframes are stored once: every cluster of it names
-        // the range of its top's (`Tree::motion_source`).
-        let (first_key, key_count) = match tree.motion_source(c.id) {
-            None => (0, 0),
-            Some(source) => *ranges.entry(source).or_insert_with(|| {
-                let top = tree.cluster(source);
-                let m = top.motion.as_ref().expect("a motion source has a motion");
-                let first = keys.len() as u32;
-                keys.extend(m.keyframes().iter().map(|k| Key {
-                    t: k.t,
-                    translation: k.translation.to_array(),
-                    rotation: k.rotation.to_array(),
-                    scale: k.scale.to_array(),
-                }));
-                (first, m.keyframes().len() as u32)
-            }),
-        };
-        let first_object = objects.len() as u32;
-        for id in &c.objects {
-            let s = match string_ids.get(id.as_str()) {
-                Some(&s) => s,
-                None => {
-                    strings.extend_from_slice(id.as_bytes());
-                    string_starts.push(strings.len() as u32);
-                    let s = string_starts.len() as u32 - 2;
-                    string_ids.insert(id.clone(), s);
-                    s
-                }
-            };
-            objects.push(s);
-        }
-        records.push(Record {
-            triangles: c.triangles,
-            gamma: c.gamma,
-            parent: c.parent.unwrap_or(NONE),
-            level: c.level,
-            class: class_code(c.class),
-            geometry,
-            first_key,
-            key_count,
-            first_object,
-            object_count: c.objects.len() as u32,
-        });
-    }
-    let summary = tree.summary();
+    // The nodes, the records and the tree's figures are independent: made
+    // side by side, as the writer's other tables are.
+    let (nodes, (flat, (summary, baseline))) = rayon::join(
+        || Nodes::new(tree),
+        || rayon::join(|| Flat::of(tree), || (tree.summary(), tree.baseline())),
+    );
+    let Flat {
+        records,
+        keys,
+        hashes,
+        objects,
+        string_starts,
+        strings,
+    } = flat;
     let class_count = |class: ClusterClass| summary.classes[class.name()] as u64;
     let counts = Counts {
         leaves: summary.leaves as u64,
@@ -305,8 +268,7 @@ pub(crate) fn unsealed(tree: &Tree) -> Vec<u8> {
             max_gamma: l.max_gamma,
         })
         .collect();
-    let baseline: Vec<Change> = tree
-        .baseline()
+    let baseline: Vec<Change> = baseline
         .steps()
         .map(|(t, p)| Change {
             t,
@@ -331,6 +293,89 @@ pub(crate) fn unsealed(tree: &Tree) -> Vec<u8> {
         bytemuck::cast_slice(&baseline),
     ];
     sections::write(MAGIC, VERSION, n as u32, tree.root, 0, &sections)
+}
+
+/// The records of an index and the flat arrays they point into.
+struct Flat {
+    records: Vec<Record>,
+    keys: Vec<Key>,
+    hashes: Vec<[u8; 32]>,
+    objects: Vec<u32>,
+    string_starts: Vec<u32>,
+    strings: Vec<u8>,
+}
+
+impl Flat {
+    fn of(tree: &Tree) -> Flat {
+        let mut flat = Flat {
+            records: Vec::with_capacity(tree.cluster_count()),
+            keys: Vec::new(),
+            hashes: Vec::new(),
+            objects: Vec::new(),
+            string_starts: vec![0],
+            strings: Vec::new(),
+        };
+        // Keyed by the hashes' bytes: no string is copied to look one up.
+        let mut hash_ids: FxHashMap<[u8; 32], u32> = FxHashMap::default();
+        let mut string_ids: FxHashMap<String, u32> = FxHashMap::default();
+        let mut ranges: FxHashMap<u32, (u32, u32)> = FxHashMap::default();
+        for c in tree.clusters() {
+            let geometry = match &c.geometry {
+                None => NONE,
+                Some(h) => {
+                    let bytes = hash_bytes(h).expect("a valid tree's hashes are hex");
+                    *hash_ids.entry(bytes).or_insert_with(|| {
+                        flat.hashes.push(bytes);
+                        flat.hashes.len() as u32 - 1
+                    })
+                }
+            };
+            // A LOD chain's keyframes are stored once: every cluster of it
+            // names the range of its top's (`Tree::motion_source`).
+            let (first_key, key_count) = match tree.motion_source(c.id) {
+                None => (0, 0),
+                Some(source) => *ranges.entry(source).or_insert_with(|| {
+                    let top = tree.cluster(source);
+                    let m = top.motion.as_ref().expect("a motion source has a motion");
+                    let first = flat.keys.len() as u32;
+                    flat.keys.extend(m.keyframes().iter().map(|k| Key {
+                        t: k.t,
+                        translation: k.translation.to_array(),
+                        rotation: k.rotation.to_array(),
+                        scale: k.scale.to_array(),
+                    }));
+                    (first, m.keyframes().len() as u32)
+                }),
+            };
+            let first_object = flat.objects.len() as u32;
+            for id in &c.objects {
+                let s = match string_ids.get(id.as_str()) {
+                    Some(&s) => s,
+                    None => {
+                        flat.strings.extend_from_slice(id.as_bytes());
+                        flat.string_starts.push(flat.strings.len() as u32);
+                        let s = flat.string_starts.len() as u32 - 2;
+                        string_ids.insert(id.clone(), s);
+                        s
+                    }
+                };
+                flat.objects.push(s);
+            }
+            flat.records.push(Record {
+                triangles: c.triangles,
+                gamma: c.gamma,
+                parent: c.parent.unwrap_or(NONE),
+                level: c.level,
+                class: class_code(c.class),
+                geometry,
+                first_key,
+                key_count,
+                first_object,
+                object_count: c.objects.len() as u32,
+            });
+        }
+        flat
+    }
 }
 
 /// Sets, in the bytes of an index, the length of the `clusters.json` it
@@ -607,6 +652,55 @@ impl Index {
         let node = self.node(id);
         let first = node.first_step as usize;
         &self.steps()[first..first + node.step_count as usize]
+    }
+
+    /// [`Cluster::same_content`] of cluster `id` and `c`, read in place:
+    /// decoding every record (a motion's keyframes most of all) took longer
+    /// than formatting them.
+    pub(crate) fn same_content(&self, id: u32, c: &Cluster) -> bool {
+        let node = self.node(id);
+        let r = self.record(id);
+        let floats = |b: &Aabb, w: f64, eps: f64, gamma: f64| {
+            let (lo, hi) = (b.min, b.max);
+            [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z, w, eps, gamma].map(f64::to_bits)
+        };
+        let geometry = match (&c.geometry, r.geometry) {
+            (None, NONE) => true,
+            (Some(h), g) if g != NONE => {
+                hash_bytes(h).as_ref() == Some(&self.section::<[u8; 32]>(HASHES)[g as usize])
+            }
+            _ => false,
+        };
+        let motion = match &c.motion {
+            None => r.key_count == 0,
+            Some(m) => (self.keys(id).iter())
+                .map(|k| keyframe_bits(&k.keyframe()))
+                .eq(m.keyframes().iter().map(keyframe_bits)),
+        };
+        r.level == c.level
+            && self.class(id) == c.class
+            && r.triangles == c.triangles
+            && geometry
+            && self.objects(id).eq(c.objects.iter().map(String::as_str))
+            && floats(&node.bounds, node.w, node.eps, r.gamma)
+                == floats(&c.bounds, c.w, c.eps, c.gamma)
+            && (self.visibility(id).iter())
+                .map(|s| step_bits((s.t, s.v)))
+                .eq(c.visibility.steps().iter().map(|&s| step_bits(s)))
+            && motion
+    }
+
+    /// The parent of cluster `id`; `None` for the root.
+    pub(crate) fn parent(&self, id: u32) -> Option<u32> {
+        let parent = self.record(id).parent;
+        (parent != NONE).then_some(parent)
+    }
+
+    /// The top of cluster `id`'s LOD chain, whose keyframes it shares
+    /// (`Tree::motion_source`).
+    pub(crate) fn motion_source(&self, id: u32) -> Option<u32> {
+        let source = self.node(id).motion;
+        (source != NONE).then_some(source)
     }
 
     /// Cluster `id` decoded.

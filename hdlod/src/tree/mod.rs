@@ -20,6 +20,7 @@ pub mod presence;
 mod sections;
 pub mod sources;
 pub mod store;
+mod table;
 
 use std::borrow::Cow;
 use std::collections::BTreeMap;
@@ -38,6 +39,7 @@ pub use cut::{Cut, CutItem, CutStats, cut};
 pub use format::{ClusterClass, Layout};
 pub use objects::ObjectTables;
 pub use store::{TreeWriter, load};
+pub use table::Previous;
 
 /// An axis-aligned box. Plain old data: the cut's node records hold one.
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]
@@ -178,10 +180,62 @@ impl Cluster {
         self.children.is_empty()
     }
 
+    /// True when `self` and `other` are the same record but for their ids
+    /// (`id`, `parent`, `children`): every float compared by its bits, so
+    /// that `0.0` and `-0.0`, which print differently, are not taken for
+    /// one another. What lets an update copy a record's JSON (`table.rs`).
+    pub(crate) fn same_content(&self, other: &Cluster) -> bool {
+        let floats = |c: &Cluster| {
+            let (lo, hi) = (c.bounds.min, c.bounds.max);
+            [lo.x, lo.y, lo.z, hi.x, hi.y, hi.z, c.w, c.eps, c.gamma].map(f64::to_bits)
+        };
+        fn steps(c: &Cluster) -> impl Iterator<Item = (u64, u32)> + '_ {
+            c.visibility.steps().iter().map(|&s| step_bits(s))
+        }
+        fn keys(c: &Cluster) -> impl Iterator<Item = (u64, [u32; 10])> + '_ {
+            (c.motion.iter())
+                .flat_map(|m| m.keyframes())
+                .map(keyframe_bits)
+        }
+        self.level == other.level
+            && self.class == other.class
+            && self.triangles == other.triangles
+            && self.geometry == other.geometry
+            && self.objects == other.objects
+            && self.motion.is_some() == other.motion.is_some()
+            && floats(self) == floats(other)
+            && steps(self).eq(steps(other))
+            && keys(self).eq(keys(other))
+    }
+
     /// `delta_c(t) = eps_c + 2 w_c min(v, 1 - v)` (docs/method.md section 2).
     pub fn delta(&self, v: f32) -> f64 {
         delta(self.eps, self.w, v)
     }
+}
+
+/// How a cluster's record compares with another's ([`Tree::compare`]).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub(crate) enum Match {
+    /// The same, ids and all.
+    Same,
+    /// The same but the ids: `id`, `parent`, `children`, `motion_from`.
+    SameButIds,
+    Differs,
+}
+
+/// A visibility step's bits, for [`Cluster::same_content`].
+pub(crate) fn step_bits((t, v): (f64, f32)) -> (u64, u32) {
+    (t.to_bits(), v.to_bits())
+}
+
+/// A keyframe's bits, for [`Cluster::same_content`].
+pub(crate) fn keyframe_bits(k: &Keyframe) -> (u64, [u32; 10]) {
+    let (t, r, s) = (k.translation, k.rotation, k.scale);
+    (
+        k.t.to_bits(),
+        [t.x, t.y, t.z, r.x, r.y, r.z, r.w, s.x, s.y, s.z].map(f32::to_bits),
+    )
 }
 
 /// The whole tree as loaded or built.
@@ -344,6 +398,35 @@ impl Tree {
 
     pub fn get_cluster(&self, id: u32) -> Option<Cow<'_, Cluster>> {
         self.clusters.get(id)
+    }
+
+    /// How cluster `id`'s record compares with that of `c`, a cluster of a
+    /// tree that replaces this one whose record names `motion_from`: read
+    /// in place from a mapped tree's index rather than decoded.
+    pub(crate) fn compare(&self, id: u32, c: &Cluster, motion_from: Option<u32>) -> Match {
+        let (content, ids) = match &self.clusters {
+            Clusters::Built(v) => {
+                let old = &v[id as usize];
+                (
+                    old.same_content(c),
+                    old.parent == c.parent && old.children == c.children,
+                )
+            }
+            Clusters::Mapped(index) => (
+                index.same_content(id, c),
+                index.parent(id) == c.parent && index.children(id) == c.children.as_slice(),
+            ),
+        };
+        let own_from = match &self.clusters {
+            Clusters::Built(_) => self.motion_source(id),
+            Clusters::Mapped(index) => index.motion_source(id),
+        }
+        .filter(|&s| s != id);
+        match (content, ids && c.id == id && own_from == motion_from) {
+            (false, _) => Match::Differs,
+            (true, true) => Match::Same,
+            (true, false) => Match::SameButIds,
+        }
     }
 
     /// Every cluster in id order.

@@ -186,6 +186,14 @@ impl ObjectTables {
     /// The tables of `scene` (as built: its schedule applied) over the
     /// leaf clusters that name its objects.
     pub fn of(scene: &Scene, clusters: &[Cluster]) -> ObjectTables {
+        Self::of_leaves(scene, clusters.iter().map(|c| (c.id, c.objects.as_slice())))
+    }
+
+    /// [`ObjectTables::of`] over the clusters' ids and objects alone.
+    pub fn of_leaves<'a>(
+        scene: &Scene,
+        clusters: impl IntoIterator<Item = (u32, &'a [String])>,
+    ) -> ObjectTables {
         let index: FxHashMap<&str, u32> = scene
             .objects
             .iter()
@@ -193,10 +201,10 @@ impl ObjectTables {
             .map(|(i, o)| (o.id.as_str(), i as u32))
             .collect();
         let mut leaves: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
-        for c in clusters {
-            for id in &c.objects {
+        for (cluster, objects) in clusters {
+            for id in objects {
                 if let Some(&i) = index.get(id.as_str()) {
-                    leaves[i as usize].push(c.id);
+                    leaves[i as usize].push(cluster);
                 }
             }
         }

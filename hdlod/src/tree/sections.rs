@@ -62,7 +62,13 @@ pub(crate) fn write(
     json_len: u64,
     sections: &[&[u8]],
 ) -> Vec<u8> {
-    let mut out = vec![0u8; body(sections.len())];
+    // Sized once: the cluster index is tens of megabytes, and growing it
+    // section by section copied it again at each step.
+    let size = (sections.iter()).fold(body(sections.len()), |at, bytes| {
+        at.next_multiple_of(8) + bytes.len()
+    });
+    let mut out = Vec::with_capacity(size);
+    out.resize(body(sections.len()), 0);
     out[..8].copy_from_slice(&magic);
     out[8..12].copy_from_slice(&version.to_le_bytes());
     out[12..16].copy_from_slice(&(sections.len() as u32).to_le_bytes());

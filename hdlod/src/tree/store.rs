@@ -38,6 +38,7 @@ use super::format::{
 use super::index::{self, Index};
 use super::object_index::ObjectRows;
 use super::objects::{ObjectTables, ObjectsRecord};
+use super::table::{ClustersJson, Previous};
 use crate::error::{Error, Result};
 
 static SEQUENCE: AtomicU64 = AtomicU64::new(0);
@@ -89,6 +90,11 @@ impl TreeWriter {
     pub fn reuse_geometry(&self, from: &Path, layout: Layout, hash: &str) -> Result<()> {
         let source = layout.geometry_file(from, hash);
         let path = Layout::Sharded.geometry_file(&self.tmp, hash);
+        // Stored already, maybe as a link to `source`: a copy onto it would
+        // truncate the file it is copying.
+        if fs::symlink_metadata(&path).is_ok() {
+            return Ok(());
+        }
         if fs::hard_link(&source, &path).is_err() {
             fs::copy(&source, &path).map_err(|e| Error::io(&source, e))?;
         }
@@ -202,7 +208,19 @@ impl TreeWriter {
     /// Validates the tree (including that every geometry hash was stored),
     /// writes the manifest, the cluster table and the object and task
     /// tables when the tree has them, and moves the directory into place.
-    pub fn finish(mut self, tree: &Tree) -> Result<()> {
+    pub fn finish(self, tree: &Tree) -> Result<()> {
+        self.finish_with(tree, None).map(|_| ())
+    }
+
+    /// [`TreeWriter::finish`] for a tree that replaces `previous`, an
+    /// update of it: the unchanged records of `clusters.json` are copied
+    /// from the old file. The files are those `finish` writes, byte for
+    /// byte. Answers how many records were copied.
+    pub fn finish_replacing(self, tree: &Tree, previous: &Previous) -> Result<usize> {
+        self.finish_with(tree, Some(previous))
+    }
+
+    fn finish_with(mut self, tree: &Tree, previous: Option<&Previous>) -> Result<usize> {
         let clock = std::time::Instant::now();
         let mut lap = {
             let mut last = clock.elapsed();
@@ -237,10 +255,10 @@ impl TreeWriter {
         // the index and the object tables are made beside it. The index
         // names the table's length, known last, so it is set afterwards.
         let (table, (mut index_bytes, objects)) = rayon::join(
-            || -> Result<u64> {
-                let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE))?;
+            || -> Result<(u64, usize)> {
+                let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE), previous)?;
                 table.write(&self.tmp.join(CLUSTERS_FILE))?;
-                Ok(table.len())
+                Ok((table.len(), table.copied))
             },
             || {
                 rayon::join(
@@ -262,7 +280,7 @@ impl TreeWriter {
                 )
             },
         );
-        let json_len = table?;
+        let (json_len, copied) = table?;
         objects?;
         index::set_json_len(&mut index_bytes, json_len);
         write_bytes(&self.tmp.join(INDEX_FILE), &index_bytes)?;
@@ -301,12 +319,14 @@ impl TreeWriter {
         }
         tracing::debug!(
             "{}: validated in {validated:.2} s, the tables and the indexes made and \
-             written in {serialised:.2} s, the sources in {written:.2} s, moved into \
-             place and the old tree removed in {:.2} s",
+             written in {serialised:.2} s ({copied} of {} cluster records copied from the \
+             tree replaced), the sources in {written:.2} s, moved into place and the old \
+             tree removed in {:.2} s",
             self.target.display(),
+            tree.cluster_count(),
             lap()
         );
-        Ok(())
+        Ok(copied)
     }
 }
 
@@ -749,62 +769,4 @@ fn load_objects_from(dir: &Path, tree: &Tree, use_index: bool) -> Result<Option<
     }
     let record: ObjectsRecord = read_json(&path)?;
     ObjectTables::from_record(record, tree, &path).map(Some)
-}
-
-/// `clusters.json` as `serde_json::to_writer` writes the clusters record,
-/// byte for byte, with a newline: the clusters serialised in chunks in
-/// parallel, each chunk its clusters separated by commas.
-struct ClustersJson {
-    chunks: Vec<Vec<u8>>,
-}
-
-impl ClustersJson {
-    const OPEN: &[u8] = b"{\"clusters\":[";
-    const CLOSE: &[u8] = b"]}\n";
-
-    fn of(tree: &Tree, path: &Path) -> Result<Self> {
-        use rayon::prelude::*;
-        const CHUNK: u32 = 4096;
-        let n = tree.cluster_count() as u32;
-        let chunks = (0..n.div_ceil(CHUNK))
-            .into_par_iter()
-            .map(|k| {
-                let ids = k * CHUNK..((k + 1) * CHUNK).min(n);
-                let mut out = Vec::with_capacity(ids.len() * 1200);
-                for id in ids {
-                    if id > k * CHUNK {
-                        out.push(b',');
-                    }
-                    serde_json::to_writer(&mut out, &tree.cluster_record(id))?;
-                }
-                Ok(out)
-            })
-            .collect::<std::result::Result<_, serde_json::Error>>()
-            .map_err(|e| Error::invalid(path, "", e.to_string()))?;
-        Ok(ClustersJson { chunks })
-    }
-
-    /// The file's length in bytes.
-    fn len(&self) -> u64 {
-        let commas = self.chunks.len().saturating_sub(1);
-        (Self::OPEN.len()
-            + self.chunks.iter().map(Vec::len).sum::<usize>()
-            + commas
-            + Self::CLOSE.len()) as u64
-    }
-
-    fn write(&self, path: &Path) -> Result<()> {
-        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut written = file.write_all(Self::OPEN);
-        for (i, chunk) in self.chunks.iter().enumerate() {
-            if i > 0 {
-                written = written.and_then(|()| file.write_all(b","));
-            }
-            written = written.and_then(|()| file.write_all(chunk));
-        }
-        written
-            .and_then(|()| file.write_all(Self::CLOSE))
-            .and_then(|()| file.sync_all())
-            .map_err(|e| Error::io(path, e))
-    }
 }

@@ -1,0 +1,333 @@
+//! `clusters.json`, written as `serde_json::to_writer` writes the clusters
+//! record, byte for byte, with a newline: the clusters serialised in chunks
+//! on every core.
+//!
+//! An update replaces a tree whose records are mostly unchanged, and
+//! formatting the floats of 180,000 records again was most of its write at
+//! paper scale. Given the tree it replaces ([`Previous`]), the writer copies
+//! each unchanged record's bytes from the old file instead, writing afresh
+//! only the ids, which an update renumbers. Whether a record is unchanged
+//! is decided here, field by field against the old cluster, not taken on
+//! the caller's word; the caller only says which old cluster each new one
+//! came from.
+
+use std::fs;
+use std::io::Write;
+use std::ops::Range;
+use std::path::Path;
+
+use memchr::memmem;
+use memmap2::{Mmap, MmapOptions};
+use rayon::prelude::*;
+
+use super::{Match, Tree};
+use crate::error::{Error, Result};
+
+/// The tree a write replaces, whose unchanged records are copied from its
+/// `clusters.json`.
+pub struct Previous<'a> {
+    /// The old tree, as loaded from `dir`.
+    pub tree: &'a Tree,
+    pub dir: &'a Path,
+    /// Per cluster of the new tree, the old cluster it was made from, if
+    /// any; a record is copied only when its content is that cluster's.
+    pub origin: &'a [Option<u32>],
+}
+
+/// The table's bytes in chunks, in order.
+pub(super) struct ClustersJson {
+    chunks: Vec<Chunk>,
+    /// The previous table, which `Piece::Old` ranges are of.
+    old: Option<OldTable>,
+    /// How many records were copied from the previous table.
+    pub(super) copied: usize,
+}
+
+/// Consecutive records of the table, without the commas before and after.
+#[derive(Default)]
+struct Chunk {
+    pieces: Vec<Piece>,
+    copied: usize,
+}
+
+enum Piece {
+    New(Vec<u8>),
+    /// Bytes of the previous table: a run of records that stand as they
+    /// were, ids and all, with the commas between them.
+    Old(Range<usize>),
+}
+
+impl Chunk {
+    /// The bytes to append to.
+    fn bytes(&mut self) -> &mut Vec<u8> {
+        if !matches!(self.pieces.last(), Some(Piece::New(_))) {
+            self.pieces.push(Piece::New(Vec::with_capacity(1 << 16)));
+        }
+        match self.pieces.last_mut() {
+            Some(Piece::New(bytes)) => bytes,
+            _ => unreachable!("a new piece was pushed"),
+        }
+    }
+
+    /// Appends the old record at `range`, after a comma unless `first`: a
+    /// run of records goes on where the last one ended, the comma between
+    /// them included.
+    fn old(&mut self, range: Range<usize>, first: bool) {
+        if let Some(Piece::Old(run)) = self.pieces.last_mut()
+            && !first
+            && run.end + 1 == range.start
+        {
+            run.end = range.end;
+            return;
+        }
+        if !first {
+            self.bytes().push(b',');
+        }
+        self.pieces.push(Piece::Old(range));
+    }
+
+    fn len(&self) -> usize {
+        (self.pieces.iter())
+            .map(|p| match p {
+                Piece::New(bytes) => bytes.len(),
+                Piece::Old(range) => range.len(),
+            })
+            .sum()
+    }
+}
+
+const OPEN: &[u8] = b"{\"clusters\":[";
+const CLOSE: &[u8] = b"]}\n";
+const RECORD: &[u8] = b"{\"id\":";
+const LEVEL: &[u8] = b",\"level\":";
+const MOTION_FROM: &[u8] = b",\"motion_from\":";
+
+impl ClustersJson {
+    /// The table of `tree`, written to `path` later; `previous`: the tree
+    /// it replaces, if any.
+    pub(super) fn of(tree: &Tree, path: &Path, previous: Option<&Previous>) -> Result<Self> {
+        const CHUNK: u32 = 4096;
+        let old = previous.and_then(|p| OldTable::open(p).map(|table| (table, p)));
+        let n = tree.cluster_count() as u32;
+        let chunks = (0..n.div_ceil(CHUNK))
+            .into_par_iter()
+            .map(|k| {
+                let mut chunk = Chunk::default();
+                for id in k * CHUNK..((k + 1) * CHUNK).min(n) {
+                    let first = id == k * CHUNK;
+                    let copied = old
+                        .as_ref()
+                        .is_some_and(|(table, p)| table.copy(tree, p, id, &mut chunk, first));
+                    if copied {
+                        chunk.copied += 1;
+                        continue;
+                    }
+                    let out = chunk.bytes();
+                    if !first {
+                        out.push(b',');
+                    }
+                    serde_json::to_writer(out, &tree.cluster_record(id))?;
+                }
+                Ok(chunk)
+            })
+            .collect::<std::result::Result<Vec<_>, serde_json::Error>>()
+            .map_err(|e| Error::invalid(path, "", e.to_string()))?;
+        Ok(ClustersJson {
+            copied: chunks.iter().map(|c| c.copied).sum(),
+            chunks,
+            old: old.map(|(table, _)| table),
+        })
+    }
+
+    /// The file's length in bytes.
+    pub(super) fn len(&self) -> u64 {
+        let commas = self.chunks.len().saturating_sub(1);
+        (OPEN.len() + self.chunks.iter().map(Chunk::len).sum::<usize>() + commas + CLOSE.len())
+            as u64
+    }
+
+    pub(super) fn write(&self, path: &Path) -> Result<()> {
+        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        let mut written = file.write_all(OPEN);
+        for (i, chunk) in self.chunks.iter().enumerate() {
+            if i > 0 {
+                written = written.and_then(|()| file.write_all(b","));
+            }
+            for piece in &chunk.pieces {
+                let bytes = match piece {
+                    Piece::New(bytes) => bytes.as_slice(),
+                    Piece::Old(range) => match &self.old {
+                        Some(old) => &old.map[range.clone()],
+                        None => unreachable!("old pieces come from an old table"),
+                    },
+                };
+                written = written.and_then(|()| file.write_all(bytes));
+            }
+        }
+        written
+            .and_then(|()| file.write_all(CLOSE))
+            .and_then(|()| file.sync_all())
+            .map_err(|e| Error::io(path, e))
+    }
+}
+
+/// The old tree's `clusters.json`, mapped, and where each record starts.
+struct OldTable {
+    map: Mmap,
+    /// Per old cluster, its record's first byte; one more, the end of the
+    /// last record.
+    starts: Vec<usize>,
+    level: memmem::Finder<'static>,
+    motion_from: memmem::Finder<'static>,
+}
+
+impl OldTable {
+    /// The old table, when it is laid out as this writer writes it: one
+    /// record per cluster, in order of id. `None` otherwise (a table written
+    /// by hand, or by another writer), and nothing is copied.
+    fn open(previous: &Previous) -> Option<OldTable> {
+        let path = previous.dir.join(super::format::CLUSTERS_FILE);
+        let file = fs::File::open(&path).ok()?;
+        // Populated: read whole and at once, rather than a fault per page.
+        // SAFETY: trees are replaced by renaming a new directory into place,
+        // never rewritten in place, so the mapped bytes do not change while
+        // the new table is made from them.
+        let map = unsafe { MmapOptions::new().populate().map(&file) }.ok()?;
+        let bytes: &[u8] = &map;
+        if !bytes.starts_with(OPEN) || !bytes.ends_with(CLOSE) {
+            return None;
+        }
+        let starts = record_starts(bytes);
+        let n = previous.tree.cluster_count();
+        if starts.len() != n {
+            return None;
+        }
+        // Each record names its id first, in order, and is followed by a
+        // comma or, the last, by the table's end.
+        let numbered = starts.par_iter().enumerate().all(|(i, &s)| {
+            let digits = &bytes[s + RECORD.len()..];
+            let mut id = itoa::Buffer::new();
+            let id = id.format(i).as_bytes();
+            digits.starts_with(id) && digits.get(id.len()) == Some(&b',')
+        });
+        let separated = starts[1..].iter().all(|&s| bytes[s - 1] == b',');
+        if !numbered || !separated {
+            return None;
+        }
+        let mut starts = starts;
+        starts.push(bytes.len() - CLOSE.len() + 1);
+        Some(OldTable {
+            map,
+            starts,
+            level: memmem::Finder::new(LEVEL),
+            motion_from: memmem::Finder::new(MOTION_FROM),
+        })
+    }
+
+    /// Appends to `chunk` (after a comma unless `first`) the record of
+    /// cluster `id` of `tree` copied from the old one it came from: as it
+    /// was where its ids are the same, else with its ids written afresh.
+    /// False, having appended nothing, when it did not come from one or its
+    /// content changed.
+    fn copy(
+        &self,
+        tree: &Tree,
+        previous: &Previous,
+        id: u32,
+        chunk: &mut Chunk,
+        first: bool,
+    ) -> bool {
+        let Some(&Some(from)) = previous.origin.get(id as usize) else {
+            return false;
+        };
+        if from as usize >= previous.tree.cluster_count() {
+            return false;
+        }
+        let new = tree.cluster(id);
+        let motion_from = tree.motion_source(id).filter(|&s| s != id);
+        let same_ids = match previous.tree.compare(from, &new, motion_from) {
+            Match::Differs => return false,
+            Match::Same => from == id,
+            Match::SameButIds => false,
+        };
+        // The record but its trailing comma.
+        let range = self.starts[from as usize]..self.starts[from as usize + 1] - 1;
+        let record = &self.map[range.clone()];
+        // Where the record names the top of its chain, if it does: as the
+        // new tree names it, or the record is made afresh (a chain's
+        // keyframes stored otherwise by an earlier writer).
+        let named = if new.motion.is_some() {
+            self.motion_from.find(record)
+        } else {
+            None
+        };
+        if named.is_some() != motion_from.is_some() {
+            return false;
+        }
+        if same_ids {
+            chunk.old(range, first);
+            return true;
+        }
+        // Ids, parents and children are digits, commas and brackets: the
+        // first `,"level":` ends them.
+        let Some(level) = self.level.find(record) else {
+            return false;
+        };
+        let (before, after) = match named {
+            None => (&record[level..], &[][..]),
+            Some(at) => {
+                let digits = &record[at + MOTION_FROM.len()..];
+                let len = digits.iter().take_while(|b| b.is_ascii_digit()).count();
+                (&record[level..at], &digits[len..])
+            }
+        };
+        let out = chunk.bytes();
+        if !first {
+            out.push(b',');
+        }
+        let mut ids = itoa::Buffer::new();
+        out.extend_from_slice(RECORD);
+        out.extend_from_slice(ids.format(id).as_bytes());
+        out.extend_from_slice(b",\"parent\":");
+        match new.parent {
+            Some(p) => out.extend_from_slice(ids.format(p).as_bytes()),
+            None => out.extend_from_slice(b"null"),
+        }
+        out.extend_from_slice(b",\"children\":[");
+        for (i, &k) in new.children.iter().enumerate() {
+            if i > 0 {
+                out.push(b',');
+            }
+            out.extend_from_slice(ids.format(k).as_bytes());
+        }
+        out.push(b']');
+        out.extend_from_slice(before);
+        if let Some(source) = motion_from {
+            out.extend_from_slice(MOTION_FROM);
+            out.extend_from_slice(ids.format(source).as_bytes());
+        }
+        out.extend_from_slice(after);
+        true
+    }
+}
+
+/// Where each `{"id":` of `bytes` starts, found on every core. Outside the
+/// records' starts it cannot occur: a string's quotes inside it are
+/// escaped, and no other object of the table has an `id`.
+fn record_starts(bytes: &[u8]) -> Vec<usize> {
+    const PIECE: usize = 1 << 22;
+    let finder = memmem::Finder::new(RECORD);
+    (0..bytes.len().div_ceil(PIECE))
+        .into_par_iter()
+        .flat_map_iter(|k| {
+            let from = k * PIECE;
+            // Far enough past the piece for a start at its last byte.
+            let to = (from + PIECE + RECORD.len() - 1).min(bytes.len());
+            finder
+                .find_iter(&bytes[from..to])
+                .map(move |at| from + at)
+                .filter(move |&at| at < from + PIECE)
+                .collect::<Vec<_>>()
+        })
+        .collect()
+}
