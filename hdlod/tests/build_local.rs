@@ -601,7 +601,8 @@ fn a_moving_object_edited_and_one_added_get_their_own_chains() {
 /// change, writing only its ids, and the file is the one a fresh write
 /// makes, byte for byte: here with one cluster's error changed and the
 /// others as they were (the moving objects' chains among them, whose
-/// records name the top of their chain).
+/// records name the top of their chain). Object tables that did not change
+/// are linked.
 #[test]
 fn a_write_that_replaces_a_tree_copies_its_unchanged_records() {
     let Built {
@@ -641,6 +642,17 @@ fn a_write_that_replaces_a_tree_copies_its_unchanged_records() {
         read(&fresh) == read(&replacing),
         "the copied table differs from a fresh one"
     );
+    // The object tables did not change: the tree replaced's files linked.
+    #[cfg(unix)]
+    for file in ["objects.json", "objects.bin"] {
+        use std::os::unix::fs::MetadataExt;
+        let inode = |d: &Path| std::fs::metadata(d.join(file)).unwrap().ino();
+        assert_eq!(inode(&dir), inode(&replacing), "{file} not linked");
+        assert!(
+            std::fs::read(fresh.join(file)).unwrap()
+                == std::fs::read(replacing.join(file)).unwrap()
+        );
+    }
     // Nothing is copied from a cluster said to come from another one.
     let shifted: Vec<Option<u32>> = (0..n as u32).map(|c| Some((c + 1) % n as u32)).collect();
     let previous = Previous {

@@ -331,11 +331,17 @@ pub fn build_or_update_to(
     } else {
         let clock = Instant::now();
         progress.phase("load tree", 1);
-        match crate::tree::store::load_to_update(out) {
+        // The scene's key, made while the tree loads: it is the key of the
+        // scene as aligned to the tree's objects whenever their order stands.
+        let (loaded, key) = rayon::join(
+            || crate::tree::store::load_to_update(out),
+            || geometry_key(scene, config),
+        );
+        match loaded {
             Err(e) => Some(format!("the tree there does not load: {e}")),
             Ok(old) => {
                 let load = clock.elapsed().as_secs_f64();
-                match update_in_place(&old, scene, config, out, load, progress)? {
+                match update_in_place(&old, scene, config, out, (load, key), progress)? {
                     Ok(done) => return Ok(done),
                     Err(why) => Some(why),
                 }
@@ -353,7 +359,7 @@ fn update_in_place(
     scene: &Scene,
     config: &BuildConfig,
     out: &Path,
-    load: f64,
+    (load, scene_key): (f64, String),
     progress: &dyn Progress,
 ) -> Result<std::result::Result<(Tree, BuildStats, How), String>> {
     let clock = Instant::now();
@@ -371,7 +377,10 @@ fn update_in_place(
     };
     let scene = &*aligned.scene;
     let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
-    let new_key = geometry_key(scene, config);
+    let new_key = match aligned.scene {
+        Cow::Borrowed(_) => scene_key,
+        Cow::Owned(_) => geometry_key(scene, config),
+    };
     let same = key == Some(new_key.as_str());
     let key_seconds = clock.elapsed().as_secs_f64();
     if !same {

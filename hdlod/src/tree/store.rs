@@ -264,17 +264,7 @@ impl TreeWriter {
                 rayon::join(
                     || index::unsealed(tree),
                     || match &tree.objects {
-                        Some(tables) => write_json(
-                            &self.tmp.join(OBJECTS_FILE),
-                            &tables.to_record(&tree.time),
-                            false,
-                        )
-                        .and_then(|json_len| {
-                            write_bytes(
-                                &self.tmp.join(OBJECTS_INDEX_FILE),
-                                &tables.to_index(&tree.time, json_len),
-                            )
-                        }),
+                        Some(tables) => self.write_objects(tables, tree, previous),
                         None => Ok(()),
                     },
                 )
@@ -327,6 +317,47 @@ impl TreeWriter {
             lap()
         );
         Ok(copied)
+    }
+}
+
+impl TreeWriter {
+    /// Writes `objects.json` and `objects.bin`; where the JSON is that of
+    /// the tree replaced, byte for byte (an update that moved geometry
+    /// only), links that tree's two files instead: the binary rows are made
+    /// from the same tables, so they are the same too.
+    fn write_objects(
+        &self,
+        tables: &ObjectTables,
+        tree: &Tree,
+        previous: Option<&Previous>,
+    ) -> Result<()> {
+        let (json_path, index_path) = (
+            self.tmp.join(OBJECTS_FILE),
+            self.tmp.join(OBJECTS_INDEX_FILE),
+        );
+        let mut json = serde_json::to_vec(&tables.to_record(&tree.time))
+            .map_err(|e| Error::invalid(&json_path, "", e.to_string()))?;
+        json.push(b'\n');
+        if let Some(p) = previous {
+            let (old_json, old_index) = (p.dir.join(OBJECTS_FILE), p.dir.join(OBJECTS_INDEX_FILE));
+            let current = |path: &Path| {
+                let mut header = [0u8; 12];
+                fs::File::open(path)
+                    .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut header))
+                    .is_ok_and(|()| header[8..12] == super::object_index::VERSION.to_le_bytes())
+            };
+            if current(&old_index)
+                && fs::read(&old_json).is_ok_and(|old| old == json)
+                && fs::hard_link(&old_json, &json_path).is_ok()
+                && fs::hard_link(&old_index, &index_path).is_ok()
+            {
+                return Ok(());
+            }
+            // A link made before the other failed.
+            let _ = fs::remove_file(&json_path);
+        }
+        write_bytes(&json_path, &json)?;
+        write_bytes(&index_path, &tables.to_index(&tree.time, json.len() as u64))
     }
 }
 
