@@ -682,10 +682,10 @@ impl Plan<'_> {
         rebuilt: usize,
     ) -> Result<Updated> {
         let Remade {
-            mut edited,
+            edited,
             added,
             joined,
-            mut made,
+            made,
             chains,
             tops,
             alone,
@@ -713,33 +713,37 @@ impl Plan<'_> {
         let span = scene.time.seconds;
         let mut clusters: Vec<Cluster> = Vec::with_capacity(next as usize);
         let mut origin: Vec<Option<u32>> = Vec::with_capacity(next as usize);
-        // The old clusters that stay, decoded from a mapped tree's index on
-        // every core: one by one, that was most of the assembly.
-        let mut kept: Vec<Option<Cluster>> = (0..n as u32)
-            .into_par_iter()
-            .map(|c| new_id(c).map(|_| old.cluster(c).into_owned()))
-            .collect();
-        let mut take = |c: u32| {
-            kept[c as usize]
-                .take()
-                .expect("a kept cluster is taken once")
-        };
-        let replace = |c: &mut Cluster, m: Made| {
+        let replace = |c: &mut Cluster, m: &Made| {
             c.bounds = Aabb::from_f32(m.lo, m.hi);
             c.w = f64::from((m.hi - m.lo).length());
             c.eps = m.eps;
             c.triangles = m.mesh.triangle_count() as u64;
-            c.geometry = Some(m.hash);
+            c.geometry = Some(m.hash.clone());
         };
-        for id in (0..self.leaves as u32).filter(|&c| new_id(c).is_some()) {
-            let mut c = take(id);
-            if let Some(m) = edited.remove(&id) {
+        // The old clusters that stay, decoded from a mapped tree's index,
+        // their children renumbered and their remade geometry put in, on
+        // every core and straight into place: one by one, that was most of
+        // the assembly. The root takes its new children below.
+        let kept = |id: u32| {
+            let mut c = old.cluster(id).into_owned();
+            c.children = c.children.iter().filter_map(|&k| new_id(k)).collect();
+            if let Some(a) = joined.get(&id) {
+                c.children.extend(a.iter().map(|&a| first_added + a as u32));
+            }
+            if let Some(m) = edited.get(&id).or_else(|| made.get(&id)) {
                 replace(&mut c, m);
             }
-            clusters.push(c);
-            origin.push(Some(id));
-        }
-        for ((p, _), m) in self.added.iter().zip(added) {
+            c
+        };
+        let stay = |range: std::ops::Range<usize>| -> Vec<u32> {
+            (range.start as u32..range.end as u32)
+                .filter(|&c| c != old.root && new_id(c).is_some())
+                .collect()
+        };
+        let leaves = stay(0..self.leaves);
+        clusters.par_extend(leaves.par_iter().map(|&id| kept(id)));
+        origin.extend(leaves.iter().map(|&id| Some(id)));
+        for ((p, _), m) in self.added.iter().zip(&added) {
             let piece = &self.pieces[*p];
             let mut c = piece_record(piece, 0, Vec::new(), span);
             c.objects = vec![scene.objects[piece.object].id.clone()];
@@ -747,55 +751,38 @@ impl Plan<'_> {
             clusters.push(c);
             origin.push(None);
         }
-        let root_last = (self.leaves as u32..n as u32)
-            .filter(|&c| c != old.root)
-            .chain([old.root]);
-        for id in root_last.filter(|&c| new_id(c).is_some()) {
-            let mut alone_tops = Vec::new();
-            if id == old.root {
-                clusters.extend(chains.iter().cloned().map(|mut c| {
-                    c.children.iter_mut().for_each(|k| *k += first_chain);
-                    c
-                }));
-                origin.resize(clusters.len(), None);
-                for (a, parents) in &alone {
-                    let (p, _) = self.added[*a];
-                    let piece = &self.pieces[p];
-                    let mut below = first_added + *a as u32;
-                    for (level, m) in parents {
-                        let mut c = piece_record(piece, *level, vec![below], span);
-                        replace(&mut c, m.clone());
-                        below = clusters.len() as u32;
-                        clusters.push(c);
-                        origin.push(None);
-                    }
-                    alone_tops.push(below);
-                }
-            }
-            let mut c = take(id);
-            c.children = c.children.iter().filter_map(|&k| new_id(k)).collect();
-            if let Some(a) = joined.get(&id) {
-                c.children.extend(a.iter().map(|&a| first_added + a as u32));
-            }
-            if id == old.root {
-                c.children.extend(tops.iter().map(|&t| first_chain + t));
-                c.children.extend(alone_tops);
-            }
-            if let Some(m) = made.remove(&id) {
+        let others = stay(self.leaves..n);
+        clusters.par_extend(others.par_iter().map(|&id| kept(id)));
+        origin.extend(others.iter().map(|&id| Some(id)));
+        clusters.extend(chains.iter().cloned().map(|mut c| {
+            c.children.iter_mut().for_each(|k| *k += first_chain);
+            c
+        }));
+        origin.resize(clusters.len(), None);
+        let mut alone_tops = Vec::new();
+        for (a, parents) in &alone {
+            let (p, _) = self.added[*a];
+            let piece = &self.pieces[p];
+            let mut below = first_added + *a as u32;
+            for (level, m) in parents {
+                let mut c = piece_record(piece, *level, vec![below], span);
                 replace(&mut c, m);
+                below = clusters.len() as u32;
+                clusters.push(c);
+                origin.push(None);
             }
-            clusters.push(c);
-            origin.push(Some(id));
+            alone_tops.push(below);
         }
+        let mut root = kept(old.root);
+        root.children.extend(tops.iter().map(|&t| first_chain + t));
+        root.children.extend(alone_tops);
+        clusters.push(root);
+        origin.push(Some(old.root));
         for (i, c) in clusters.iter_mut().enumerate() {
             c.id = i as u32;
             c.parent = None;
         }
-        for i in 0..clusters.len() {
-            for k in clusters[i].children.clone() {
-                clusters[k as usize].parent = Some(i as u32);
-            }
-        }
+        set_parents(&mut clusters);
         // As `virtual_root` makes it, from its children's new boxes and
         // errors.
         let root = new_id(old.root).expect("the root stays");
@@ -835,6 +822,16 @@ impl Plan<'_> {
             }),
             Update::Rebuild(why) => Err(Error::argument("scene", why)),
         }
+    }
+}
+
+/// Each cluster's `parent` set from its parent's children list.
+pub(super) fn set_parents(clusters: &mut [Cluster]) {
+    let pairs: Vec<(u32, u32)> = (clusters.iter().enumerate())
+        .flat_map(|(i, c)| c.children.iter().map(move |&k| (k, i as u32)))
+        .collect();
+    for (child, parent) in pairs {
+        clusters[child as usize].parent = Some(parent);
     }
 }
 

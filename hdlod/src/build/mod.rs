@@ -477,10 +477,13 @@ fn virtual_root(ctx: &Context, clusters: &mut Vec<Cluster>, roots: Vec<u32>) -> 
 /// The virtual root's box, its children's over the whole span, and its
 /// error, their largest.
 pub(super) fn root_extent(clusters: &[Cluster], roots: &[u32]) -> (Aabb, f64) {
+    // On every core: a moving object's box is moved by each of its
+    // keyframes, and the root has every moving object's chain below it.
+    use rayon::prelude::*;
     let bounds = roots
-        .iter()
+        .par_iter()
         .map(|&r| world_box(&clusters[r as usize]))
-        .reduce(|a, b| a.union(&b))
+        .reduce_with(|a, b| a.union(&b))
         .unwrap_or(Aabb::new(DVec3::ZERO, DVec3::ZERO));
     let eps = roots
         .iter()

@@ -483,10 +483,6 @@ fn renumbered(clusters: Vec<Cluster>, dissolved: &[Option<Vec<u32>>]) -> Vec<Clu
             c
         })
         .collect();
-    for i in 0..out.len() {
-        for k in out[i].children.clone() {
-            out[k as usize].parent = Some(i as u32);
-        }
-    }
+    super::local::set_parents(&mut out);
     out
 }
