@@ -214,10 +214,8 @@ fn update_geometry(
         plan.removed_objects,
     );
     let writer = TreeWriter::create(out)?;
-    let old_files: rustc_hash::FxHashSet<String> = (0..old.cluster_count() as u32)
-        .filter_map(|id| old.geometry_of(id).map(|h| h.into_owned()))
-        .collect();
-    let shared = writer.share_geometry(old.layout, old_files.iter().cloned())?;
+    let old_files: rustc_hash::FxHashSet<[u8; 32]> = old.geometry_hashes().into_iter().collect();
+    let shared = writer.share_geometry(old.layout, old_files.iter().copied())?;
     let shared_seconds = clock.elapsed().as_secs_f64();
     let updated = plan.run(old, out, config, &writer, progress)?;
     let mut stats = updated.stats;
@@ -229,22 +227,16 @@ fn update_geometry(
     stats.phases = phases;
     let clock = Instant::now();
     progress.phase("write", 1);
-    let files: rustc_hash::FxHashSet<Cow<str>> = (0..updated.tree.cluster_count() as u32)
-        .filter_map(|id| updated.tree.geometry_of(id))
-        .collect();
-    let kept: Vec<&str> = files
-        .iter()
-        .map(|h| h.as_ref())
-        .filter(|h| old_files.contains(*h))
+    let kept: Vec<[u8; 32]> = (updated.tree.geometry_hashes().into_iter())
+        .filter(|h| old_files.contains(h))
         .collect();
     if !shared {
         // A flat (`hdlod-tree/1`) tree's files are linked one by one.
         for hash in &kept {
-            writer.reuse_geometry(out, old.layout, hash)?;
+            writer.reuse_geometry(out, old.layout, &crate::tree::index::hex(hash))?;
         }
     }
     let geometry_files = kept.len();
-    drop(files);
     let previous = Previous {
         tree: old,
         dir: out,
@@ -411,16 +403,14 @@ fn update_in_place(
     let clock = Instant::now();
     progress.phase("write", 1);
     let writer = TreeWriter::create(out)?;
-    let files: rustc_hash::FxHashSet<Cow<str>> = (0..tree.cluster_count() as u32)
-        .filter_map(|id| tree.geometry_of(id))
-        .collect();
+    let files = tree.geometry_hashes();
     let geometry_files = files.len();
     // A flat (`hdlod-tree/1`) tree's files are linked one by one into the
     // new tree's shards.
-    let shared = writer.share_geometry(old.layout, files.iter().map(|h| h.to_string()))?;
+    let shared = writer.share_geometry(old.layout, files.iter().copied())?;
     if !shared {
         for hash in &files {
-            writer.reuse_geometry(out, old.layout, hash)?;
+            writer.reuse_geometry(out, old.layout, &crate::tree::index::hex(hash))?;
         }
     }
     stats

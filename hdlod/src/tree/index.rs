@@ -213,7 +213,7 @@ pub(crate) fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
     (bad < 16).then_some(out)
 }
 
-fn hex(bytes: &[u8; 32]) -> String {
+pub(crate) fn hex(bytes: &[u8; 32]) -> String {
     const DIGITS: &[u8; 16] = b"0123456789abcdef";
     let mut out = String::with_capacity(64);
     for &b in bytes {

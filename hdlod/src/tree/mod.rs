@@ -496,6 +496,22 @@ impl Tree {
         }
     }
 
+    /// The distinct geometry hashes of the clusters, as bytes: read from a
+    /// mapped tree's index as they are stored.
+    pub fn geometry_hashes(&self) -> Vec<[u8; 32]> {
+        match &self.clusters {
+            Clusters::Built(v) => {
+                let mut hashes: Vec<[u8; 32]> = (v.iter())
+                    .filter_map(|c| c.geometry.as_deref().and_then(index::hash_bytes))
+                    .collect();
+                hashes.sort_unstable();
+                hashes.dedup();
+                hashes
+            }
+            Clusters::Mapped(index) => index.hashes().to_vec(),
+        }
+    }
+
     /// Whether some cluster's geometry is the GLB of hash `hash` (hex).
     /// A scan of the clusters or the index's distinct hashes: for the rare
     /// request whose file is missing, not for every one.
