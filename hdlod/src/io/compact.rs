@@ -252,7 +252,9 @@ impl GlbBuilder {
             // Buffer 1, the fallback; the buffer count is fixed at the end.
             buffer: json::Index::new(1),
             byte_length: USize64::from(length),
-            byte_offset: Some(USize64::from(at)),
+            // 0 is the default, and unwritten: a small cluster's file is
+            // mostly its JSON.
+            byte_offset: (at > 0).then(|| USize64::from(at)),
             byte_stride: stride.map(json::buffer::Stride),
             name: None,
             target: Some(Valid(target)),
@@ -261,11 +263,13 @@ impl GlbBuilder {
         });
         let mut extension = serde_json::json!({
             "buffer": 0,
-            "byteOffset": offset,
             "byteLength": encoded.len(),
             "count": count,
             "mode": mode,
         });
+        if offset > 0 {
+            extension["byteOffset"] = offset.into();
+        }
         if let Some(stride) = stride {
             extension["byteStride"] = stride.into();
         }
@@ -315,6 +319,10 @@ pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback:
                 }
             }
         }
+    }
+    // Optional, and in every one of 120,000 files.
+    if let Some(asset) = json["asset"].as_object_mut() {
+        asset.remove("generator");
     }
     let buffers = json["buffers"]
         .as_array_mut()

@@ -23,8 +23,9 @@ use rayon::prelude::*;
 use super::{Match, Tree};
 use crate::error::{Error, Result};
 
-/// The tree a write replaces, whose unchanged records are copied from its
-/// `clusters.json`.
+/// The tree a write replaces ([`super::TreeWriter::finish_replacing`]):
+/// its unchanged records are copied from its `clusters.json`, and its
+/// object tables linked when the new ones are the same.
 pub struct Previous<'a> {
     /// The old tree, as loaded from `dir`.
     pub tree: &'a Tree,
