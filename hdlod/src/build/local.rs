@@ -795,14 +795,7 @@ impl Plan<'_> {
         }
 
         let stats = self.stats;
-        let mut tree = Tree::new(
-            scene.name.clone(),
-            scene.time,
-            bounds,
-            scene.up,
-            root,
-            clusters,
-        );
+        let mut tree = super::tree_of(scene, bounds, root, clusters);
         tree.config = old.config.clone();
         tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
         tree.sources = Some(self.sources);

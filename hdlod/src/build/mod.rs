@@ -165,6 +165,17 @@ pub fn build(
         .push(("root".into(), clock.elapsed().as_secs_f64()));
     let bounds = clusters[root as usize].bounds;
     let objects = ObjectTables::of(scene, &clusters);
+    let mut tree = tree_of(scene, bounds, root, clusters);
+    tree.config = serde_json::to_value(config).expect("the config serialises");
+    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+    tree.objects = Some(objects);
+    tree.sources = Some(object_sources(scene));
+    Ok((tree, stats))
+}
+
+/// A tree of `scene`'s name, period, axis and place on Earth over
+/// `clusters`, its world box `bounds`.
+pub(super) fn tree_of(scene: &Scene, bounds: Aabb, root: u32, clusters: Vec<Cluster>) -> Tree {
     let mut tree = Tree::new(
         scene.name.clone(),
         scene.time,
@@ -174,11 +185,7 @@ pub fn build(
         clusters,
     );
     tree.georeference = scene.georeference;
-    tree.config = serde_json::to_value(config).expect("the config serialises");
-    tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
-    tree.objects = Some(objects);
-    tree.sources = Some(object_sources(scene));
-    Ok((tree, stats))
+    tree
 }
 
 /// `scene` on the dates `config.schedule` chooses, when it chooses other

@@ -266,15 +266,7 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
         .map(|(_, (o, _))| o.id.clone())
         .collect();
     stats.phases.clear();
-    let mut tree = Tree::new(
-        scene.name.clone(),
-        scene.time,
-        bounds,
-        scene.up,
-        root,
-        clusters,
-    );
-    tree.georeference = scene.georeference;
+    let mut tree = super::tree_of(scene, bounds, root, clusters);
     tree.config = old_config;
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);

@@ -248,7 +248,8 @@ impl OldTable {
         let motion_from = tree.motion_source(id).filter(|&s| s != id);
         let same_ids = match previous.tree.compare(from, &new, motion_from) {
             Match::Differs => return false,
-            Match::Same => from == id,
+            // Same ids: the new cluster's id is the old one's.
+            Match::Same => true,
             Match::SameButIds => false,
         };
         // The record but its trailing comma.
