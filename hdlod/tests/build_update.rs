@@ -104,6 +104,8 @@ fn an_update_recomputes_what_the_build_computes() {
         }
     }
     assert!(changed > 5, "{changed} leaves changed visibility");
+    // Kept where nothing below changed, recomputed above every change.
+    common::assert_visibility_follows_children(&updated, &config);
     for hash in geometry(&updated).into_iter().flatten() {
         assert!(files.contains(&hash));
         let shard = dir.join("geometry").join(&hash[..2]);
@@ -129,6 +131,7 @@ fn groups_that_no_longer_fit_the_schedule_are_dissolved() {
     );
     let tree = load(&dir).expect("the updated tree loads and validates");
     assert_eq!(tree.cluster_count(), built.cluster_count() - dissolved);
+    common::assert_visibility_follows_children(&tree, &config);
     let leaves = |t: &Tree| records(t).iter().filter(|c| c.is_leaf()).count();
     assert_eq!(leaves(&tree), leaves(&built));
     let clusters = records(&tree);

@@ -44,7 +44,7 @@ use super::leaves::{Piece, leaf_mesh, pieces_by_object, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
 use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
-use super::update::{Update, object_sources, update_schedule_of};
+use super::update::{Carried, Update, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
 use crate::scene::{Class, Scene, Visibility};
@@ -88,6 +88,9 @@ pub struct Updated {
     pub stats: BuildStats,
     /// Clusters made again (leaves included) and geometry files written.
     pub rebuilt: usize,
+    /// Clusters above an edit that kept their geometry, their `eps_c`
+    /// widened by how far the objects below them moved.
+    pub widened: usize,
     /// Clusters dropped: the removed objects' leaves and the clusters left
     /// with no children.
     pub dropped: usize,
@@ -340,6 +343,7 @@ struct Remade {
     added: Vec<Made>,
     joined: HashMap<u32, Vec<usize>>,
     made: HashMap<u32, Made>,
+    widened: HashMap<u32, Widened>,
     chains: Vec<Cluster>,
     tops: Vec<u32>,
     /// The added leaves that fit no group, each with its lone parents.
@@ -360,6 +364,14 @@ struct Made {
     originals: Option<Vec<Arc<Mesh>>>,
     /// A new leaf's shape, when other new leaves share it.
     instance: Option<Instance>,
+}
+
+/// A cluster above an edit that keeps its geometry: its error widened by
+/// how far the objects below it moved, its box grown to theirs.
+struct Widened {
+    eps: f64,
+    lo: Vec3,
+    hi: Vec3,
 }
 
 /// A child of a cluster being made again, by its id in the old tree, or
@@ -444,6 +456,20 @@ impl Plan<'_> {
             .par_iter()
             .map(|&(p, _)| leaf(p))
             .collect::<Result<_>>()?;
+        // How far each edited leaf's object moved, at most: a bound of the
+        // Hausdorff distance between its old and new geometry, infinite
+        // where it is not the same triangles. A removed leaf moved
+        // infinitely far.
+        let mut moved: HashMap<u32, f64> = self
+            .edited
+            .par_iter()
+            .map(|&c| {
+                let before = stored_mesh(old, old_dir, c)?;
+                let far = displacement(&before, &edited[&c].mesh).map_or(f64::INFINITY, f64::from);
+                Ok((c, far))
+            })
+            .collect::<Result<_>>()?;
+        moved.extend(self.removed.iter().map(|&c| (c, f64::INFINITY)));
         // The added and renewed moving objects' LOD chains, as the build
         // makes them.
         let moving: Vec<(usize, Visibility)> = (self.chains.iter())
@@ -485,6 +511,7 @@ impl Plan<'_> {
         // Level by level, each on every core: a cluster's children are at
         // lower levels. A cluster left with no children goes too.
         let mut made: HashMap<u32, Made> = HashMap::new();
+        let mut widened: HashMap<u32, Widened> = HashMap::new();
         let mut gone = vec![false; old.cluster_count()];
         for &c in &self.removed {
             gone[c as usize] = true;
@@ -493,9 +520,49 @@ impl Plan<'_> {
             let level = of_level[0].0;
             progress.phase(&format!("rebuild level {level}"), of_level.len() as u64);
             let th = thresholds(config, self.stats.scene_w, self.stats.levels, level);
-            let children: Vec<(u32, Vec<Active>)> = of_level
+            // A cluster over the same objects, some of them moved at most
+            // `far`, keeps its geometry where its error widened by `far`
+            // still fits its level: the triangle inequality carries the
+            // bound from the objects as they were to the objects now.
+            let mut to_make = Vec::new();
+            for &(_, c) in of_level {
+                let far = if joined.contains_key(&c) {
+                    f64::INFINITY
+                } else {
+                    (old.children_of(c).iter())
+                        .map(|k| moved.get(k).copied().unwrap_or(0.0))
+                        .fold(0.0, f64::max)
+                };
+                moved.insert(c, far);
+                let child = |k: u32| match edited.get(&k).or_else(|| made.get(&k)) {
+                    Some(m) => (m.eps, m.lo, m.hi),
+                    None => match widened.get(&k) {
+                        Some(w) => (w.eps, w.lo, w.hi),
+                        None => {
+                            let k = old.cluster(k);
+                            (k.eps, k.bounds.min.as_vec3(), k.bounds.max.as_vec3())
+                        }
+                    },
+                };
+                let was = old.cluster(c);
+                let (mut eps, mut lo, mut hi) = (
+                    was.eps + far,
+                    was.bounds.min.as_vec3(),
+                    was.bounds.max.as_vec3(),
+                );
+                for &k in old.children_of(c) {
+                    let (e, l, h) = child(k);
+                    (eps, lo, hi) = (eps.max(e), lo.min(l), hi.max(h));
+                }
+                if eps <= th.eps {
+                    widened.insert(c, Widened { eps, lo, hi });
+                } else {
+                    to_make.push(c);
+                }
+            }
+            let children: Vec<(u32, Vec<Active>)> = to_make
                 .par_iter()
-                .map(|&(_, c)| {
+                .map(|&c| {
                     let children: Vec<Child> = old
                         .children_of(c)
                         .iter()
@@ -516,7 +583,13 @@ impl Plan<'_> {
                                 Child::Added(a) => added[a].clone(),
                                 Child::Old(k) => match edited.get(&k).or_else(|| made.get(&k)) {
                                     Some(m) => m.clone(),
-                                    None => self.stored(old, old_dir, k)?,
+                                    None => {
+                                        let mut m = self.stored(old, old_dir, k)?;
+                                        if let Some(w) = widened.get(&k) {
+                                            (m.eps, m.lo, m.hi) = (w.eps, w.lo, w.hi);
+                                        }
+                                        m
+                                    }
                                 },
                             };
                             Ok(active_of(m))
@@ -544,8 +617,9 @@ impl Plan<'_> {
             let this = lone_remade(&ctx, lone, &th, progress)?;
             made.extend(this);
             tracing::debug!(
-                "level {level}: {} clusters made again, {:.2} s in",
-                of_level.len(),
+                "level {level}: {} clusters made again, {} widened, {:.2} s in",
+                to_make.len(),
+                of_level.len() - to_make.len(),
                 clock.elapsed().as_secs_f64()
             );
         }
@@ -560,6 +634,7 @@ impl Plan<'_> {
             added,
             joined,
             made,
+            widened,
             chains,
             tops,
             alone,
@@ -625,14 +700,7 @@ impl Plan<'_> {
             .geometry
             .clone()
             .ok_or_else(|| Error::argument("tree", format!("cluster {id} has no geometry")))?;
-        let path = old.geometry_file(old_dir, &hash);
-        let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
-        let decoded = crate::io::compact::decode(&bytes)
-            .map_err(|message| Error::invalid(&path, "glb", message))?;
-        let mut mesh = decoded.mesh;
-        for p in &mut mesh.positions {
-            *p += decoded.translation;
-        }
+        let mesh = stored_mesh(old, old_dir, id)?;
         Ok(Made {
             mesh: Arc::new(mesh),
             eps: c.eps,
@@ -686,6 +754,7 @@ impl Plan<'_> {
             added,
             joined,
             made,
+            widened,
             chains,
             tops,
             alone,
@@ -732,6 +801,10 @@ impl Plan<'_> {
             }
             if let Some(m) = edited.get(&id).or_else(|| made.get(&id)) {
                 replace(&mut c, m);
+            } else if let Some(w) = widened.get(&id) {
+                c.bounds = Aabb::from_f32(w.lo, w.hi);
+                c.w = f64::from((w.hi - w.lo).length());
+                c.eps = w.eps;
             }
             c
         };
@@ -794,12 +867,31 @@ impl Plan<'_> {
             r.eps = eps;
         }
 
+        // The clusters kept as they were hold the visibility of their
+        // children: the schedule pass recomputes the others and those
+        // above a change.
+        let carried = Carried {
+            span: old.time.seconds,
+            clusters: Some(
+                origin
+                    .iter()
+                    .map(|o| {
+                        o.is_some_and(|o| {
+                            !(edited.contains_key(&o)
+                                || made.contains_key(&o)
+                                || widened.contains_key(&o)
+                                || joined.contains_key(&o))
+                        })
+                    })
+                    .collect(),
+            ),
+        };
         let stats = self.stats;
         let mut tree = super::tree_of(scene, bounds, root, clusters);
         tree.config = old.config.clone();
         tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
         tree.sources = Some(self.sources);
-        match update_schedule_of(tree, scene, config) {
+        match update_schedule_of(tree, carried, scene, config) {
             Update::Updated {
                 tree,
                 stats,
@@ -809,6 +901,7 @@ impl Plan<'_> {
                 tree: *tree,
                 stats,
                 rebuilt,
+                widened: widened.len(),
                 dropped: gone.iter().filter(|&&g| g).count(),
                 dissolved,
                 origin: passed.iter().map(|&c| origin[c as usize]).collect(),
@@ -816,6 +909,49 @@ impl Plan<'_> {
             Update::Rebuild(why) => Err(Error::argument("scene", why)),
         }
     }
+}
+
+/// The geometry of old cluster `id`, read back from its file, in place.
+fn stored_mesh(old: &Tree, old_dir: &Path, id: u32) -> Result<Mesh> {
+    let c = old.cluster(id);
+    let hash = (c.geometry.as_deref())
+        .ok_or_else(|| Error::argument("tree", format!("cluster {id} has no geometry")))?;
+    let path = old.geometry_file(old_dir, hash);
+    let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
+    let decoded = crate::io::compact::decode(&bytes)
+        .map_err(|message| Error::invalid(&path, "glb", message))?;
+    let mut mesh = decoded.mesh;
+    for p in &mut mesh.positions {
+        *p += decoded.translation;
+    }
+    Ok(mesh)
+}
+
+/// A bound of the Hausdorff distance between `before` and `after` when they
+/// are the same triangles over the same vertices, each vertex perhaps
+/// moved: a point of a triangle is the same weights of its corners in
+/// both, so it moved at most as far as the farthest corner. `None` when
+/// the triangles differ (a corner turned within its triangle still
+/// counts as the same).
+fn displacement(before: &Mesh, after: &Mesh) -> Option<f32> {
+    if before.positions.len() != after.positions.len()
+        || before.indices.len() != after.indices.len()
+    {
+        return None;
+    }
+    let same = |a: &[u32], b: &[u32]| a == b || a == [b[1], b[2], b[0]] || a == [b[2], b[0], b[1]];
+    if !(before.indices.chunks_exact(3))
+        .zip(after.indices.chunks_exact(3))
+        .all(|(a, b)| same(a, b))
+    {
+        return None;
+    }
+    Some(
+        (before.positions.iter())
+            .zip(&after.positions)
+            .map(|(a, b)| a.distance(*b))
+            .fold(0.0, f32::max),
+    )
 }
 
 /// Each cluster's `parent` set from its parent's children list.

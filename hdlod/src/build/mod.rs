@@ -258,6 +258,7 @@ fn update_geometry(
         added_objects,
         removed_objects,
         rebuilt: updated.rebuilt,
+        widened: updated.widened,
         dropped: updated.dropped,
         geometry_files,
         dissolved: updated.dissolved,
@@ -296,15 +297,17 @@ pub enum How {
     },
     /// The tree that was there, brought to the scene's edited, added or
     /// removed objects (`local.rs`): the clusters above them made again
-    /// (`rebuilt`, leaves included), the removed objects' leaves and the
-    /// clusters left with no children dropped (`dropped`), every other
-    /// cluster and geometry file kept (`geometry_files` of the new tree's
-    /// were the old tree's).
+    /// (`rebuilt`, leaves included) or, where the objects below only moved
+    /// a little, kept with their error widened by that (`widened`), the
+    /// removed objects' leaves and the clusters left with no children
+    /// dropped (`dropped`), every other cluster and geometry file kept
+    /// (`geometry_files` of the new tree's were the old tree's).
     GeometryUpdate {
         edited_objects: usize,
         added_objects: usize,
         removed_objects: usize,
         rebuilt: usize,
+        widened: usize,
         dropped: usize,
         geometry_files: usize,
         dissolved: usize,

@@ -175,16 +175,35 @@ impl Buffered {
 /// [`geometry_key`] (the caller compares the key stored in its
 /// statistics).
 pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Update {
-    schedule_pass(Cow::Borrowed(old), scene, config)
+    let carried = Carried {
+        span: old.time.seconds,
+        clusters: None,
+    };
+    schedule_pass(Cow::Borrowed(old), carried, scene, config)
 }
 
 /// [`update_schedule`] of a tree made in memory, whose clusters it takes
 /// rather than copies (a geometry update's, `super::local`).
-pub(super) fn update_schedule_of(tree: Tree, scene: &Scene, config: &BuildConfig) -> Update {
-    schedule_pass(Cow::Owned(tree), scene, config)
+pub(super) fn update_schedule_of(
+    tree: Tree,
+    carried: Carried,
+    scene: &Scene,
+    config: &BuildConfig,
+) -> Update {
+    schedule_pass(Cow::Owned(tree), carried, scene, config)
 }
 
-fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update {
+/// Which records of the tree a schedule pass is given still hold the
+/// `v_c` and `gamma_c` of their children as they were (see
+/// `visibility_pass`).
+pub(super) struct Carried {
+    /// The period they were computed over: with another, none holds.
+    pub span: f64,
+    /// Per cluster; `None`: all of them.
+    pub clusters: Option<Vec<bool>>,
+}
+
+fn schedule_pass(old: Cow<Tree>, carried: Carried, scene: &Scene, config: &BuildConfig) -> Update {
     let scene = &*scheduled(scene, config);
     let span = scene.time.seconds;
     let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
@@ -202,6 +221,11 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
     };
     let (levels, scene_w) = (stats.levels, stats.scene_w);
     let n = old.cluster_count();
+    let carried = match carried.clusters {
+        _ if carried.span != span => vec![false; n],
+        Some(clusters) => clusters,
+        None => vec![true; n],
+    };
     let (bounds, old_config, sources) = (old.bounds, old.config.clone(), old.sources.clone());
     let mut records: Vec<Cluster> = match old {
         // Decoded on every core: one by one, that was a third of the pass.
@@ -223,6 +247,7 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
         || {
             visibility_pass(
                 records,
+                &carried,
                 &leaf_pieces,
                 &pieces,
                 config,
@@ -283,8 +308,15 @@ fn schedule_pass(old: Cow<Tree>, scene: &Scene, config: &BuildConfig) -> Update 
 /// (children before parents) recomputed from the leaves' `pieces`; the
 /// groups that no longer fit their level, dissolved (`Some` of the children
 /// handed to the parent).
+///
+/// Where `carried[c]`, the record's own `v_c` and `gamma_c` are what this
+/// pass made of its children as they were (the same children with the same
+/// `w`): it keeps them while nothing below it changed, and only its leaves'
+/// distinct visibilities are gathered. Recomputing every cluster was most
+/// of an update that changes a few.
 fn visibility_pass(
     records: Vec<Cluster>,
+    carried: &[bool],
     leaf_pieces: &FxHashMap<u32, usize>,
     pieces: &[Piece],
     config: &BuildConfig,
@@ -299,16 +331,26 @@ fn visibility_pass(
     // its new children against its own, higher, threshold.
     let mut leaf_steps: Vec<StepFunction> = Vec::new();
     let mut vis_ids: FxHashMap<Vec<(u64, u64)>, u32> = FxHashMap::default();
-    let mut steps: Vec<StepFunction> = Vec::with_capacity(n);
+    // A kept cluster's steps are read back from its record only when a
+    // parent is recomputed.
+    let mut steps: Vec<Option<StepFunction>> = Vec::with_capacity(n);
     let mut below: Vec<Vec<u32>> = Vec::with_capacity(n);
+    // Whether a cluster's `v_c`, `gamma_c` or `w` may differ from what its
+    // parent's record was made of.
+    let mut changed: Vec<bool> = Vec::with_capacity(n);
     let mut clusters: Vec<Cluster> = Vec::with_capacity(n);
     let mut dissolved: Vec<Option<Vec<u32>>> = vec![None; n];
     for mut c in records {
-        c.children = c
-            .children
-            .iter()
-            .flat_map(|&k| dissolved[k as usize].clone().unwrap_or_else(|| vec![k]))
-            .collect();
+        let regrouped = c.children.iter().any(|&k| dissolved[k as usize].is_some());
+        if regrouped {
+            c.children = c
+                .children
+                .iter()
+                .flat_map(|&k| dissolved[k as usize].clone().unwrap_or_else(|| vec![k]))
+                .collect();
+        }
+        let carried = carried[c.id as usize];
+        let stale = !carried || regrouped || c.children.iter().any(|&k| changed[k as usize]);
         let (s, vis, gamma) = if c.class == ClusterClass::Root {
             // As `virtual_root` aggregates: from the roots' stored steps.
             let stored: Vec<(f64, StepFunction)> = c
@@ -321,7 +363,7 @@ fn visibility_pass(
                 .collect();
             let parts: Vec<(f64, &StepFunction)> = stored.iter().map(|(w, s)| (*w, s)).collect();
             let s = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
-            (s, Vec::new(), 0.0)
+            (Some(s), Vec::new(), 0.0)
         } else if let Some(&piece) = leaf_pieces.get(&c.id) {
             let s = StepFunction::of_visibility(&pieces[piece].visibility, span);
             let key: Vec<(u64, u64)> = s
@@ -334,23 +376,14 @@ fn visibility_pass(
             if vis == next {
                 leaf_steps.push(s.clone());
             }
-            (s, vec![vis], 0.0)
+            (Some(s), vec![vis], 0.0)
         } else if c.children.len() == 1 {
             // A lone cluster's own parent, or a coarser version in a
             // dynamic model's chain: the child's visibility and error.
             let child = c.children[0] as usize;
-            (
-                steps[child].clone(),
-                below[child].clone(),
-                clusters[child].gamma,
-            )
+            let s = stale.then(|| steps_of(&mut steps, &clusters, child).clone());
+            (s, below[child].clone(), clusters[child].gamma)
         } else {
-            let parts: Vec<(f64, &StepFunction)> = c
-                .children
-                .iter()
-                .map(|&k| (clusters[k as usize].w.max(1e-9), &steps[k as usize]))
-                .collect();
-            let s = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
             let mut vis: Vec<u32> = c
                 .children
                 .iter()
@@ -358,25 +391,58 @@ fn visibility_pass(
                 .collect();
             vis.sort_unstable();
             vis.dedup();
-            let gamma = if span > 0.0 {
-                vis.iter()
-                    .map(|&v| s.l1_distance(&leaf_steps[v as usize], span) / span)
-                    .fold(0.0, f64::max)
+            let (s, gamma) = if stale {
+                for &k in &c.children {
+                    steps_of(&mut steps, &clusters, k as usize);
+                }
+                let parts: Vec<(f64, &StepFunction)> = c
+                    .children
+                    .iter()
+                    .map(|&k| {
+                        let s = steps[k as usize].as_ref().expect("read back above");
+                        (clusters[k as usize].w.max(1e-9), s)
+                    })
+                    .collect();
+                let s = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
+                let gamma = if span > 0.0 {
+                    vis.iter()
+                        .map(|&v| s.l1_distance(&leaf_steps[v as usize], span) / span)
+                        .fold(0.0, f64::max)
+                } else {
+                    0.0
+                };
+                (Some(s), gamma)
             } else {
-                0.0
+                (None, c.gamma)
             };
             if gamma > thresholds(config, scene_w, levels, c.level).gamma {
                 dissolved[c.id as usize] = Some(c.children.clone());
             }
             (s, vis, gamma)
         };
-        c.visibility = s.to_tree();
-        c.gamma = gamma;
+        let mut differs = !carried;
+        if let Some(s) = &s {
+            let visibility = s.to_tree();
+            differs |= visibility != c.visibility || gamma != c.gamma;
+            c.visibility = visibility;
+            c.gamma = gamma;
+        }
         steps.push(s);
         below.push(vis);
+        changed.push(differs);
         clusters.push(c);
     }
     (clusters, dissolved)
+}
+
+/// The steps of cluster `k`, read back from its record where the pass kept
+/// it.
+fn steps_of<'a>(
+    steps: &'a mut [Option<StepFunction>],
+    clusters: &[Cluster],
+    k: usize,
+) -> &'a StepFunction {
+    steps[k].get_or_insert_with(|| StepFunction::from_tree(&clusters[k].visibility))
 }
 
 /// Sets the static and pseudo-dynamic levels' figures in `stats` from

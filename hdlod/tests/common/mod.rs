@@ -507,3 +507,69 @@ pub fn objects_below(tree: &hdlod::tree::Tree, scene: &Scene, id: u32) -> Mesh {
         .collect();
     hdlod::geometry::merge(&parts, 0.0)
 }
+
+/// Asserts that every cluster's `v_c` and `gamma_c` are what its children
+/// and the leaves below it make of them now, within the rounding of the
+/// stored values, however the tree was made or updated: `v_c` the
+/// `w`-weighted mean of the children's, simplified to `config.max_steps`,
+/// `gamma_c` its largest L1 distance to a leaf below, over the period.
+pub fn assert_visibility_follows_children(
+    tree: &hdlod::tree::Tree,
+    config: &hdlod::build::BuildConfig,
+) {
+    use hdlod::build::StepFunction;
+    use hdlod::tree::ClusterClass;
+    let span = tree.time.seconds;
+    let clusters: Vec<hdlod::tree::Cluster> = tree.clusters().map(|c| c.into_owned()).collect();
+    let steps: Vec<StepFunction> = clusters
+        .iter()
+        .map(|c| StepFunction::from_tree(&c.visibility))
+        .collect();
+    // Children come before parents: each cluster's leaves from its
+    // children's.
+    let mut leaves: Vec<Vec<u32>> = Vec::with_capacity(clusters.len());
+    let mut checked = 0;
+    for c in &clusters {
+        let mut below: Vec<u32> = c
+            .children
+            .iter()
+            .flat_map(|&k| leaves[k as usize].iter().copied())
+            .collect();
+        if c.children.is_empty() {
+            below.push(c.id);
+        }
+        below.sort_unstable();
+        below.dedup();
+        let at = |what: &str, got: f64, want: f64| {
+            assert!(
+                (got - want).abs() <= 1e-6,
+                "cluster {} ({:?}, level {}): {what} {got} where its children make {want}",
+                c.id,
+                c.class,
+                c.level
+            );
+        };
+        if c.class != ClusterClass::Root && c.children.len() > 1 {
+            let parts: Vec<(f64, &StepFunction)> = c
+                .children
+                .iter()
+                .map(|&k| (clusters[k as usize].w.max(1e-9), &steps[k as usize]))
+                .collect();
+            let want = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
+            let own = &steps[c.id as usize];
+            at("v_c", own.l1_distance(&want, span) / span, 0.0);
+            let gamma = below
+                .iter()
+                .map(|&l| own.l1_distance(&steps[l as usize], span) / span)
+                .fold(0.0, f64::max);
+            at("gamma_c", c.gamma, gamma);
+            checked += 1;
+        } else if c.children.len() == 1 {
+            let child = &clusters[c.children[0] as usize];
+            assert_eq!(c.visibility, child.visibility, "lone cluster {}", c.id);
+            at("gamma_c", c.gamma, child.gamma);
+        }
+        leaves.push(below);
+    }
+    assert!(checked > 0, "no group to check");
+}

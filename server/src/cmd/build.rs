@@ -61,6 +61,10 @@ struct Reused {
     clusters: usize,
     #[serde(skip_serializing_if = "Option::is_none")]
     rebuilt_clusters: Option<usize>,
+    /// Of the clusters kept, those above an edit whose error was widened
+    /// by how far the objects below them moved.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    widened_clusters: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
     edited_objects: Option<usize>,
     #[serde(skip_serializing_if = "Option::is_none")]
@@ -117,6 +121,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(Reused {
                 clusters: tree.cluster_count(),
                 rebuilt_clusters: None,
+                widened_clusters: None,
                 edited_objects: None,
                 added_objects: None,
                 removed_objects: None,
@@ -130,6 +135,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             added_objects,
             removed_objects,
             rebuilt,
+            widened,
             dropped,
             geometry_files,
             dissolved,
@@ -139,6 +145,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             Some(Reused {
                 clusters: tree.cluster_count().saturating_sub(rebuilt),
                 rebuilt_clusters: Some(rebuilt),
+                widened_clusters: Some(widened),
                 edited_objects: Some(edited_objects),
                 added_objects: Some(added_objects),
                 removed_objects: Some(removed_objects),
@@ -205,8 +212,8 @@ fn table(s: &Summary) -> String {
         ),
         Some(r) if r.rebuilt_clusters.is_some() => format!(
             "updated the geometry of {} -> {}: {} objects ({} edited, {} added, {} removed), \
-             {} clusters made again, {} dropped, {} kept with {} geometry files ({} groups \
-             dissolved), {:.2} s\n",
+             {} clusters made again, {} dropped, {} kept ({} of them widened) with {} geometry \
+             files ({} groups dissolved), {:.2} s\n",
             s.scene,
             s.out,
             s.objects,
@@ -216,6 +223,7 @@ fn table(s: &Summary) -> String {
             r.rebuilt_clusters.unwrap_or(0),
             r.dropped_clusters.unwrap_or(0),
             r.clusters,
+            r.widened_clusters.unwrap_or(0),
             r.geometry_files,
             r.dissolved_groups,
             s.seconds
