@@ -329,6 +329,40 @@ fn a_small_move_widens_the_errors_above_it_and_keeps_their_geometry() {
             storey.insert(o.id.clone());
         }
     }
+    // And one object elsewhere re-tessellated: the same surface, one
+    // triangle split at its centre, so its move is measured.
+    let other = (moved.objects.iter_mut())
+        .find(|o| o.motion.is_none() && !storey.contains(&o.id))
+        .expect("an object on another storey");
+    let mut mesh = moved.meshes[other.mesh].clone();
+    let corners: Vec<u32> = mesh.indices[..3].to_vec();
+    let centre = corners
+        .iter()
+        .map(|&i| mesh.positions[i as usize])
+        .sum::<Vec3>()
+        / 3.0;
+    let c = mesh.positions.len() as u32;
+    mesh.positions.push(centre);
+    if !mesh.normals.is_empty() {
+        let normal = mesh.normals[corners[0] as usize];
+        mesh.normals.push(normal);
+    }
+    if !mesh.colors.is_empty() {
+        let colour = mesh.colors[corners[0] as usize];
+        mesh.colors.push(colour);
+    }
+    if !mesh.features.is_empty() {
+        let feature = mesh.features[corners[0] as usize];
+        mesh.features.push(feature);
+    }
+    mesh.indices[2] = c;
+    mesh.indices
+        .extend_from_slice(&[corners[1], corners[2], c, corners[2], corners[0], c]);
+    moved.meshes.push(mesh);
+    other.mesh = moved.meshes.len() - 1;
+    let retessellated = other.id.clone();
+    let mut edited = storey.clone();
+    edited.insert(retessellated.clone());
     moved.apply_schedule();
     let (_, _, how) = build_or_update_to(&moved, &config, &dir, false, &Silent).unwrap();
     let How::GeometryUpdate {
@@ -340,19 +374,20 @@ fn a_small_move_widens_the_errors_above_it_and_keeps_their_geometry() {
     else {
         panic!("{how:?}")
     };
-    assert_eq!(edited_objects, storey.len());
+    assert_eq!(edited_objects, edited.len());
     assert!(widened > 0, "nothing widened, {rebuilt} made again");
     let after = load(&dir).expect("the updated tree passes every check of the loader");
     table_as_fresh(&dir, &after);
     common::assert_visibility_follows_children(&after, &config);
     assert_eq!(after.cluster_count(), before.cluster_count());
 
-    // Above the moved leaves, a cluster either has new geometry or keeps
-    // its file with its error widened by at most the move, or raised to
-    // a child's.
+    // Above the edited leaves, a cluster either has new geometry or keeps
+    // its file with its error widened by at most the move (the
+    // re-tessellated object did not move, up to the measure's tolerance),
+    // or raised to a child's.
     let mut above: Vec<u32> = Vec::new();
     for c in after.clusters().filter(|c| c.is_leaf()) {
-        if storey.contains(&c.objects[0]) {
+        if edited.contains(&c.objects[0]) {
             let mut at = c.parent;
             while let Some(id) = at.filter(|&id| id != after.root) {
                 above.push(id);
@@ -388,7 +423,16 @@ fn a_small_move_widens_the_errors_above_it_and_keeps_their_geometry() {
         kept >= widened,
         "{kept} kept their geometry, {widened} widened"
     );
-    assert_eq!(rebuilt + widened, above.len() + storey.len());
+    let leaf = (after.clusters())
+        .find(|c| c.is_leaf() && c.objects[0] == retessellated)
+        .expect("the re-tessellated object's leaf");
+    let parent = leaf.parent.expect("a parent");
+    assert_eq!(
+        after.cluster(parent).geometry,
+        before.cluster(parent).geometry,
+        "the cluster above the re-tessellated object was made again"
+    );
+    assert_eq!(rebuilt + widened, above.len() + edited.len());
     // Every one of them bounds the distance to its objects as placed now.
     let checked = bounds_hold(&after, &dir, &moved, &above);
     assert!(checked >= widened, "{checked} checked");

@@ -46,7 +46,7 @@ use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
 use super::update::{Carried, Update, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
-use crate::geometry::Mesh;
+use crate::geometry::{ErrorMetric, Mesh};
 use crate::scene::{Class, Scene, Visibility};
 use crate::tree::sources::Digest;
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
@@ -456,17 +456,27 @@ impl Plan<'_> {
             .par_iter()
             .map(|&(p, _)| leaf(p))
             .collect::<Result<_>>()?;
-        // How far each edited leaf's object moved, at most: a bound of the
-        // Hausdorff distance between its old and new geometry, infinite
-        // where it is not the same triangles. A removed leaf moved
-        // infinitely far.
+        // How far each edited leaf's object moved, at most (`moved_by`). A
+        // removed leaf moved infinitely far.
+        let within = Within {
+            metric: config.error_metric,
+            tolerance: (config.hausdorff_fraction
+                * thresholds(config, self.stats.scene_w, self.stats.levels, 1).eps)
+                as f32,
+            budget: thresholds(
+                config,
+                self.stats.scene_w,
+                self.stats.levels,
+                self.stats.levels,
+            )
+            .eps as f32,
+        };
         let mut moved: HashMap<u32, f64> = self
             .edited
             .par_iter()
             .map(|&c| {
                 let before = stored_mesh(old, old_dir, c)?;
-                let far = displacement(&before, &edited[&c].mesh).map_or(f64::INFINITY, f64::from);
-                Ok((c, far))
+                Ok((c, moved_by(&before, &edited[&c].mesh, &within)))
             })
             .collect::<Result<_>>()?;
         moved.extend(self.removed.iter().map(|&c| (c, f64::INFINITY)));
@@ -925,6 +935,52 @@ fn stored_mesh(old: &Tree, old_dir: &Path, id: u32) -> Result<Mesh> {
         *p += decoded.translation;
     }
     Ok(mesh)
+}
+
+/// How an edited leaf's move is measured: the build's metric, and the
+/// tolerance and the largest distance worth measuring (the top level's
+/// budget).
+struct Within {
+    metric: ErrorMetric,
+    tolerance: f32,
+    budget: f32,
+}
+
+/// A bound of the Hausdorff distance between an edited leaf's geometry
+/// `before` and `after`, its colours the same; infinite where they are not,
+/// where the bound is over `within.budget`, or under the appearance
+/// metric, whose colour regions a move that is not rigid may grow (the
+/// clusters above are then made again). The same triangles over moved
+/// vertices are bounded by the farthest vertex's move; others are
+/// measured.
+fn moved_by(before: &Mesh, after: &Mesh, within: &Within) -> f64 {
+    let colours = |m: &Mesh| -> Vec<[u8; 4]> {
+        m.colors
+            .iter()
+            .map(|c| c.map(|v| (v.clamp(0.0, 1.0) * 255.0).round() as u8))
+            .collect()
+    };
+    let (was, now) = (colours(before), colours(after));
+    let distinct = |c: &[[u8; 4]]| -> Vec<[u8; 4]> {
+        let mut d = c.to_vec();
+        d.sort_unstable();
+        d.dedup();
+        d
+    };
+    if within.metric != ErrorMetric::Geometry || distinct(&was) != distinct(&now) {
+        return f64::INFINITY;
+    }
+    match displacement(before, after) {
+        Some(far) if was == now => f64::from(far),
+        _ => crate::geometry::bound_within(
+            before,
+            after,
+            within.tolerance,
+            within.budget,
+            within.metric,
+        )
+        .map_or(f64::INFINITY, f64::from),
+    }
 }
 
 /// A bound of the Hausdorff distance between `before` and `after` when they
