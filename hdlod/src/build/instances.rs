@@ -149,7 +149,7 @@ fn moved(leaf: &Mesh, shape: &Mesh, reduced: &Mesh, h: f32, t: Vec3) -> Option<(
 
 /// The largest distance, in `f64`, of a point of `at` from its match in
 /// `from` moved by `t`.
-fn farthest(at: &[Vec3], from: &[Vec3], t: Vec3) -> f64 {
+pub(super) fn farthest(at: &[Vec3], from: &[Vec3], t: Vec3) -> f64 {
     let t = t.as_dvec3();
     at.iter()
         .zip(from)

@@ -39,7 +39,7 @@ use super::align::TOMBSTONE;
 use super::config::{BuildConfig, thresholds};
 use super::context::{Active, Context, bounds_of};
 use super::dynamic::dynamic_chains;
-use super::instances::{Instance, shapes_of, single_parents};
+use super::instances::{Instance, farthest, shapes_of, single_parents};
 use super::leaves::{Piece, leaf_mesh, pieces_by_object, split_at_rest};
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
 use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
@@ -971,7 +971,7 @@ fn moved_by(before: &Mesh, after: &Mesh, within: &Within) -> f64 {
         return f64::INFINITY;
     }
     match displacement(before, after) {
-        Some(far) if was == now => f64::from(far),
+        Some(far) if was == now => far,
         _ => crate::geometry::bound_within(
             before,
             after,
@@ -989,7 +989,7 @@ fn moved_by(before: &Mesh, after: &Mesh, within: &Within) -> f64 {
 /// both, so it moved at most as far as the farthest corner. `None` when
 /// the triangles differ (a corner turned within its triangle still
 /// counts as the same).
-fn displacement(before: &Mesh, after: &Mesh) -> Option<f32> {
+fn displacement(before: &Mesh, after: &Mesh) -> Option<f64> {
     if before.positions.len() != after.positions.len()
         || before.indices.len() != after.indices.len()
     {
@@ -1002,12 +1002,7 @@ fn displacement(before: &Mesh, after: &Mesh) -> Option<f32> {
     {
         return None;
     }
-    Some(
-        (before.positions.iter())
-            .zip(&after.positions)
-            .map(|(a, b)| a.distance(*b))
-            .fold(0.0, f32::max),
-    )
+    Some(farthest(&after.positions, &before.positions, Vec3::ZERO))
 }
 
 /// Each cluster's `parent` set from its parent's children list.
