@@ -369,3 +369,53 @@ fn bench_build_times_builds_and_updates() {
     );
     assert!(!work.exists(), "the work directory is removed");
 }
+
+/// A served tree updated in place by `hdlod build` (a schedule update, then
+/// a geometry update, each sharing the geometry store and removing the
+/// old tree's directory) is reloaded by the file watch, and every geometry
+/// file a cut of the new tree names is served.
+#[test]
+fn a_served_tree_updated_in_place_is_reloaded() {
+    let tmp = tempfile::tempdir().unwrap();
+    let tree = common::build_tree(tmp.path());
+    let fixture = repo().join("fixtures/skyscraper-tiny");
+    let edited = one_object_moved(&fixture, &tmp.path().join("edited"));
+    let server = common::Server::start(&tree);
+    let scene = server.get_json("/api/v1/scenes/skyscraper-tiny");
+    let (lo, hi) = (&scene["bounds"]["min"], &scene["bounds"]["max"]);
+    let at = |k: usize| (lo[k].as_f64().unwrap() + hi[k].as_f64().unwrap()) / 2.0;
+    let size = (0..3)
+        .map(|k| hi[k].as_f64().unwrap() - lo[k].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let seconds = scene["time"]["seconds"].as_f64().unwrap();
+    let http = common::client();
+    for (scene, mode) in [(&fixture, "schedule-update"), (&edited, "geometry-update")] {
+        let before = server.reloads();
+        let out = hdlod(&[
+            "build".as_ref(),
+            scene.as_os_str(),
+            "--out".as_ref(),
+            tree.as_os_str(),
+            "--json".as_ref(),
+        ]);
+        assert_success(&out);
+        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(summary["mode"], mode);
+        server.await_reloads(before + 1);
+        let cut = server.post_json(
+            "/api/v1/scenes/skyscraper-tiny/cut",
+            &serde_json::json!({
+                "time": seconds * 0.6,
+                "camera": {"position": [at(0) + size, at(1) + size, at(2) + size], "target": [at(0), at(1), at(2)]},
+                "pixel_error": 1.0
+            }),
+        );
+        let clusters = cut["clusters"].as_array().unwrap();
+        assert!(!clusters.is_empty(), "{cut}");
+        for c in clusters {
+            let url = server.url(c["geometry"].as_str().unwrap());
+            let response = http.get(&url).send().unwrap();
+            assert_eq!(response.status(), 200, "{url} after the {mode}");
+        }
+    }
+}
