@@ -9,17 +9,20 @@
 //! of its class (nearest in time first for the pseudo-dynamic class, as
 //! the build ranks candidates) or the first cluster above it that its
 //! visibility fits in time (else its own lone parents), a moving piece
-//! gets its own LOD chain, and
-//! a removed object's leaves go with every cluster left without children.
-//! An edited object that is not one static or pseudo-dynamic leaf (a
-//! moving one) is removed and added again at its index. The scene comes in the old tree's
-//! object order, removed objects as tombstones (`super::align`). Each
-//! cluster above a changed leaf is made again from its children exactly as
-//! the build makes it (the union reduced within its level's budget,
-//! `eps_c` measured; a lone child's own parent reduced alone), the
-//! unchanged children read back from their geometry files. The schedule
-//! pass of [`super::update_schedule`] then recomputes every `v_c` and
-//! `gamma_c` from the leaves, so the scene's schedule may have moved too.
+//! gets its own LOD chain, and a removed object's leaves go with every
+//! cluster left without children. An edited object that is not one static
+//! or pseudo-dynamic leaf (a moving one) is removed and added again at its
+//! index. The scene comes in the old tree's object order, removed objects
+//! as tombstones (`super::align`). Each
+//! cluster above a changed leaf is *widened* where the objects below it
+//! only moved, less than its level's budget allows: it keeps its geometry,
+//! and its `eps_c` grows by the farthest move (the triangle inequality).
+//! Else it is made again from its children exactly as the build makes it
+//! (the union reduced within its level's budget, `eps_c` measured; a lone
+//! child's own parent reduced alone), the unchanged children read back
+//! from their geometry files. The schedule pass of
+//! [`super::update_schedule`] then recomputes `v_c` and `gamma_c` above
+//! every change, so the scene's schedule may have moved too.
 //!
 //! What it does not do, and leaves to a full build: objects whose geometry
 //! is the same but whose class changed, trees with baked colour, and

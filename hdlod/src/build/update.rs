@@ -4,10 +4,11 @@
 //! section 3, "Schedule updates").
 //!
 //! The clusters keep their groups, geometry, boxes and `eps_c`; the leaves
-//! take the new visibility of their objects, and every cluster above is
-//! recomputed from its children exactly as the build computes it
-//! (`v_c` the `w`-weighted mean simplified to K steps, `gamma_c` the
-//! largest L1 distance to a leaf visibility below). A group that no longer
+//! take the new visibility of their objects, and every cluster above a
+//! leaf whose visibility changed is recomputed from its children as the
+//! build computes it (`v_c` the `w`-weighted mean simplified to K steps,
+//! `gamma_c` the largest L1 distance to a leaf visibility below); the
+//! others keep theirs. A group that no longer
 //! fits its level's temporal threshold `gamma(l)` is dissolved into its
 //! parent's group. Where an object changes class (static, pseudo-dynamic,
 //! dynamic, absent) the leaves themselves change, and the caller rebuilds
