@@ -367,6 +367,17 @@ fn bench_build_times_builds_and_updates() {
             .unwrap()
             < 50.0
     );
+    // Then that storey back as new objects: a geometry update that makes
+    // the clusters above them again.
+    assert_eq!(report["added_objects"], report["removed_objects"]);
+    assert_eq!(report["addition_runs"].as_array().unwrap().len(), 1);
+    assert!(report["addition_rebuilt_clusters"].as_u64().unwrap() > 0);
+    assert!(
+        report["addition_table_largest_change_percent"]
+            .as_f64()
+            .unwrap()
+            < 50.0
+    );
     assert!(!work.exists(), "the work directory is removed");
 }
 

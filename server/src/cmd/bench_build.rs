@@ -4,8 +4,8 @@
 //! build repeated: median wall and CPU time and the peak memory, the
 //! figures the build's speed targets are stated in, then as many
 //! schedule updates of the tree (a schedule edit and back), geometry
-//! updates (a storey moved, by default 2 cm, and back) and removals (one
-//! more storey each).
+//! updates (a storey moved, by default 2 cm, and back), removals (one
+//! more storey each) and additions (those storeys back as new objects).
 
 use std::path::{Path, PathBuf};
 use std::time::Instant;
@@ -22,7 +22,8 @@ pub struct Args {
     /// A scene (a directory with scene.json, or the file) to build
     /// `--repeats` times instead of the scaling series, then to update
     /// `--repeats` times each: to a schedule edit and back, to a storey
-    /// moved and back, and removing one more storey.
+    /// moved and back, removing one more storey, and adding those storeys
+    /// back as new objects.
     scene: Option<PathBuf>,
     /// Builds of SCENE; the medians are reported.
     #[arg(long, default_value_t = 3)]
@@ -186,6 +187,19 @@ struct Repeated {
     /// Table 2 after the removals against a full build of the same scene,
     /// as `table_largest_change_percent`.
     removal_table_largest_change_percent: f64,
+    /// Geometry updates that each add one of the removed storeys back as
+    /// new objects (new ids, as a model re-authored: the old ids stay
+    /// tombstones), in the order removed.
+    added_storeys: Vec<String>,
+    added_objects: Vec<usize>,
+    addition_runs: Vec<Run>,
+    median_addition_wall_seconds: f64,
+    median_addition_cpu_seconds: f64,
+    /// Clusters the first addition made again and widened.
+    addition_rebuilt_clusters: usize,
+    addition_widened_clusters: usize,
+    /// Table 2 after the additions against a full build of the same scene.
+    addition_table_largest_change_percent: f64,
     /// The process's peak resident set over every build (and the scene's
     /// load), in bytes.
     peak_rss_bytes: u64,
@@ -304,6 +318,14 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         removal_rebuilt_clusters: geometry.removals.rebuilt,
         removal_dropped_clusters: geometry.removals.dropped,
         removal_table_largest_change_percent: geometry.removals.largest_change,
+        median_addition_wall_seconds: median_of(&geometry.additions.runs, |r| r.wall_seconds),
+        median_addition_cpu_seconds: median_of(&geometry.additions.runs, |r| r.cpu_seconds),
+        added_storeys: geometry.additions.storeys,
+        added_objects: geometry.additions.objects,
+        addition_runs: geometry.additions.runs,
+        addition_rebuilt_clusters: geometry.additions.rebuilt,
+        addition_widened_clusters: geometry.additions.widened,
+        addition_table_largest_change_percent: geometry.additions.largest_change,
         runs,
     };
     if args.json {
@@ -363,6 +385,20 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
                 100.0 * report.median_removal_wall_seconds / report.median_wall_seconds,
                 report.removal_table_largest_change_percent
             );
+            println!(
+                "additions (the removed storeys back, one each, as new objects: {:?} objects; the \
+                 first made {} clusters again, {} widened): median of {}: {:.2} s wall, {:.2} s \
+                 CPU ({:.1}% of a full build's wall time); table 2 against a full build: cells \
+                 within {:.2}%",
+                report.added_objects,
+                report.addition_rebuilt_clusters,
+                report.addition_widened_clusters,
+                report.addition_runs.len(),
+                report.median_addition_wall_seconds,
+                report.median_addition_cpu_seconds,
+                100.0 * report.median_addition_wall_seconds / report.median_wall_seconds,
+                report.addition_table_largest_change_percent
+            );
         }
     }
     Ok(())
@@ -378,6 +414,17 @@ struct GeometryUpdates {
     phases: Vec<(String, f64)>,
     largest_change: f64,
     removals: Removals,
+    additions: Additions,
+}
+
+#[derive(Default)]
+struct Additions {
+    storeys: Vec<String>,
+    objects: Vec<usize>,
+    runs: Vec<Run>,
+    rebuilt: usize,
+    widened: usize,
+    largest_change: f64,
 }
 
 #[derive(Default)]
@@ -471,20 +518,22 @@ fn geometry_updates(
         .take(args.repeats.max(1))
         .copied()
         .collect();
-    result.removals = removals(args, last, &upwards, out, work)?;
+    let (removed, left) = removals(args, last, &upwards, out, work)?;
+    result.removals = removed;
+    result.additions = additions(args, last, left, &upwards, out, work)?;
     Ok(result)
 }
 
 /// Geometry updates of the tree at `out`, which holds `scene`, each
 /// removing the objects that stand still on one more of `storeys`; then
-/// table 2 against a full build of what is left.
+/// table 2 against a full build of what is left, which it answers too.
 fn removals(
     args: &Args,
     scene: &Scene,
     storeys: &[&str],
     out: &Path,
     work: &Path,
-) -> anyhow::Result<Removals> {
+) -> anyhow::Result<(Removals, Scene)> {
     let mut result = Removals::default();
     let mut now = scene.clone();
     for (k, storey) in storeys.iter().enumerate() {
@@ -525,6 +574,70 @@ fn removals(
         }
         result.storeys.push(storey.to_string());
         result.objects.push(gone.len());
+        result.runs.push(run);
+    }
+    result.largest_change = against_full(&now, out, work)?;
+    Ok((result, now))
+}
+
+/// Geometry updates of the tree at `out`, which holds `now` (`scene` with
+/// `storeys` removed), each adding one of them back as new objects: the
+/// objects of `scene` on it that stand still, with new ids, in their
+/// places and tasks. Then table 2 against a full build of the result.
+fn additions(
+    args: &Args,
+    scene: &Scene,
+    mut now: Scene,
+    storeys: &[&str],
+    out: &Path,
+    work: &Path,
+) -> anyhow::Result<Additions> {
+    let mut result = Additions::default();
+    for (k, storey) in storeys.iter().enumerate() {
+        let back: Vec<hdlod::scene::Object> = (scene.objects.iter())
+            .filter(|o| {
+                o.properties.get("storey").map(String::as_str) == Some(*storey)
+                    && o.motion.is_none()
+            })
+            .map(|o| hdlod::scene::Object {
+                id: format!("{}+", o.id),
+                ..o.clone()
+            })
+            .collect();
+        let old_ids: std::collections::HashSet<&str> =
+            back.iter().map(|o| o.id.trim_end_matches('+')).collect();
+        for (task, was) in now.tasks.iter_mut().zip(&scene.tasks) {
+            task.objects.extend(
+                (was.objects.iter())
+                    .filter(|o| old_ids.contains(o.as_str()))
+                    .map(|o| format!("{o}+")),
+            );
+        }
+        let count = back.len();
+        now.objects.extend(back);
+        now.apply_schedule();
+        let (how, _, run) = timed_update(&now, out)?;
+        let How::GeometryUpdate {
+            rebuilt, widened, ..
+        } = how
+        else {
+            anyhow::bail!("the addition of {storey} was not a geometry update: {how:?}");
+        };
+        if k == 0 {
+            (result.rebuilt, result.widened) = (rebuilt, widened);
+        }
+        if !args.json {
+            eprintln!(
+                "addition {}/{} ({count} objects of {storey} with new ids): {:.2} s wall, {:.2} \
+                 s CPU, {rebuilt} clusters made again, {widened} widened",
+                k + 1,
+                storeys.len(),
+                run.wall_seconds,
+                run.cpu_seconds
+            );
+        }
+        result.storeys.push(storey.to_string());
+        result.objects.push(count);
         result.runs.push(run);
     }
     result.largest_change = against_full(&now, out, work)?;
