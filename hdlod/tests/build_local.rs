@@ -440,6 +440,87 @@ fn a_small_move_widens_the_errors_above_it_and_keeps_their_geometry() {
 }
 
 #[test]
+fn a_storey_added_anew_is_grouped_among_itself() {
+    let Built {
+        scene,
+        config,
+        tmp,
+        dir,
+        before_files,
+        ..
+    } = built();
+    // A copy of the storey 20 m up, new ids, in the same tasks: more added
+    // leaves than join their neighbours' groups one by one.
+    let mut added = scene.clone();
+    let copies: Vec<hdlod::scene::Object> = (scene.objects.iter())
+        .filter(|o| {
+            o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none()
+        })
+        .map(|o| {
+            let mut copy = o.clone();
+            copy.id = format!("{}+", o.id);
+            copy.transform.w_axis.y += 20.0;
+            copy
+        })
+        .collect();
+    assert!(copies.len() > 64, "{} objects on the storey", copies.len());
+    let ids: HashSet<String> = copies.iter().map(|o| o.id.clone()).collect();
+    for task in &mut added.tasks {
+        let more: Vec<String> = (task.objects.iter())
+            .map(|o| format!("{o}+"))
+            .filter(|o| ids.contains(o))
+            .collect();
+        task.objects.extend(more);
+    }
+    added.objects.extend(copies);
+    added.apply_schedule();
+    let (_, _, how) = build_or_update_to(&added, &config, &dir, false, &Silent).unwrap();
+    let How::GeometryUpdate {
+        added_objects,
+        rebuilt,
+        ..
+    } = how
+    else {
+        panic!("{how:?}")
+    };
+    assert_eq!(added_objects, ids.len());
+    let after = load(&dir).expect("the updated tree passes every check of the loader");
+    table_as_fresh(&dir, &after);
+    common::assert_visibility_follows_children(&after, &config);
+    // The added leaves' parents are made of added leaves alone, and no
+    // cluster of the old tree was made again for them.
+    let leaf_of_added = |c: &hdlod::tree::Cluster| c.is_leaf() && ids.contains(&c.objects[0]);
+    let mut parents = HashSet::new();
+    for c in after.clusters().filter(|c| leaf_of_added(c)) {
+        let parent = c.parent.expect("a parent");
+        if parent != after.root {
+            parents.insert(parent);
+        }
+    }
+    assert!(!parents.is_empty());
+    for &p in &parents {
+        for &k in &after.cluster(p).children {
+            assert!(
+                leaf_of_added(&after.cluster(k)),
+                "cluster {p} mixes old and added"
+            );
+        }
+    }
+    let remade: Vec<u32> = (after.clusters())
+        .filter(|c| (c.geometry.as_ref()).is_some_and(|g| !before_files.contains(g)))
+        .map(|c| c.id)
+        .collect();
+    assert!(
+        rebuilt >= remade.len(),
+        "{rebuilt} made, {} new files",
+        remade.len()
+    );
+    let checked = bounds_hold(&after, &dir, &added, &remade);
+    assert!(checked >= parents.len(), "{checked} checked");
+    cuts_as_full(&after, &added, &config, tmp.path());
+}
+
+#[test]
 fn what_a_geometry_update_cannot_do_builds_in_full() {
     let scene = tiny();
     let config = BuildConfig::default();

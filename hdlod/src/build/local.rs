@@ -44,6 +44,7 @@ use super::context::{Active, Context, bounds_of};
 use super::dynamic::dynamic_chains;
 use super::instances::{Instance, farthest, shapes_of, single_parents};
 use super::leaves::{Piece, leaf_mesh, pieces_by_object, split_at_rest};
+use super::level::cluster_class;
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
 use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
@@ -57,6 +58,12 @@ use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
 /// Edits above this share of the objects are built in full: the groups
 /// would no longer be the scene's.
 const MAX_TOUCHED_SHARE: f64 = 0.25;
+
+/// Up to this many added leaves of a class join their neighbours' groups;
+/// more (a storey modelled anew) are grouped among themselves. Joined one
+/// by one, a storey's leaves make the groups they join too large to match
+/// a full build's cuts.
+const MAX_JOINED: usize = 64;
 
 /// What a geometry update will do, decided before anything is written.
 pub struct Plan<'a> {
@@ -348,6 +355,9 @@ struct Remade {
     made: HashMap<u32, Made>,
     widened: HashMap<u32, Widened>,
     chains: Vec<Cluster>,
+    /// The grouped added leaves' hierarchy and its tops (`added_hierarchy`).
+    hierarchy: Vec<Cluster>,
+    hierarchy_tops: Vec<u32>,
     tops: Vec<u32>,
     /// The added leaves that fit no group, each with its lone parents.
     alone: Vec<LoneChain>,
@@ -493,14 +503,27 @@ impl Plan<'_> {
         let (tops, _) = dynamic_chains(scene, &moving, &ctx, &mut chains, progress)?;
         lap("leaves");
 
+        // Many added leaves of a class (a storey modelled anew) are grouped
+        // among themselves as the build groups them; a few join their
+        // neighbours' groups.
+        let grouped: Vec<bool> = {
+            let class = |a: usize| self.pieces[self.added[a].0].class;
+            let count = |c: Class| (0..self.added.len()).filter(|&a| class(a) == c).count();
+            let many = [Class::Static, Class::PseudoDynamic].map(|c| count(c) > MAX_JOINED);
+            (0..self.added.len())
+                .map(|a| many[usize::from(class(a) == Class::PseudoDynamic)])
+                .collect()
+        };
+        let (hierarchy, hierarchy_tops) =
+            self.added_hierarchy(&ctx, old, &added, &grouped, progress)?;
         // The clusters above a changed leaf, up to the root's children.
         let mut joined: HashMap<u32, Vec<usize>> = HashMap::new();
         for (a, &(_, parent)) in self.added.iter().enumerate() {
-            if let Some(parent) = parent {
+            if let Some(parent) = parent.filter(|_| !grouped[a]) {
                 joined.entry(parent).or_default().push(a);
             }
         }
-        let alone = self.lone_chains(&ctx, &added, progress)?;
+        let alone = self.lone_chains(&ctx, &added, &grouped, progress)?;
         // (level, id) of each, so that the levels come out in order.
         let mut dirty: Vec<(u32, u32)> = Vec::new();
         let mut seen = vec![false; old.cluster_count()];
@@ -640,6 +663,7 @@ impl Plan<'_> {
             + added.len()
             + made.len()
             + chains.len()
+            + hierarchy.len()
             + alone.iter().map(|(_, c)| c.len()).sum::<usize>();
         lap("rebuild");
         let remade = Remade {
@@ -649,6 +673,8 @@ impl Plan<'_> {
             made,
             widened,
             chains,
+            hierarchy,
+            hierarchy_tops,
             tops,
             alone,
         };
@@ -663,6 +689,73 @@ impl Plan<'_> {
         Ok(updated)
     }
 
+    /// The hierarchy of the `grouped` added leaves (`added`, by their place
+    /// in the plan), each class clustered level by level as the build
+    /// clusters it (`level::cluster_class`), with the old tree's levels and
+    /// thresholds. Answers its clusters above the leaves and the ids of its
+    /// tops, in one numbering: below `self.added.len()` an added leaf,
+    /// from there the clusters answered, in order.
+    fn added_hierarchy(
+        &self,
+        ctx: &Context,
+        old: &Tree,
+        added: &[Made],
+        grouped: &[bool],
+        progress: &dyn Progress,
+    ) -> Result<(Vec<Cluster>, Vec<u32>)> {
+        let span = self.scene.time.seconds;
+        let first = self.added.len();
+        // The leaves' places are taken by their records, so that the
+        // clusters made get the ids after them.
+        let mut clusters: Vec<Cluster> = (self.added.iter())
+            .map(|&(p, _)| piece_record(&self.pieces[p], 0, Vec::new(), span))
+            .collect();
+        let mut tops = Vec::new();
+        let mut leaf_steps: Vec<StepFunction> = Vec::new();
+        let mut vis_ids: FxHashMap<Vec<(u64, u64)>, u32> = FxHashMap::default();
+        let mut of_class: [Vec<Active>; 2] = [Vec::new(), Vec::new()];
+        for (a, m) in added.iter().enumerate().filter(|&(a, _)| grouped[a]) {
+            let piece = &self.pieces[self.added[a].0];
+            let steps = StepFunction::of_visibility(&piece.visibility, span);
+            let key: Vec<(u64, u64)> = (steps.points().iter())
+                .map(|&(t, v)| (t.to_bits(), v.to_bits()))
+                .collect();
+            let vis = *vis_ids.entry(key).or_insert_with(|| {
+                leaf_steps.push(steps.clone());
+                leaf_steps.len() as u32 - 1
+            });
+            let mut active = active_of(m.clone());
+            (active.id, active.steps, active.vis) = (a as u32, steps, vec![vis]);
+            of_class[usize::from(piece.class == Class::PseudoDynamic)].push(active);
+        }
+        let ctx = Context {
+            leaf_steps,
+            shapes: ctx.shapes.clone(),
+            ..*ctx
+        };
+        let bounds = (old.bounds.min.as_vec3(), old.bounds.max.as_vec3());
+        for (kind, active) in [ClusterClass::Static, ClusterClass::PseudoDynamic]
+            .into_iter()
+            .zip(of_class)
+        {
+            if active.is_empty() {
+                continue;
+            }
+            let (top, _) = cluster_class(
+                &ctx,
+                &mut clusters,
+                kind,
+                active,
+                bounds,
+                self.stats.scene_w,
+                self.stats.levels,
+                progress,
+            )?;
+            tops.extend(top);
+        }
+        Ok((clusters.split_off(first), tops))
+    }
+
     /// The lone parents of the added leaves that joined no group, level by
     /// level as the build gives a cluster that groups with none: its own
     /// parent reduced alone where that pays, else the cluster carried up
@@ -671,10 +764,11 @@ impl Plan<'_> {
         &self,
         ctx: &Context,
         added: &[Made],
+        grouped: &[bool],
         progress: &dyn Progress,
     ) -> Result<Vec<LoneChain>> {
         let mut chains: Vec<LoneChain> = (self.added.iter().enumerate())
-            .filter(|(_, (_, parent))| parent.is_none())
+            .filter(|&(a, (_, parent))| parent.is_none() && !grouped[a])
             .map(|(a, _)| (a, Vec::new()))
             .collect();
         if chains.is_empty() {
@@ -769,6 +863,8 @@ impl Plan<'_> {
             made,
             widened,
             chains,
+            hierarchy,
+            hierarchy_tops,
             tops,
             alone,
         } = remade;
@@ -789,7 +885,8 @@ impl Plan<'_> {
         number(self.leaves..n, &mut next);
         let first_chain = next;
         let lone_parents: usize = alone.iter().map(|(_, c)| c.len()).sum();
-        new_ids[old.root as usize] = Some(next + (chains.len() + lone_parents) as u32);
+        let first_grouped = first_chain + chains.len() as u32;
+        new_ids[old.root as usize] = Some(first_grouped + (hierarchy.len() + lone_parents) as u32);
         let new_id = |c: u32| new_ids[c as usize];
         let scene = &self.scene;
         let span = scene.time.seconds;
@@ -844,6 +941,16 @@ impl Plan<'_> {
             c.children.iter_mut().for_each(|k| *k += first_chain);
             c
         }));
+        // The grouped added leaves' hierarchy: its leaves are the added ones.
+        let leaves_added = self.added.len() as u32;
+        let grouped_id = |k: u32| match k.checked_sub(leaves_added) {
+            Some(k) => first_grouped + k,
+            None => first_added + k,
+        };
+        clusters.extend(hierarchy.into_iter().map(|mut c| {
+            c.children.iter_mut().for_each(|k| *k = grouped_id(*k));
+            c
+        }));
         origin.resize(clusters.len(), None);
         let mut alone_tops = Vec::new();
         for (a, parents) in &alone {
@@ -861,6 +968,8 @@ impl Plan<'_> {
         }
         let mut root = kept(old.root);
         root.children.extend(tops.iter().map(|&t| first_chain + t));
+        root.children
+            .extend(hierarchy_tops.iter().map(|&t| grouped_id(t)));
         root.children.extend(alone_tops);
         clusters.push(root);
         origin.push(Some(old.root));
