@@ -81,8 +81,12 @@ pub struct Plan<'a> {
     removed: Vec<u32>,
     /// Static and pseudo-dynamic pieces of the added and renewed objects,
     /// and the cluster each joins; none for a piece that fits no group in
-    /// time, which gets a chain of lone parents of its own.
+    /// time, which gets a chain of lone parents of its own, or one that is
+    /// `grouped`.
     added: Vec<(usize, Option<u32>)>,
+    /// Per added piece: grouped with the other added pieces of its class,
+    /// more than [`MAX_JOINED`] of them.
+    grouped: Vec<bool>,
     /// Moving pieces of the added and renewed objects: each gets its LOD
     /// chain under the root.
     chains: Vec<usize>,
@@ -268,15 +272,39 @@ pub fn plan<'a>(
             ((b.min + b.max) * 0.5).as_vec3()
         })
         .collect();
+    // Many added leaves of a class (a storey modelled anew) are grouped
+    // among themselves as the build groups them (`Plan::added_hierarchy`);
+    // a few join their neighbours' groups.
+    let many = |class: ClusterClass| {
+        (new.iter())
+            .filter(|&&p| pieces[p].cluster_class() == class)
+            .count()
+            > MAX_JOINED
+    };
+    let many = [
+        many(ClusterClass::Static),
+        many(ClusterClass::PseudoDynamic),
+    ];
+    let grouped = |p: &Piece| many[usize::from(p.class == Class::PseudoDynamic)];
     let mut added = Vec::with_capacity(new.len());
     for &p in &new {
         let piece = &pieces[p];
-        let mesh = leaf_mesh(&scene, piece);
-        let Some((lo, hi)) = mesh.bounds() else {
-            return Err(format!(
+        let no_geometry = || {
+            format!(
                 "added object {} has no geometry",
                 scene.objects[piece.object].id
-            ));
+            )
+        };
+        if grouped(piece) {
+            if scene.meshes[scene.objects[piece.object].mesh].triangle_count() == 0 {
+                return Err(no_geometry());
+            }
+            added.push((p, None));
+            continue;
+        }
+        let mesh = leaf_mesh(&scene, piece);
+        let Some((lo, hi)) = mesh.bounds() else {
+            return Err(no_geometry());
         };
         let centre = (lo + hi) * 0.5;
         let class = piece.cluster_class();
@@ -327,6 +355,7 @@ pub fn plan<'a>(
         }
         added.push((p, at.filter(|&c| old.class_of(c) != ClusterClass::Root)));
     }
+    let grouped = added.iter().map(|&(p, _)| grouped(&pieces[p])).collect();
     Ok(Plan {
         scene,
         pieces,
@@ -336,6 +365,7 @@ pub fn plan<'a>(
         edited,
         removed,
         added,
+        grouped,
         chains: new_dynamic,
         stats,
         edited_objects,
@@ -503,19 +533,9 @@ impl Plan<'_> {
         let (tops, _) = dynamic_chains(scene, &moving, &ctx, &mut chains, progress)?;
         lap("leaves");
 
-        // Many added leaves of a class (a storey modelled anew) are grouped
-        // among themselves as the build groups them; a few join their
-        // neighbours' groups.
-        let grouped: Vec<bool> = {
-            let class = |a: usize| self.pieces[self.added[a].0].class;
-            let count = |c: Class| (0..self.added.len()).filter(|&a| class(a) == c).count();
-            let many = [Class::Static, Class::PseudoDynamic].map(|c| count(c) > MAX_JOINED);
-            (0..self.added.len())
-                .map(|a| many[usize::from(class(a) == Class::PseudoDynamic)])
-                .collect()
-        };
+        let grouped = &self.grouped;
         let (hierarchy, hierarchy_tops) =
-            self.added_hierarchy(&ctx, old, &added, &grouped, progress)?;
+            self.added_hierarchy(&ctx, old, &added, grouped, progress)?;
         // The clusters above a changed leaf, up to the root's children.
         let mut joined: HashMap<u32, Vec<usize>> = HashMap::new();
         for (a, &(_, parent)) in self.added.iter().enumerate() {
@@ -523,7 +543,7 @@ impl Plan<'_> {
                 joined.entry(parent).or_default().push(a);
             }
         }
-        let alone = self.lone_chains(&ctx, &added, &grouped, progress)?;
+        let alone = self.lone_chains(&ctx, &added, grouped, progress)?;
         // (level, id) of each, so that the levels come out in order.
         let mut dirty: Vec<(u32, u32)> = Vec::new();
         let mut seen = vec![false; old.cluster_count()];
