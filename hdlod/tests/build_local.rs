@@ -23,6 +23,11 @@ fn tiny() -> Scene {
 
 const STOREY: &str = "Level 02";
 
+/// Whether object `o` stands still on [`STOREY`].
+fn on_storey(o: &hdlod::scene::Object) -> bool {
+    o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none()
+}
+
 /// The tiny site with every object of one storey moved 30 cm along x, and
 /// a copy of one of them added after the last object, a metre away.
 fn edited(scene: &Scene) -> (Scene, usize) {
@@ -30,7 +35,7 @@ fn edited(scene: &Scene) -> (Scene, usize) {
     let mut edited = 0;
     let mut copy = None;
     for o in &mut scene.objects {
-        if o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none() {
+        if on_storey(o) {
             o.transform.w_axis.x += 0.3;
             edited += 1;
             copy.get_or_insert_with(|| o.clone());
@@ -324,7 +329,7 @@ fn a_small_move_widens_the_errors_above_it_and_keeps_their_geometry() {
     let mut moved = scene.clone();
     let mut storey = HashSet::new();
     for o in &mut moved.objects {
-        if o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none() {
+        if on_storey(o) {
             o.transform.w_axis.x += MOVE as f32;
             storey.insert(o.id.clone());
         }
@@ -453,9 +458,7 @@ fn a_storey_added_anew_is_grouped_among_itself() {
     // leaves than join their neighbours' groups one by one.
     let mut added = scene.clone();
     let copies: Vec<hdlod::scene::Object> = (scene.objects.iter())
-        .filter(|o| {
-            o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none()
-        })
+        .filter(|o| on_storey(o))
         .map(|o| {
             let mut copy = o.clone();
             copy.id = format!("{}+", o.id);
@@ -578,9 +581,7 @@ fn removed_objects_leave_tombstones_and_the_others_keep_their_feature_ids() {
     let mut gone: HashSet<String> = scene
         .objects
         .iter()
-        .filter(|o| {
-            o.properties.get("storey").map(String::as_str) == Some(STOREY) && o.motion.is_none()
-        })
+        .filter(|o| on_storey(o))
         .step_by(3)
         .map(|o| o.id.clone())
         .collect();

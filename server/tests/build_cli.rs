@@ -11,35 +11,12 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
     let tmp = tempfile::tempdir().unwrap();
     let tree = tmp.path().join("tree");
     let fixture = repo().join("fixtures/skyscraper-tiny");
-    let out = hdlod(&[
-        "build".as_ref(),
-        fixture.as_os_str(),
-        "--out".as_ref(),
-        tree.as_os_str(),
-        "--json".as_ref(),
-    ]);
-    assert_success(&out);
-    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    common::assert_matches_schema(&summary, "build-summary.schema.json");
+    let summary = built(&fixture, &tree, &[]);
     assert_eq!(summary["objects"], 632);
     assert_eq!(summary["mode"], "full");
 
     // The same scene again: its schedule is updated, no geometry made.
-    let again = |extra: &[&str]| {
-        let mut args = vec![
-            "build".as_ref(),
-            fixture.as_os_str(),
-            "--out".as_ref(),
-            tree.as_os_str(),
-            "--json".as_ref(),
-        ];
-        args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
-        let out = hdlod(&args);
-        assert_success(&out);
-        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        common::assert_matches_schema(&summary, "build-summary.schema.json");
-        summary
-    };
+    let again = |extra: &[&str]| built(&fixture, &tree, extra);
     let updated = again(&[]);
     assert_eq!(updated["mode"], "schedule-update");
     assert_eq!(updated["reused"]["clusters"], summary["clusters"]);
@@ -51,16 +28,7 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
 
     // One object moved: only the clusters above it are made again.
     let edited = one_object_moved(&fixture, &tmp.path().join("edited"));
-    let out = hdlod(&[
-        "build".as_ref(),
-        edited.as_os_str(),
-        "--out".as_ref(),
-        tree.as_os_str(),
-        "--json".as_ref(),
-    ]);
-    assert_success(&out);
-    let local: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-    common::assert_matches_schema(&local, "build-summary.schema.json");
+    let local = built(&edited, &tree, &[]);
     assert_eq!(local["mode"], "geometry-update", "{local}");
     let reused = &local["reused"];
     assert_eq!(reused["edited_objects"], 1);
@@ -242,6 +210,24 @@ fn a_killed_geometry_update_leaves_a_tree_that_loads() {
     killed_updates(&[&edited, &fixture], "geometry-update");
 }
 
+/// The summary of `hdlod build SCENE --out TREE --json` and `extra`,
+/// which must succeed and follow its schema.
+fn built(scene: &std::path::Path, tree: &std::path::Path, extra: &[&str]) -> serde_json::Value {
+    let mut args = vec![
+        "build".as_ref(),
+        scene.as_os_str(),
+        "--out".as_ref(),
+        tree.as_os_str(),
+        "--json".as_ref(),
+    ];
+    args.extend(extra.iter().map(|a| std::ffi::OsStr::new(*a)));
+    let out = hdlod(&args);
+    assert_success(&out);
+    let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    common::assert_matches_schema(&summary, "build-summary.schema.json");
+    summary
+}
+
 /// The scene at `fixture` with one object of a storey moved 50 cm, saved
 /// at `to`.
 fn one_object_moved(fixture: &std::path::Path, to: &std::path::Path) -> std::path::PathBuf {
@@ -393,33 +379,14 @@ fn a_served_tree_updated_in_place_is_reloaded() {
     let edited = one_object_moved(&fixture, &tmp.path().join("edited"));
     let server = common::Server::start(&tree);
     let scene = server.get_json("/api/v1/scenes/skyscraper-tiny");
-    let (lo, hi) = (&scene["bounds"]["min"], &scene["bounds"]["max"]);
-    let at = |k: usize| (lo[k].as_f64().unwrap() + hi[k].as_f64().unwrap()) / 2.0;
-    let size = (0..3)
-        .map(|k| hi[k].as_f64().unwrap() - lo[k].as_f64().unwrap())
-        .fold(0.0, f64::max);
-    let seconds = scene["time"]["seconds"].as_f64().unwrap();
     let http = common::client();
-    for (scene, mode) in [(&fixture, "schedule-update"), (&edited, "geometry-update")] {
+    for (source, mode) in [(&fixture, "schedule-update"), (&edited, "geometry-update")] {
         let before = server.reloads();
-        let out = hdlod(&[
-            "build".as_ref(),
-            scene.as_os_str(),
-            "--out".as_ref(),
-            tree.as_os_str(),
-            "--json".as_ref(),
-        ]);
-        assert_success(&out);
-        let summary: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
-        assert_eq!(summary["mode"], mode);
+        assert_eq!(built(source, &tree, &[])["mode"], mode);
         server.await_reloads(before + 1);
         let cut = server.post_json(
             "/api/v1/scenes/skyscraper-tiny/cut",
-            &serde_json::json!({
-                "time": seconds * 0.6,
-                "camera": {"position": [at(0) + size, at(1) + size, at(2) + size], "target": [at(0), at(1), at(2)]},
-                "pixel_error": 1.0
-            }),
+            &common::cut_over(&scene, 0.6),
         );
         let clusters = cut["clusters"].as_array().unwrap();
         assert!(!clusters.is_empty(), "{cut}");

@@ -242,19 +242,9 @@ fn dynamic_clusters_name_their_object() {
     let server = Server::start(&build_tree(dir.path()));
     let doc = server.get_json("/api/v1/openapi.json");
     let scene = server.get_json(&scene_path(""));
-    let (lo, hi) = (&scene["bounds"]["min"], &scene["bounds"]["max"]);
-    let at = |k: usize| (lo[k].as_f64().unwrap() + hi[k].as_f64().unwrap()) / 2.0;
-    let size = (0..3)
-        .map(|k| hi[k].as_f64().unwrap() - lo[k].as_f64().unwrap())
-        .fold(0.0, f64::max);
-    let seconds = scene["time"]["seconds"].as_f64().unwrap();
     let mut named = 0;
     for k in 1..20 {
-        let body = serde_json::json!({
-            "time": seconds * f64::from(k) / 20.0,
-            "camera": {"position": [at(0) + size, at(1) + size, at(2) + size], "target": [at(0), at(1), at(2)]},
-            "pixel_error": 1.0
-        });
+        let body = common::cut_over(&scene, f64::from(k) / 20.0);
         let cut = server.post_json(&scene_path("/cut"), &body);
         assert_component(&doc, "CutResponse", &cut);
         for c in cut["clusters"].as_array().unwrap() {

@@ -518,7 +518,7 @@ impl Plan<'_> {
             .edited
             .par_iter()
             .map(|&c| {
-                let before = stored_mesh(old, old_dir, c)?;
+                let (before, _) = stored_mesh(old, old_dir, c)?;
                 Ok((c, moved_by(&before, &edited[&c].mesh, &within)))
             })
             .collect::<Result<_>>()?;
@@ -539,7 +539,7 @@ impl Plan<'_> {
         // The clusters above a changed leaf, up to the root's children.
         let mut joined: HashMap<u32, Vec<usize>> = HashMap::new();
         for (a, &(_, parent)) in self.added.iter().enumerate() {
-            if let Some(parent) = parent.filter(|_| !grouped[a]) {
+            if let Some(parent) = parent {
                 joined.entry(parent).or_default().push(a);
             }
         }
@@ -823,11 +823,7 @@ impl Plan<'_> {
     /// they are few enough for the direct bound.
     fn stored(&self, old: &Tree, old_dir: &Path, id: u32) -> Result<Made> {
         let c = old.cluster(id);
-        let hash = c
-            .geometry
-            .clone()
-            .ok_or_else(|| Error::argument("tree", format!("cluster {id} has no geometry")))?;
-        let mesh = stored_mesh(old, old_dir, id)?;
+        let (mesh, hash) = stored_mesh(old, old_dir, id)?;
         Ok(Made {
             mesh: Arc::new(mesh),
             eps: c.eps,
@@ -839,8 +835,9 @@ impl Plan<'_> {
         })
     }
 
-    /// The original objects below old cluster `id` (none of them edited),
-    /// when they have at most [`DIRECT_MAX_TRIANGLES`] triangles.
+    /// The original objects below old cluster `id`, as the scene now
+    /// places them, when they have at most [`DIRECT_MAX_TRIANGLES`]
+    /// triangles.
     fn originals_below(&self, old: &Tree, id: u32) -> Option<Vec<Arc<Mesh>>> {
         let mut leaves = Vec::new();
         let mut stack = vec![id];
@@ -1053,12 +1050,12 @@ impl Plan<'_> {
     }
 }
 
-/// The geometry of old cluster `id`, read back from its file, in place.
-fn stored_mesh(old: &Tree, old_dir: &Path, id: u32) -> Result<Mesh> {
-    let c = old.cluster(id);
-    let hash = (c.geometry.as_deref())
+/// The geometry of old cluster `id`, read back from its file, in place,
+/// and the file's hash.
+fn stored_mesh(old: &Tree, old_dir: &Path, id: u32) -> Result<(Mesh, String)> {
+    let hash = (old.cluster(id).geometry.clone())
         .ok_or_else(|| Error::argument("tree", format!("cluster {id} has no geometry")))?;
-    let path = old.geometry_file(old_dir, hash);
+    let path = old.geometry_file(old_dir, &hash);
     let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
     let decoded = crate::io::compact::decode(&bytes)
         .map_err(|message| Error::invalid(&path, "glb", message))?;
@@ -1066,7 +1063,7 @@ fn stored_mesh(old: &Tree, old_dir: &Path, id: u32) -> Result<Mesh> {
     for p in &mut mesh.positions {
         *p += decoded.translation;
     }
-    Ok(mesh)
+    Ok((mesh, hash))
 }
 
 /// How an edited leaf's move is measured: the build's metric, and the

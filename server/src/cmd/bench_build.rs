@@ -463,7 +463,7 @@ fn geometry_updates(
     let mut edited = scene.clone();
     let mut objects = 0;
     for o in &mut edited.objects {
-        if o.properties.get("storey") == Some(&storey) && o.motion.is_none() {
+        if stands_on(o, &storey) {
             o.transform.w_axis.x += args.move_by;
             objects += 1;
         }
@@ -537,13 +537,8 @@ fn removals(
     let mut result = Removals::default();
     let mut now = scene.clone();
     for (k, storey) in storeys.iter().enumerate() {
-        let gone: std::collections::HashSet<String> = now
-            .objects
-            .iter()
-            .filter(|o| {
-                o.properties.get("storey").map(String::as_str) == Some(*storey)
-                    && o.motion.is_none()
-            })
+        let gone: std::collections::HashSet<String> = (now.objects.iter())
+            .filter(|o| stands_on(o, storey))
             .map(|o| o.id.clone())
             .collect();
         now.objects.retain(|o| !gone.contains(&o.id));
@@ -595,10 +590,7 @@ fn additions(
     let mut result = Additions::default();
     for (k, storey) in storeys.iter().enumerate() {
         let back: Vec<hdlod::scene::Object> = (scene.objects.iter())
-            .filter(|o| {
-                o.properties.get("storey").map(String::as_str) == Some(*storey)
-                    && o.motion.is_none()
-            })
+            .filter(|o| stands_on(o, storey))
             .map(|o| hdlod::scene::Object {
                 id: format!("{}+", o.id),
                 ..o.clone()
@@ -642,6 +634,12 @@ fn additions(
     }
     result.largest_change = against_full(&now, out, work)?;
     Ok(result)
+}
+
+/// Whether object `o` stands still on `storey` (its `storey` property): what
+/// the geometry edits move, remove and add back.
+fn stands_on(o: &hdlod::scene::Object, storey: &str) -> bool {
+    o.properties.get("storey").map(String::as_str) == Some(storey) && o.motion.is_none()
 }
 
 /// The tree at `out` updated (or built) to `scene`, timed up to the

@@ -24,6 +24,22 @@ use serde_json::Value;
 /// The scene name of `fixtures/skyscraper-tiny` and of its tree.
 pub const SCENE: &str = "skyscraper-tiny";
 
+/// A cut request at `fraction` of the period of `scene` (its API summary),
+/// at 1 px, from a camera a scene's size up and aside of its centre.
+pub fn cut_over(scene: &Value, fraction: f64) -> Value {
+    let (lo, hi) = (&scene["bounds"]["min"], &scene["bounds"]["max"]);
+    let at = |k: usize| (lo[k].as_f64().unwrap() + hi[k].as_f64().unwrap()) / 2.0;
+    let size = (0..3)
+        .map(|k| hi[k].as_f64().unwrap() - lo[k].as_f64().unwrap())
+        .fold(0.0, f64::max);
+    let seconds = scene["time"]["seconds"].as_f64().unwrap();
+    serde_json::json!({
+        "time": seconds * fraction,
+        "camera": {"position": [at(0) + size, at(1) + size, at(2) + size], "target": [at(0), at(1), at(2)]},
+        "pixel_error": 1.0
+    })
+}
+
 fn command() -> Command {
     let mut command = Command::new(env!("CARGO_BIN_EXE_hdlod"));
     command.env("RUST_LOG", "warn");
