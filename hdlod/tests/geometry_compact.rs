@@ -141,6 +141,48 @@ fn a_compact_glb_reads_back_its_positions_exact_and_the_rest_within_the_quantiza
 }
 
 #[test]
+fn flat_normals_are_left_out_and_read_back_as_the_triangles_own() {
+    let has_normals = |glb: &[u8]| {
+        json_of(glb)["meshes"][0]["primitives"][0]["attributes"]
+            .get("NORMAL")
+            .is_some()
+    };
+    // Boxes: each vertex's normal is its face's.
+    let flat = two_objects();
+    for allowance in [0.0, 0.01] {
+        let (glb, _) = compact_mesh_to_glb(&flat, None, allowance);
+        assert!(!has_normals(&glb), "allowance {allowance}");
+        let decoded = compact::decode(&glb).unwrap().mesh;
+        assert_eq!(decoded.normals.len(), flat.normals.len());
+        for (n, m) in flat.normals.iter().zip(&decoded.normals) {
+            assert!(n.distance(*m) <= 0.01, "{n} read as {m}");
+        }
+        // The plain form writes them out, for readers that do not compute
+        // them.
+        assert!(has_normals(&compact::plain(&glb).unwrap()));
+    }
+    // Smooth normals, and one flat normal turned by a degree: kept.
+    let mut smooth = two_objects();
+    let centre = smooth.positions.iter().copied().sum::<Vec3>() / smooth.positions.len() as f32;
+    smooth.normals = smooth
+        .positions
+        .iter()
+        .map(|&p| (p - centre).normalize())
+        .collect();
+    let mut turned = two_objects();
+    let axis = turned.normals[0].any_orthonormal_vector();
+    turned.normals[0] = glam::Quat::from_axis_angle(axis, 1f32.to_radians()) * turned.normals[0];
+    for (what, mesh) in [("smooth", smooth), ("turned", turned)] {
+        let (glb, _) = compact_mesh_to_glb(&mesh, None, 0.0);
+        assert!(has_normals(&glb), "{what}");
+        let decoded = compact::decode(&glb).unwrap().mesh;
+        for (n, m) in mesh.normals.iter().zip(&decoded.normals) {
+            assert!(n.distance(*m) <= 0.01, "{n} read as {m}");
+        }
+    }
+}
+
+#[test]
 fn the_plain_form_of_a_compact_glb_is_an_f32_glb_of_the_same_mesh() {
     let (mesh, texture) = textured();
     let glb = encoded_mesh_to_glb(&mesh, Some(&texture), Encoding::Compact);

@@ -11,7 +11,9 @@
 //! more than the caller's allowance, and stay exact `FLOAT` otherwise (a
 //! leaf's allowance is 0); the largest move is measured and answered, and
 //! the build adds it to the cluster's `eps`, so every stored `eps` stays a
-//! bound of the geometry as stored. Normals normalized `BYTE`, colours
+//! bound of the geometry as stored. Normals normalized `BYTE`, and left
+//! out where they are the triangles' own (flat), which a reader computes
+//! where a primitive has none; colours
 //! normalized `UNSIGNED_BYTE`,
 //! texture coordinates normalized `UNSIGNED_SHORT`. Feature ids stay `FLOAT`
 //! (exact, and a run of equal ids costs the vertex codec almost nothing),
@@ -70,7 +72,13 @@ impl GlbBuilder {
                 stride - 4
             })
         };
-        let normals = field(!mesh.normals.is_empty());
+        // A primitive without normals is drawn with flat ones (glTF 2.0,
+        // "Meshes"), and a small cluster's file is mostly JSON: the normals'
+        // accessor is left out where they are the triangles' own, as the
+        // boxes and quads of most clusters have them.
+        let stored: &[Vec3] = quantized.as_ref().map_or(&mesh.positions, |q| &q.values);
+        let flat = is_flat(stored, &mesh.normals, &mesh.indices);
+        let normals = field(!mesh.normals.is_empty() && !flat);
         let colors = field(!mesh.colors.is_empty());
         let texcoords = field(uvs.is_some());
         let features = field(!mesh.features.is_empty());
@@ -120,14 +128,7 @@ impl GlbBuilder {
             }
         }
         let encoded = encode_vertices(&raw, stride);
-        let view = self.compressed_view(
-            raw.len(),
-            &encoded,
-            Some(stride),
-            n,
-            "ATTRIBUTES",
-            json::buffer::Target::ArrayBuffer,
-        );
+        let view = self.compressed_view(raw.len(), &encoded, Some(stride), n, "ATTRIBUTES");
         use json::accessor::{ComponentType as C, Type as T};
         let positions = self.view_accessor(
             view,
@@ -172,8 +173,15 @@ impl GlbBuilder {
         component: json::accessor::ComponentType,
         min_max: Option<(Vec<f32>, Vec<f32>)>,
     ) -> json::Index<json::Accessor> {
+        // Quantized bounds are whole numbers, written as such: `32767`,
+        // not `32767.0`.
+        let number = |v: &f32| match v.fract() == 0.0 && v.abs() <= SHORT {
+            true => json::Value::from(*v as i64),
+            false => json::Value::from(*v),
+        };
+        let numbers = |vs: Vec<f32>| json::Value::from(vs.iter().map(number).collect::<Vec<_>>());
         let (min, max) = match min_max {
-            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            Some((lo, hi)) => (Some(numbers(lo)), Some(numbers(hi))),
             None => (None, None),
         };
         self.root.push(json::Accessor {
@@ -211,7 +219,6 @@ impl GlbBuilder {
             None,
             indices.len(),
             "TRIANGLES",
-            json::buffer::Target::ElementArrayBuffer,
         );
         // The extension's stride of an index view is the index size.
         let last = self.compressed.last_mut().expect("just pushed");
@@ -241,7 +248,6 @@ impl GlbBuilder {
         stride: Option<usize>,
         count: usize,
         mode: &str,
-        target: json::buffer::Target,
     ) -> json::Index<json::buffer::View> {
         let offset = self.bin.len();
         self.bin.extend_from_slice(encoded);
@@ -257,7 +263,9 @@ impl GlbBuilder {
             byte_offset: (at > 0).then(|| USize64::from(at)),
             byte_stride: stride.map(json::buffer::Stride),
             name: None,
-            target: Some(Valid(target)),
+            // The target is a hint, optional, which loaders infer from
+            // the accessors' use: left out, as the other defaults.
+            target: None,
             extensions: None,
             extras: None,
         });
@@ -276,6 +284,31 @@ impl GlbBuilder {
         self.compressed.push((view.value(), extension));
         view
     }
+}
+
+/// Whether `normals` are those of the triangles at each vertex of
+/// `positions` (as stored), within the angle of an 8-bit normal's rounding
+/// (0.6 degrees): what a reader computes where a primitive has none. Not
+/// where a triangle is degenerate or a vertex on none.
+fn is_flat(positions: &[Vec3], normals: &[Vec3], indices: &[u32]) -> bool {
+    const COS: f32 = 0.99995;
+    if normals.len() != positions.len() || positions.is_empty() {
+        return false;
+    }
+    let mut used = vec![false; positions.len()];
+    for t in indices.chunks_exact(3) {
+        let [a, b, c] = [0, 1, 2].map(|k| positions[t[k] as usize]);
+        let Some(face) = (b - a).cross(c - a).try_normalize() else {
+            return false;
+        };
+        for &i in t {
+            if normals[i as usize].normalize_or_zero().dot(face) < COS {
+                return false;
+            }
+            used[i as usize] = true;
+        }
+    }
+    used.into_iter().all(|u| u)
 }
 
 /// The extensions' part of the JSON of a GLB with `compressed` views (none
@@ -511,7 +544,8 @@ pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
             .collect(),
         ..Mesh::default()
     };
-    if let Some((normals, 3)) = attribute("NORMAL")? {
+    let normals = attribute("NORMAL")?;
+    if let Some((normals, 3)) = &normals {
         mesh.normals = normals.chunks_exact(3).map(Vec3::from_slice).collect();
     }
     match attribute("COLOR_0")? {
@@ -541,6 +575,12 @@ pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
             .collect(),
         None => (0..n as u32).collect(),
     };
+    if normals.is_none() && n > 0 {
+        // Flat, as glTF draws a primitive without normals: each vertex's
+        // is a triangle's at it (`unit_normals` fills in normals of zero).
+        mesh.normals = vec![Vec3::ZERO; n];
+        mesh.normals = unit_normals(&mesh).into_owned().normals;
+    }
     let texture = match attribute("TEXCOORD_0")? {
         Some((uvs, 2)) => file.base_color_png(primitive)?.map(|png| Texture {
             uvs: uvs.chunks_exact(2).map(Vec2::from_slice).collect(),

@@ -184,6 +184,8 @@ struct Repeated {
     /// Clusters the first removal made again and dropped.
     removal_rebuilt_clusters: usize,
     removal_dropped_clusters: usize,
+    /// The first removal's phases, in seconds.
+    removal_phases: Vec<(String, f64)>,
     /// Table 2 after the removals against a full build of the same scene,
     /// as `table_largest_change_percent`.
     removal_table_largest_change_percent: f64,
@@ -317,6 +319,7 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         removal_runs: geometry.removals.runs,
         removal_rebuilt_clusters: geometry.removals.rebuilt,
         removal_dropped_clusters: geometry.removals.dropped,
+        removal_phases: geometry.removals.phases,
         removal_table_largest_change_percent: geometry.removals.largest_change,
         median_addition_wall_seconds: median_of(&geometry.additions.runs, |r| r.wall_seconds),
         median_addition_cpu_seconds: median_of(&geometry.additions.runs, |r| r.cpu_seconds),
@@ -365,12 +368,10 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
                 100.0 * report.median_geometry_update_wall_seconds / report.median_wall_seconds,
                 report.table_largest_change_percent
             );
-            let phases: Vec<String> = report
-                .geometry_update_phases
-                .iter()
-                .map(|(name, s)| format!("{name} {s:.2}"))
-                .collect();
-            println!("  the first one's phases (s): {}", phases.join(", "));
+            println!(
+                "  the first one's phases (s): {}",
+                phases(&report.geometry_update_phases)
+            );
             println!(
                 "removals (one more storey each: {}; {:?} objects; the first made {} clusters \
                  again and dropped {}): median of {}: {:.2} s wall, {:.2} s CPU ({:.1}% of a full \
@@ -384,6 +385,10 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
                 report.median_removal_cpu_seconds,
                 100.0 * report.median_removal_wall_seconds / report.median_wall_seconds,
                 report.removal_table_largest_change_percent
+            );
+            println!(
+                "  the first one's phases (s): {}",
+                phases(&report.removal_phases)
             );
             println!(
                 "additions (the removed storeys back, one each, as new objects: {:?} objects; the \
@@ -434,6 +439,7 @@ struct Removals {
     runs: Vec<Run>,
     rebuilt: usize,
     dropped: usize,
+    phases: Vec<(String, f64)>,
     largest_change: f64,
 }
 
@@ -546,7 +552,7 @@ fn removals(
             task.objects.retain(|o| !gone.contains(o));
         }
         now.apply_schedule();
-        let (how, _, run) = timed_update(&now, out)?;
+        let (how, stats, run) = timed_update(&now, out)?;
         let How::GeometryUpdate {
             rebuilt, dropped, ..
         } = how
@@ -555,6 +561,7 @@ fn removals(
         };
         if k == 0 {
             (result.rebuilt, result.dropped) = (rebuilt, dropped);
+            result.phases = stats.phases;
         }
         if !args.json {
             eprintln!(
@@ -634,6 +641,14 @@ fn additions(
     }
     result.largest_change = against_full(&now, out, work)?;
     Ok(result)
+}
+
+/// An update's phases and their seconds, for the report.
+fn phases(phases: &[(String, f64)]) -> String {
+    let phases: Vec<String> = (phases.iter())
+        .map(|(name, s)| format!("{name} {s:.2}"))
+        .collect();
+    phases.join(", ")
 }
 
 /// Whether object `o` stands still on `storey` (its `storey` property): what
