@@ -577,9 +577,19 @@ pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
     };
     if normals.is_none() && n > 0 {
         // Flat, as glTF draws a primitive without normals: each vertex's
-        // is a triangle's at it (`unit_normals` fills in normals of zero).
+        // is a triangle's at it (`unit_normals` fills in normals of zero),
+        // rounded as a stored 8-bit normal reads back, so that the plain
+        // form holds the values it held when the normals were stored (and
+        // compresses as well on the wire).
         mesh.normals = vec![Vec3::ZERO; n];
-        mesh.normals = unit_normals(&mesh).into_owned().normals;
+        mesh.normals = (unit_normals(&mesh).normals.iter())
+            .map(|&v| {
+                (v * 127.0)
+                    .round()
+                    .clamp(Vec3::splat(-127.0), Vec3::splat(127.0))
+                    / 127.0
+            })
+            .collect();
     }
     let texture = match attribute("TEXCOORD_0")? {
         Some((uvs, 2)) => file.base_color_png(primitive)?.map(|png| Texture {
