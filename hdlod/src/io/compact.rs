@@ -104,9 +104,7 @@ impl GlbBuilder {
                 }
             }
             if let Some(at) = normals {
-                let v = (mesh.normals[i] * 127.0)
-                    .round()
-                    .clamp(Vec3::splat(-127.0), Vec3::splat(127.0));
+                let v = byte_grid(mesh.normals[i]);
                 vertex[at..at + 3].copy_from_slice(&[
                     v.x as i8 as u8,
                     v.y as i8 as u8,
@@ -284,6 +282,14 @@ impl GlbBuilder {
         self.compressed.push((view.value(), extension));
         view
     }
+}
+
+/// Unit normal `n` as a normalized `BYTE` stores it: its components times
+/// 127, rounded.
+fn byte_grid(n: Vec3) -> Vec3 {
+    (n * 127.0)
+        .round()
+        .clamp(Vec3::splat(-127.0), Vec3::splat(127.0))
 }
 
 /// Whether `normals` are those of the triangles at each vertex of
@@ -583,12 +589,7 @@ pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
         // compresses as well on the wire).
         mesh.normals = vec![Vec3::ZERO; n];
         mesh.normals = (unit_normals(&mesh).normals.iter())
-            .map(|&v| {
-                (v * 127.0)
-                    .round()
-                    .clamp(Vec3::splat(-127.0), Vec3::splat(127.0))
-                    / 127.0
-            })
+            .map(|&v| byte_grid(v) / 127.0)
             .collect();
     }
     let texture = match attribute("TEXCOORD_0")? {
