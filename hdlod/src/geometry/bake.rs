@@ -22,7 +22,9 @@
 //! baked colour. A chart of one colour, that of its vertices, keeps its
 //! vertex colours; one of another colour shrinks to one texel. Plain areas
 //! are filled block by block (`Surface::fill`), so only colour borders
-//! cost a query per texel.
+//! cost queries texel by texel: a few samples each, multi-jittered (Chiu,
+//! Shirley and Wang 1994), so that thin bands along the chart's axes get
+//! their share of the texel.
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
@@ -498,8 +500,27 @@ struct Sampling<'a> {
 /// Blocks of at most this many texels are sampled texel by texel.
 const LEAST_BLOCK: u32 = 2;
 /// Samples along each side of a texel on a colour border (their mean is
-/// the texel).
+/// the texel): `SUBSAMPLES` x `SUBSAMPLES` cells, one sample each, placed
+/// so that no two share a row or a column of `SUBSAMPLES`^2
+/// ([`sample_offset`]).
 const SUBSAMPLES: u32 = 3;
+
+/// Where sample `(a, b)` of a texel lies in its square (0 to 1 along each
+/// side): multi-jittered sampling (Chiu, Shirley and Wang, "Multi-jittered
+/// sampling", Graphics Gems IV, 1994) in its canonical arrangement, not
+/// jittered since a bake must be reproducible. Each sample is in its own
+/// cell of the `n` x `n` grid and in its own row and column of the
+/// `n^2` x `n^2` one, so a band along either chart axis (a mullion or a
+/// transom on a facade) thinner than a cell still meets its share of the
+/// samples to within `1 / n^2` of the texel, where on a regular grid it
+/// met a whole row of them or none.
+fn sample_offset(a: u32, b: u32) -> (f32, f32) {
+    let n = SUBSAMPLES as f32;
+    (
+        (a as f32 + (b as f32 + 0.5) / n) / n,
+        (b as f32 + (a as f32 + 0.5) / n) / n,
+    )
+}
 
 impl<'a> Surface<'a> {
     fn new(sources: &'a [Source<'a>]) -> Option<Self> {
@@ -555,11 +576,11 @@ impl<'a> Surface<'a> {
     }
 
     /// Texel `(i, j)` of a chart on a colour border: the mean of the
-    /// source's linear colour at `SUBSAMPLES` x `SUBSAMPLES` points spread
-    /// over its square. One sample at its centre would give a band border
-    /// as a staircase of whole texels, where the eye (and a multisampled
-    /// render of full detail) sees the share of the texel each colour
-    /// covers.
+    /// source's linear colour at `SUBSAMPLES` x `SUBSAMPLES` points over
+    /// its square ([`sample_offset`]). One sample at its centre would give
+    /// a band border as a staircase of whole texels, where the eye (and a
+    /// multisampled render of full detail) sees the share of the texel
+    /// each colour covers.
     fn texel_average(
         &self,
         at: &Sampling,
@@ -571,10 +592,8 @@ impl<'a> Surface<'a> {
         let mut n = 0u32;
         for b in 0..SUBSAMPLES {
             for a in 0..SUBSAMPLES {
-                let offset = |k: u32| (k as f32 + 0.5) / SUBSAMPLES as f32;
-                let p = at
-                    .chart
-                    .point(i as f32 + offset(a), j as f32 + offset(b), at.texel);
+                let (x, y) = sample_offset(a, b);
+                let p = at.chart.point(i as f32 + x, j as f32 + y, at.texel);
                 if let Some(c) = self.colour_seen(p, at.chart.normal, at.reach, hint) {
                     for (s, c) in sum.iter_mut().zip(c) {
                         *s += c;
@@ -649,9 +668,10 @@ impl<'a> Surface<'a> {
         *hint = Some(n.triangle);
         // The samples of its texels (`texel_average`) lie within this of
         // its centre: half the span of their centres, and the outermost
-        // samples' offset from a centre, `(SUBSAMPLES - 1) / (2 SUBSAMPLES)`
-        // of a texel, on each side.
-        let spread = (SUBSAMPLES - 1) as f32 / SUBSAMPLES as f32;
+        // samples' offset from a centre, `(n^2 - 1) / (2 n^2)` of a texel
+        // for `n` = `SUBSAMPLES` ([`sample_offset`]), on each side.
+        let cells = (SUBSAMPLES * SUBSAMPLES) as f32;
+        let spread = (cells - 1.0) / cells;
         let (sw, sh) = ((w - 1) as f32 + spread, (h - 1) as f32 + spread);
         let r = 0.5 * texel * (sw * sw + sh * sh).sqrt();
         // Nearest points lie within `d + 2 r` of the centre, surfaces met
@@ -1118,6 +1138,98 @@ mod tests {
         // sRGB bytes.
         let expected: [f32; 4] = std::array::from_fn(|k| WALL[k] + (BAND[k] - WALL[k]) / 3.0);
         assert!(near(got, expected), "{got:?} against {expected:?}");
+    }
+
+    /// A 3 m square wall at z = 0 with a strip `[lo, hi]` across it (along
+    /// y when `vertical`, else along x) 1 cm in front, and the wall's quad
+    /// proxy 2 cm in front.
+    fn wall_with_strip(vertical: bool, lo: f32, hi: f32) -> (Mesh, Mesh) {
+        let mut source = Mesh::default();
+        let quad = |mesh: &mut Mesh, corners: [(f32, f32); 4], z: f32, colour| {
+            let base = mesh.positions.len() as u32;
+            for (x, y) in corners {
+                let (x, y) = if vertical { (x, y) } else { (y, x) };
+                mesh.positions.push(Vec3::new(x, y, z));
+                mesh.colors.push(colour);
+                mesh.normals.push(Vec3::Z);
+                mesh.features.push(7);
+            }
+            // Wound counter-clockwise seen from +z either way round.
+            let order = if vertical {
+                [0, 1, 2, 0, 2, 3]
+            } else {
+                [0, 2, 1, 0, 3, 2]
+            };
+            mesh.indices.extend(order.map(|k| base + k));
+        };
+        let square = [(0.0, 0.0), (3.0, 0.0), (3.0, 3.0), (0.0, 3.0)];
+        quad(&mut source, square, 0.0, WALL);
+        quad(
+            &mut source,
+            [(lo, 0.0), (hi, 0.0), (hi, 3.0), (lo, 3.0)],
+            0.01,
+            BAND,
+        );
+        let mut proxy = Mesh::default();
+        quad(&mut proxy, square, 0.02, WALL);
+        (source, proxy)
+    }
+
+    #[test]
+    fn a_strip_thinner_than_a_third_of_a_texel_takes_its_share_wherever_it_lies() {
+        // A mullion 9 cm wide across texels of 30 cm covers 30% of a texel.
+        // A regular grid of n x n samples meets such a strip with a whole
+        // number of its n columns, 0 or 1 of 3, 1 or 2 of 4, depending on
+        // where it lies; the texel must take its share to within one
+        // sample in n^2 wherever it lies, along either axis.
+        let (texel, width) = (0.3, 0.09);
+        for vertical in [true, false] {
+            for step in 0..24 {
+                let lo = 1.2 + step as f32 * 0.0125;
+                let (source, proxy) = wall_with_strip(vertical, lo, lo + width);
+                let sources = [Source {
+                    mesh: &source,
+                    baked: None,
+                }];
+                let surface = Surface::new(&sources).unwrap();
+                let chart = &charts(&proxy, &[0, 1])[0];
+                let size = chart.texels(texel);
+                let at = Sampling {
+                    chart,
+                    texel,
+                    reach: 0.05,
+                    row: size[0],
+                };
+                // The texel in the middle of the wall whose square holds
+                // the strip's start, and the share of its square the strip
+                // covers.
+                let along = |p: Vec3| if vertical { p.x } else { p.y };
+                let (i, j) = (0..size[0])
+                    .flat_map(|i| (0..size[1]).map(move |j| (i, j)))
+                    .find(|&(i, j)| {
+                        let a = chart.point(i as f32, j as f32, texel);
+                        let b = chart.point(i as f32 + 1.0, j as f32 + 1.0, texel);
+                        let across = |p: Vec3| if vertical { p.y } else { p.x };
+                        (along(a).min(along(b))..along(a).max(along(b))).contains(&lo)
+                            && (1.0..2.0).contains(&across(a))
+                    })
+                    .unwrap();
+                let a = along(chart.point(i as f32, j as f32, texel));
+                let b = along(chart.point(i as f32 + 1.0, j as f32 + 1.0, texel));
+                let (from, to) = (a.min(b), a.max(b));
+                let share = ((lo + width).min(to) - lo.max(from)) / texel;
+                let got = decode(surface.texel_average(&at, i, j, &mut None).unwrap());
+                let expected: [f32; 4] =
+                    std::array::from_fn(|k| WALL[k] + (BAND[k] - WALL[k]) * share);
+                let off = (0..3)
+                    .map(|k| (got[k] - expected[k]).abs() / (BAND[k] - WALL[k]).abs())
+                    .fold(0.0, f32::max);
+                assert!(
+                    off <= 1.0 / (SUBSAMPLES * SUBSAMPLES) as f32 + 0.02,
+                    "vertical {vertical}, strip from {lo}: {got:?} against {expected:?} (share {share})"
+                );
+            }
+        }
     }
 
     #[test]
