@@ -42,6 +42,7 @@ fn object(id: String, mesh: usize, at: Vec3) -> Object {
         color: [0.7, 0.7, 0.7, 1.0],
         visibility: Visibility::always(),
         motion: None,
+        skin: None,
         properties: BTreeMap::new(),
     }
 }

@@ -121,6 +121,7 @@ fn tombstone(id: &str) -> Object {
         color: [0.0; 4],
         visibility: Visibility::never(),
         motion: None,
+        skin: None,
         properties: Default::default(),
     }
 }

@@ -377,6 +377,7 @@ pub fn import(
                 color: e.color,
                 visibility: Visibility::always(),
                 motion: None,
+                skin: None,
                 properties,
             });
             meshes.push(e.mesh);

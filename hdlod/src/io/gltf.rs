@@ -8,6 +8,10 @@
 //! baked colours), not by glTF mesh index: a writer that gives each
 //! (mesh, material) pair its own glTF mesh over the same accessors, as ours
 //! does, still reads back as one shared mesh.
+//!
+//! A node with a skin keeps its mesh in its bind pose with each vertex's
+//! joints and weights (`JOINTS_0`, `WEIGHTS_0`), and the skin's joints and
+//! inverse bind matrices: the scene poses it (`scene::ObjectSkin`).
 
 use std::collections::HashMap;
 use std::path::Path;
@@ -17,8 +21,10 @@ use gltf::mesh::Mode;
 
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
+use crate::geometry::skin::Skin;
 use crate::io::texture::Texture;
 use crate::scene::rig::{Channel, Clip, Interpolation, Rig, Trs, Values};
+use crate::scene::{Joint, ObjectSkin};
 
 /// The meshes of a glTF file and the nodes that place them.
 #[derive(Debug, Clone, Default)]
@@ -45,6 +51,25 @@ pub(crate) struct ModelNode {
     /// The material's base colour (linear RGBA), white when the primitives'
     /// materials differ (their colours are then vertex colours).
     pub color: [f32; 4],
+    /// The node's skin, when it has one.
+    pub skin: Option<ModelSkin>,
+}
+
+/// A skinned node's skin: what the scene keeps, and the joints' nodes,
+/// which the clips move.
+#[derive(Debug, Clone)]
+pub(crate) struct ModelSkin {
+    /// The joints' node indices, in the skin's order.
+    pub nodes: Vec<usize>,
+    /// The joints at rest (no motion yet).
+    pub skin: ObjectSkin,
+}
+
+/// A glTF skin as the file gives it.
+struct FileSkin {
+    joints: Vec<usize>,
+    names: Vec<Option<String>>,
+    inverse_bind: Vec<Mat4>,
 }
 
 impl ModelNode {
@@ -115,11 +140,13 @@ fn flatten(model: &Model) -> Mesh {
 }
 
 /// What makes two glTF meshes the same scene mesh: the accessors each
-/// primitive reads, and the colours baked into it when the materials differ.
+/// primitive reads, the colours baked into it when the materials differ,
+/// and the skin whose joints its `JOINTS_0` names.
 #[derive(Debug, Clone, PartialEq, Eq, Hash)]
 struct MeshKey {
-    primitives: Vec<[Option<usize>; 5]>,
+    primitives: Vec<[Option<usize>; 7]>,
     baked_colors: Option<Vec<[u32; 4]>>,
+    skin: Option<usize>,
 }
 
 pub(crate) fn read_model(path: &Path) -> Result<Model> {
@@ -144,12 +171,15 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
         .map_err(|e| Error::invalid(path, "buffers", e.to_string()))?;
     let rig = read_rig(&document, &buffers).map_err(|(at, m)| Error::invalid(path, at, m))?;
     let worlds = world_transforms(&rig).map_err(|(at, m)| Error::invalid(path, at, m))?;
+    let skins = read_skins(&document, &buffers).map_err(|(at, m)| Error::invalid(path, at, m))?;
 
     let mut model = Model {
         rig,
         ..Model::default()
     };
     let mut shared: HashMap<MeshKey, usize> = HashMap::new();
+    // Each mesh's joints and weights, when a skinned node reads it.
+    let mut influences: Vec<Option<Skin>> = Vec::new();
     for node in document.nodes() {
         let Some(mesh) = node.mesh() else { continue };
         let id = node_id(&node)
@@ -160,25 +190,52 @@ pub(crate) fn read_model(path: &Path) -> Result<Model> {
             mesh: 0,
             transform: worlds[node.index()],
             color: [1.0; 4],
+            skin: None,
         };
         let at = |m: &gltf::Mesh| {
             let name = m.name().map(|n| format!(" {n:?}")).unwrap_or_default();
             format!("{} mesh {}{name}", placed.describe(), m.index())
         };
-        let key = mesh_key(&mesh).map_err(|m| Error::invalid(path, at(&mesh), m))?;
+        let skin = node.skin().map(|s| (s.index(), &skins[s.index()]));
+        let key = mesh_key(&mesh, skin.map(|(k, _)| k))
+            .map_err(|m| Error::invalid(path, at(&mesh), m))?;
         placed.mesh = match shared.get(&key) {
             Some(&found) => found,
             None => {
-                let m = read_node_mesh(&mesh, &buffers)
+                let joints = skin.map(|(k, s)| (k, s.joints.len()));
+                let (m, vertices) = read_node_mesh(&mesh, &buffers, joints)
                     .map_err(|m| Error::invalid(path, at(&mesh), m))?;
                 let texture = read_texture(&mesh, &buffers, m.positions.len())
                     .map_err(|m| Error::invalid(path, at(&mesh), m))?;
                 model.meshes.push(m);
                 model.textures.push(texture);
+                influences.push(vertices);
                 shared.insert(key.clone(), model.meshes.len() - 1);
                 model.meshes.len() - 1
             }
         };
+        if let Some((_, s)) = skin {
+            let joints = s
+                .joints
+                .iter()
+                .zip(&s.names)
+                .map(|(&n, name)| Joint {
+                    name: name.clone(),
+                    transform: worlds[n],
+                    motion: None,
+                })
+                .collect();
+            placed.skin = Some(ModelSkin {
+                nodes: s.joints.clone(),
+                skin: ObjectSkin {
+                    vertices: influences[placed.mesh]
+                        .clone()
+                        .expect("a skin's key reads its influences"),
+                    inverse_bind: s.inverse_bind.clone(),
+                    joints,
+                },
+            });
+        }
         // Instances share the mesh but each has its own material.
         if key.baked_colors.is_none() {
             placed.color = mesh
@@ -424,6 +481,76 @@ fn read_rig(
     Ok(rig)
 }
 
+/// Each skin's joints (node indices, with their names) and inverse bind
+/// matrices (identity without an accessor, glTF's default).
+fn read_skins(
+    document: &gltf::Document,
+    buffers: &[gltf::buffer::Data],
+) -> Result<Vec<FileSkin>, (String, String)> {
+    let mut out = Vec::new();
+    for skin in document.skins() {
+        let at = format!("skins[{}]", skin.index());
+        let (joints, names): (Vec<usize>, Vec<Option<String>>) = skin
+            .joints()
+            .map(|n| (n.index(), n.name().map(str::to_owned)))
+            .unzip();
+        if joints.is_empty() {
+            return Err((at, "has no joints".into()));
+        }
+        // JOINTS_0 is at most UNSIGNED_SHORT.
+        if joints.len() > usize::from(u16::MAX) + 1 {
+            return Err((
+                at,
+                format!("has {} joints; JOINTS_0 names at most 65536", joints.len()),
+            ));
+        }
+        let inverse_bind = match skin.inverse_bind_matrices() {
+            None => vec![Mat4::IDENTITY; joints.len()],
+            Some(acc) => {
+                let index = acc.index();
+                check_accessor(
+                    &acc,
+                    "inverseBindMatrices",
+                    &[gltf::accessor::Dimensions::Mat4],
+                    true,
+                )
+                .map_err(|m| (at.clone(), m))?;
+                let matrices: Vec<Mat4> = skin
+                    .reader(|b| buffers.get(b.index()).map(|d| &d.0[..]))
+                    .read_inverse_bind_matrices()
+                    .ok_or_else(|| {
+                        (
+                            at.clone(),
+                            format!("inverseBindMatrices accessor {index} lies outside its buffer"),
+                        )
+                    })?
+                    .map(|m| Mat4::from_cols_array_2d(&m))
+                    .collect();
+                if matrices.len() != joints.len() {
+                    return Err((
+                        at,
+                        format!(
+                            "{} inverse bind matrices for {} joints",
+                            matrices.len(),
+                            joints.len()
+                        ),
+                    ));
+                }
+                if let Some(k) = matrices.iter().position(|m| !m.is_finite()) {
+                    return Err((at, format!("inverse bind matrix {k} is not finite")));
+                }
+                matrices
+            }
+        };
+        out.push(FileSkin {
+            joints,
+            names,
+            inverse_bind,
+        });
+    }
+    Ok(out)
+}
+
 /// World transform of every node at rest: its local transform after its
 /// parents'; an error where the parent chain is a cycle.
 fn world_transforms(rig: &Rig) -> Result<Vec<Mat4>, (String, String)> {
@@ -464,7 +591,7 @@ fn base_color(primitive: &gltf::Primitive) -> [f32; 4] {
         .base_color_factor()
 }
 
-fn mesh_key(mesh: &gltf::Mesh) -> Result<MeshKey, String> {
+fn mesh_key(mesh: &gltf::Mesh, skin: Option<usize>) -> Result<MeshKey, String> {
     let mut primitives = Vec::new();
     for p in mesh.primitives() {
         if p.mode() != Mode::Triangles {
@@ -481,6 +608,8 @@ fn mesh_key(mesh: &gltf::Mesh) -> Result<MeshKey, String> {
             attr(gltf::Semantic::Colors(0)),
             attr(feature_ids()),
             p.indices().map(|a| a.index()),
+            attr(gltf::Semantic::Joints(0)),
+            attr(gltf::Semantic::Weights(0)),
         ]);
     }
     let colors: Vec<[f32; 4]> = mesh.primitives().map(|p| base_color(&p)).collect();
@@ -488,6 +617,7 @@ fn mesh_key(mesh: &gltf::Mesh) -> Result<MeshKey, String> {
     Ok(MeshKey {
         primitives,
         baked_colors: (!uniform).then(|| colors.iter().map(|c| c.map(f32::to_bits)).collect()),
+        skin,
     })
 }
 
@@ -621,8 +751,14 @@ fn read_texture(
     }))
 }
 
-/// One glTF mesh as one scene mesh, its primitives merged.
-fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<Mesh, String> {
+/// One glTF mesh as one scene mesh, its primitives merged; for a node
+/// whose skin (`skin`: its index and joint count) deforms it, each
+/// vertex's joints and weights too.
+fn read_node_mesh(
+    mesh: &gltf::Mesh,
+    buffers: &[gltf::buffer::Data],
+    skin: Option<(usize, usize)>,
+) -> Result<(Mesh, Option<Skin>), String> {
     use gltf::accessor::Dimensions::{Scalar, Vec3 as D3, Vec4 as D4};
     let prims: Vec<gltf::Primitive> = mesh.primitives().collect();
     if prims.is_empty() {
@@ -634,8 +770,19 @@ fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<M
     let want_colors = !uniform || has(gltf::Semantic::Colors(0)).any(|b| b);
     let want_normals = has(gltf::Semantic::Normals).all(|b| b);
     let want_features = has(feature_ids()).all(|b| b);
+    if let Some((k, _)) = skin
+        && !has(gltf::Semantic::Joints(0)).any(|b| b)
+    {
+        return Err(format!(
+            "has no JOINTS_0 and WEIGHTS_0, which the node's skins[{k}] needs"
+        ));
+    }
 
     let mut out = Mesh::default();
+    let mut influences = Skin {
+        joints: Vec::new(),
+        weights: Vec::new(),
+    };
     for (p, material_color) in prims.iter().zip(&colors) {
         let at = |m: String| format!("primitive {}: {m}", p.index());
         let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
@@ -700,6 +847,21 @@ fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<M
             }
             out.features.extend(ids);
         }
+        if let Some((_, joint_count)) = skin {
+            if p.get(&gltf::Semantic::Joints(0)).is_none() {
+                let skinned = prims
+                    .iter()
+                    .find(|q| q.get(&gltf::Semantic::Joints(0)).is_some())
+                    .map_or(0, |q| q.index());
+                return Err(at(format!(
+                    "has no JOINTS_0 while primitive {skinned} has: a skinned primitive \
+                     cannot be merged with an unskinned one"
+                )));
+            }
+            let read = read_influences(p, buffers, count, joint_count).map_err(at)?;
+            influences.joints.extend(read.joints);
+            influences.weights.extend(read.weights);
+        }
         let base = offset as u32;
         match p.indices() {
             Some(acc) => {
@@ -737,5 +899,93 @@ fn read_node_mesh(mesh: &gltf::Mesh, buffers: &[gltf::buffer::Data]) -> Result<M
     {
         return Err(format!("colour {i} is not finite"));
     }
-    Ok(out)
+    Ok((out, skin.map(|_| influences)))
+}
+
+/// A skinned primitive's `JOINTS_0` and `WEIGHTS_0` for its `count`
+/// vertices: four joints, each one of the skin's `joint_count`, and four
+/// weights, scaled to sum to 1 (8- and 16-bit weights rarely sum to 1
+/// exactly).
+fn read_influences(
+    p: &gltf::Primitive,
+    buffers: &[gltf::buffer::Data],
+    count: usize,
+    joint_count: usize,
+) -> Result<Skin, String> {
+    use gltf::accessor::{DataType, Dimensions::Vec4};
+    let joints_acc = p.get(&gltf::Semantic::Joints(0)).ok_or("has no JOINTS_0")?;
+    let weights_acc = p
+        .get(&gltf::Semantic::Weights(0))
+        .ok_or("has JOINTS_0 but no WEIGHTS_0")?;
+    if p.get(&gltf::Semantic::Joints(1)).is_some() || p.get(&gltf::Semantic::Weights(1)).is_some() {
+        return Err(
+            "has JOINTS_1 or WEIGHTS_1: more than four joints per vertex are not read".into(),
+        );
+    }
+    check_accessor(&joints_acc, "JOINTS_0", &[Vec4], false)?;
+    if !matches!(joints_acc.data_type(), DataType::U8 | DataType::U16) || joints_acc.normalized() {
+        return Err(format!(
+            "JOINTS_0 accessor {} has component type {:?}{} (UNSIGNED_BYTE or UNSIGNED_SHORT)",
+            joints_acc.index(),
+            joints_acc.data_type(),
+            if joints_acc.normalized() {
+                ", normalized"
+            } else {
+                ""
+            }
+        ));
+    }
+    check_accessor(&weights_acc, "WEIGHTS_0", &[Vec4], false)?;
+    match (weights_acc.data_type(), weights_acc.normalized()) {
+        (DataType::F32, false) | (DataType::U8 | DataType::U16, true) => {}
+        (other, normalized) => {
+            return Err(format!(
+                "WEIGHTS_0 accessor {} has component type {other:?}{} (FLOAT, or normalized \
+                 UNSIGNED_BYTE or UNSIGNED_SHORT)",
+                weights_acc.index(),
+                if normalized { ", normalized" } else { "" }
+            ));
+        }
+    }
+    let reader = p.reader(|b| buffers.get(b.index()).map(|d| &d.0[..]));
+    let outside = |what: &str, a: &gltf::Accessor| {
+        format!("{what} accessor {} lies outside its buffer", a.index())
+    };
+    let joints: Vec<[u16; 4]> = reader
+        .read_joints(0)
+        .ok_or_else(|| outside("JOINTS_0", &joints_acc))?
+        .into_u16()
+        .collect();
+    let mut weights: Vec<[f32; 4]> = reader
+        .read_weights(0)
+        .ok_or_else(|| outside("WEIGHTS_0", &weights_acc))?
+        .into_f32()
+        .collect();
+    if joints.len() != count {
+        return Err("JOINTS_0 and POSITION counts differ".into());
+    }
+    if weights.len() != count {
+        return Err("WEIGHTS_0 and POSITION counts differ".into());
+    }
+    for (v, (j, w)) in joints.iter().zip(&mut weights).enumerate() {
+        if let Some(&k) = j.iter().find(|&&k| usize::from(k) >= joint_count) {
+            return Err(format!(
+                "JOINTS_0 names joint {k} at vertex {v}, but the skin has {joint_count} joints"
+            ));
+        }
+        if !w.iter().all(|x| x.is_finite() && *x >= 0.0) {
+            return Err(format!(
+                "WEIGHTS_0 at vertex {v} are not all finite and >= 0: {w:?}"
+            ));
+        }
+        // In f64, where four f32 cannot overflow, and divided there: the
+        // f32 results then sum to 1 within their own rounding, which
+        // glTF's check on written weights allows.
+        let sum = w.iter().map(|&x| f64::from(x)).sum::<f64>();
+        if sum <= 0.0 {
+            return Err(format!("WEIGHTS_0 at vertex {v} are all 0"));
+        }
+        *w = w.map(|x| (f64::from(x) / sum) as f32);
+    }
+    Ok(Skin { joints, weights })
 }

@@ -671,8 +671,11 @@ impl Loader<'_> {
                 }
             }
         }
-        for (o, &(m, node)) in objects.iter_mut().zip(&rigs.nodes) {
+        for ((o, &(m, node)), joints) in objects.iter_mut().zip(&rigs.nodes).zip(&rigs.joints) {
             let rig = &rigs.rigs[m];
+            if let Some(skin) = &mut o.skin {
+                self.move_joints(skin, &meshes[o.mesh], joints, rig, &placed[m], time, &o.id)?;
+            }
             if placed[m].is_empty() || !rig.moves(node, &placed[m]) {
                 continue;
             }
@@ -690,6 +693,52 @@ impl Loader<'_> {
                 .keyframes(node, &placed[m], bounds, (0.0, time.seconds), TOLERANCE)
                 .map_err(|m| self.err(&at, m))?;
             o.motion = Some(Motion::new(keys).map_err(|e| self.err(&at, e.to_string()))?);
+        }
+        Ok(())
+    }
+
+    /// Each joint of `skin` (at the nodes `joints` of `rig`) that `placed`
+    /// animates, or a node above it, gets its world transform as keyframes,
+    /// held within the tolerance at the corners of the box, in the joint's
+    /// frame, of the vertices it moves (its origin when it moves none).
+    #[allow(clippy::too_many_arguments)]
+    fn move_joints(
+        &self,
+        skin: &mut crate::scene::ObjectSkin,
+        mesh: &crate::geometry::Mesh,
+        joints: &[usize],
+        rig: &crate::scene::rig::Rig,
+        placed: &[Placed],
+        time: &TimeSpan,
+        id: &str,
+    ) -> Result<()> {
+        for (k, (joint, &node)) in skin.joints.iter_mut().zip(joints).enumerate() {
+            if placed.is_empty() || !rig.moves(node, placed) {
+                continue;
+            }
+            let inverse = skin.inverse_bind[k];
+            let moved = skin
+                .vertices
+                .joints
+                .iter()
+                .zip(&skin.vertices.weights)
+                .zip(&mesh.positions)
+                .filter(|((j, w), _)| (0..4).any(|i| usize::from(j[i]) == k && w[i] > 0.0))
+                .map(|(_, p)| inverse.transform_point3(*p));
+            let bounds = moved.fold(None, |b: Option<(Vec3, Vec3)>, p| {
+                Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p))))
+            });
+            let at = format!("object {id:?} joint {k}");
+            let keys = rig
+                .keyframes(
+                    node,
+                    placed,
+                    bounds.unwrap_or((Vec3::ZERO, Vec3::ZERO)),
+                    (0.0, time.seconds),
+                    TOLERANCE,
+                )
+                .map_err(|m| self.err(&at, m))?;
+            joint.motion = Some(Motion::new(keys).map_err(|e| self.err(&at, e.to_string()))?);
         }
         Ok(())
     }
@@ -841,6 +890,11 @@ impl Loader<'_> {
                     meshes.len() - 1
                 });
                 rigs.nodes.push((m, node.index));
+                let (joints, skin) = node
+                    .skin
+                    .map(|s| (s.nodes, Some(Box::new(s.skin))))
+                    .unwrap_or_default();
+                rigs.joints.push(joints);
                 objects.push(Object {
                     id,
                     mesh,
@@ -848,6 +902,7 @@ impl Loader<'_> {
                     color: node.color,
                     visibility: Visibility::always(),
                     motion: None,
+                    skin,
                     properties: entry.map(|e| e.properties.clone()).unwrap_or_default(),
                 });
             }
@@ -863,11 +918,13 @@ impl Loader<'_> {
     }
 }
 
-/// The models' rigs, and each object's model and node.
+/// The models' rigs, and each object's model and node, and its skin's
+/// joints' nodes (none for an object without a skin).
 #[derive(Default)]
 struct Rigs {
     rigs: Vec<crate::scene::rig::Rig>,
     nodes: Vec<(usize, usize)>,
+    joints: Vec<Vec<usize>>,
 }
 
 /// A loop plays its clip at most this many times.

@@ -20,6 +20,7 @@ use glam::Mat4;
 use serde::{Deserialize, Serialize};
 
 use crate::geometry::Mesh;
+use crate::geometry::skin::Skin;
 use crate::time::TimeSpan;
 
 pub use appearance::Profile;
@@ -158,8 +159,65 @@ pub struct Object {
     pub visibility: Visibility,
     /// Keyframed world transform; replaces `transform` when present.
     pub motion: Option<Motion>,
+    /// The joints that deform the mesh, when it is skinned. `transform`
+    /// and `motion` still place the mesh in its bind pose, as every stage
+    /// that does not skin yet draws it.
+    pub skin: Option<Box<ObjectSkin>>,
     /// Free-form properties (storey, IFC class, source file, ...).
     pub properties: BTreeMap<String, String>,
+}
+
+/// A skinned object's deformation (glTF 2.0 section 3.7.3 "Skins"): kept
+/// beside its mesh rather than baked into keyframed copies of it, so that
+/// the mesh stays one bind-pose mesh and its pose at any time is its
+/// vertices blended by the joints' world transforms then.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ObjectSkin {
+    /// Each vertex's four joints (indices into `joints`) and weights,
+    /// which sum to 1.
+    pub vertices: Skin,
+    /// Each joint's inverse bind matrix: from the mesh's frame to the
+    /// joint's frame in the bind pose.
+    pub inverse_bind: Vec<Mat4>,
+    pub joints: Vec<Joint>,
+}
+
+/// A joint of a skin: a node of the model's hierarchy, whose world
+/// transform the clips move as they move an articulated part.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Joint {
+    /// The node's name in its model, if it has one.
+    pub name: Option<String>,
+    /// World transform when the joint has no motion.
+    pub transform: Mat4,
+    /// Keyframed world transform; replaces `transform` when present.
+    pub motion: Option<Motion>,
+}
+
+impl Joint {
+    /// The world transform at `t`.
+    pub fn pose(&self, t: f64) -> Mat4 {
+        self.motion.as_ref().map_or(self.transform, |m| m.at(t))
+    }
+}
+
+impl ObjectSkin {
+    /// The joint matrices at `t`: each joint's world transform after its
+    /// inverse bind matrix.
+    pub fn matrices(&self, t: f64) -> Vec<Mat4> {
+        self.joints
+            .iter()
+            .zip(&self.inverse_bind)
+            .map(|(j, inverse)| j.pose(t) * *inverse)
+            .collect()
+    }
+
+    /// `mesh` (the object's, in its bind pose) posed at `t`, in world
+    /// coordinates. The object's own transform plays no part: the joints
+    /// place a skinned mesh (glTF 2.0 section 3.7.3.1).
+    pub fn pose(&self, mesh: &Mesh, t: f64) -> Mesh {
+        self.vertices.pose(mesh, &self.matrices(t))
+    }
 }
 
 impl Object {

@@ -46,6 +46,7 @@ fn object(id: &str, mesh: usize, transform: Mat4, color: [f32; 4]) -> Object {
         color,
         visibility: Visibility::always(),
         motion: None,
+        skin: None,
         properties: BTreeMap::new(),
     }
 }
