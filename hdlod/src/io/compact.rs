@@ -155,6 +155,7 @@ impl GlbBuilder {
             colors,
             uvs,
             features,
+            influences: None,
             indices,
         };
         (accessors, scale, moved)

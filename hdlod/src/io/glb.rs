@@ -19,7 +19,9 @@ use gltf::json::{self, validation::Checked::Valid, validation::USize64};
 
 use crate::error::{Error, Result};
 use crate::geometry::Mesh;
+use crate::geometry::skin::Skin;
 use crate::io::texture::Texture;
+use crate::scene::{Joint, ObjectSkin};
 
 // The bulk copies below write the in-memory representation; glTF is
 // little-endian.
@@ -397,6 +399,8 @@ pub(crate) struct MeshAccessors {
     pub(super) uvs: Option<json::Index<json::Accessor>>,
     /// The feature ids and how many distinct ones there are.
     pub(super) features: Option<(json::Index<json::Accessor>, usize)>,
+    /// `JOINTS_0` and `WEIGHTS_0`, set by the caller that skins the mesh.
+    pub(super) influences: Option<[json::Index<json::Accessor>; 2]>,
     pub(super) indices: json::Index<json::Accessor>,
 }
 
@@ -490,8 +494,207 @@ impl GlbBuilder {
             colors,
             uvs: None,
             features,
+            influences: None,
             indices,
         }
+    }
+
+    /// `accessors` with each vertex's joints (`u16`) and weights (`f32`)
+    /// of `skin` appended to the buffer, for a skinned primitive.
+    pub(crate) fn with_influences(
+        &mut self,
+        accessors: &MeshAccessors,
+        skin: &Skin,
+    ) -> MeshAccessors {
+        let n = skin.joints.len();
+        let attribute = |glb: &mut Self, bytes: &[u8], component| {
+            glb.accessor(
+                bytes,
+                n,
+                json::accessor::Type::Vec4,
+                component,
+                json::buffer::Target::ArrayBuffer,
+                None,
+            )
+        };
+        // Four u16 are 8 bytes: the buffer stays 4-byte aligned.
+        let joints = attribute(
+            self,
+            bytemuck::cast_slice(&skin.joints),
+            json::accessor::ComponentType::U16,
+        );
+        let weights = attribute(
+            self,
+            bytemuck::cast_slice(&skin.weights),
+            json::accessor::ComponentType::F32,
+        );
+        MeshAccessors {
+            influences: Some([joints, weights]),
+            ..*accessors
+        }
+    }
+
+    /// The skin of `skin`'s joints: a skeleton node, which places nothing,
+    /// with each joint a child of it at its world transform (glTF asks the
+    /// joints of a skin for a common root), and, when a joint moves, an
+    /// animation named `name` of the moving joints' keyframes, whose clip
+    /// time at `times[k]` is `k`. `times` holds every keyframe's time,
+    /// sorted and distinct. Clip times are `f32` in glTF: scene seconds
+    /// over months would round to seconds, while whole keyframe indices
+    /// stay exact, and linear between two of them is linear between the
+    /// keyframes. Returns the skin and the skeleton node, a root of the
+    /// scene.
+    pub(crate) fn add_skin(
+        &mut self,
+        name: &str,
+        skin: &ObjectSkin,
+        times: &[f64],
+    ) -> (json::Index<json::Skin>, json::Index<json::Node>) {
+        let joints: Vec<json::Index<json::Node>> =
+            skin.joints.iter().map(|j| self.add_joint(j)).collect();
+        let mut channels = Vec::new();
+        let mut samplers = Vec::new();
+        for (joint, node) in skin.joints.iter().zip(&joints) {
+            let Some(motion) = &joint.motion else {
+                continue;
+            };
+            let keys = motion.keyframes();
+            let clip_times: Vec<f32> = keys
+                .iter()
+                .map(|k| times.partition_point(|&t| t < k.t) as f32)
+                .collect();
+            let (first, last) = (clip_times[0], clip_times[clip_times.len() - 1]);
+            let input = self.data_accessor(
+                bytemuck::cast_slice(&clip_times),
+                keys.len(),
+                json::accessor::Type::Scalar,
+                Some((vec![first], vec![last])),
+            );
+            let translations: Vec<Vec3> = keys.iter().map(|k| k.translation).collect();
+            let rotations: Vec<glam::Quat> = keys.iter().map(|k| k.rotation.normalize()).collect();
+            let scales: Vec<Vec3> = keys.iter().map(|k| k.scale).collect();
+            use json::accessor::Type::{Vec3 as V3, Vec4 as V4};
+            use json::animation::Property;
+            for (bytes, kind, path) in [
+                (
+                    bytemuck::cast_slice(&translations),
+                    V3,
+                    Property::Translation,
+                ),
+                (bytemuck::cast_slice(&rotations), V4, Property::Rotation),
+                (bytemuck::cast_slice(&scales), V3, Property::Scale),
+            ] {
+                let output = self.data_accessor(bytes, keys.len(), kind, None);
+                channels.push(json::animation::Channel {
+                    sampler: json::Index::new(samplers.len() as u32),
+                    target: json::animation::Target {
+                        extensions: None,
+                        extras: None,
+                        node: *node,
+                        path: Valid(path),
+                    },
+                    extensions: None,
+                    extras: None,
+                });
+                samplers.push(json::animation::Sampler {
+                    extensions: None,
+                    extras: None,
+                    input,
+                    interpolation: Valid(json::animation::Interpolation::Linear),
+                    output,
+                });
+            }
+        }
+        if !channels.is_empty() {
+            self.root.push(json::Animation {
+                extensions: None,
+                extras: None,
+                channels,
+                name: Some(name.to_owned()),
+                samplers,
+            });
+        }
+        let skeleton = self.root.push(json::Node {
+            children: Some(joints.clone()),
+            ..Default::default()
+        });
+        let inverse_bind = self.data_accessor(
+            bytemuck::cast_slice(&skin.inverse_bind),
+            skin.inverse_bind.len(),
+            json::accessor::Type::Mat4,
+            None,
+        );
+        let index = self.root.push(json::Skin {
+            extensions: None,
+            extras: None,
+            inverse_bind_matrices: Some(inverse_bind),
+            joints,
+            name: None,
+            skeleton: Some(skeleton),
+        });
+        (index, skeleton)
+    }
+
+    /// A joint's node at its world transform: a matrix when it stays, else
+    /// (glTF animates translation, rotation and scale, not a matrix) the
+    /// same decomposed.
+    fn add_joint(&mut self, joint: &Joint) -> json::Index<json::Node> {
+        let m = joint.transform;
+        let mut node = json::Node {
+            name: joint.name.clone(),
+            ..Default::default()
+        };
+        if joint.motion.is_none() {
+            node.matrix = (m != Mat4::IDENTITY).then(|| m.to_cols_array());
+        } else {
+            let (scale, rotation, translation) = m.to_scale_rotation_translation();
+            node.translation = Some(translation.to_array());
+            node.rotation = Some(json::scene::UnitQuaternion(rotation.normalize().to_array()));
+            node.scale = Some(scale.to_array());
+        }
+        self.root.push(node)
+    }
+
+    /// An `f32` accessor of `count` elements in a view of its own that
+    /// no vertex attribute shares: animation keys and inverse bind
+    /// matrices (glTF gives such views no target).
+    fn data_accessor(
+        &mut self,
+        bytes: &[u8],
+        count: usize,
+        kind: json::accessor::Type,
+        min_max: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
+        let view = self.push_view(bytes, None);
+        let (min, max) = match min_max {
+            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
+            None => (None, None),
+        };
+        self.root.push(json::Accessor {
+            buffer_view: Some(view),
+            byte_offset: None,
+            count: USize64::from(count),
+            component_type: Valid(json::accessor::GenericComponentType(
+                json::accessor::ComponentType::F32,
+            )),
+            extensions: None,
+            extras: None,
+            type_: Valid(kind),
+            min,
+            max,
+            name: None,
+            normalized: false,
+            sparse: None,
+        })
+    }
+
+    /// Gives `node` the skin `skin`.
+    pub(crate) fn set_skin(
+        &mut self,
+        node: json::Index<json::Node>,
+        skin: json::Index<json::Skin>,
+    ) {
+        self.root.nodes[node.value()].skin = Some(skin);
     }
 
     /// Appends texture coordinates (one per vertex) to the buffer.
@@ -595,6 +798,10 @@ impl GlbBuilder {
                 Valid(json::mesh::Semantic::Extras("FEATURE_ID_0".into())),
                 a,
             );
+        }
+        if let Some([joints, weights]) = accessors.influences {
+            attributes.insert(Valid(json::mesh::Semantic::Joints(0)), joints);
+            attributes.insert(Valid(json::mesh::Semantic::Weights(0)), weights);
         }
         self.root.push(json::Mesh {
             extensions: None,

@@ -18,8 +18,8 @@ use super::appearance::{Profile, ProfileFile};
 use super::links::{LinkType, find_cycle, show_cycle};
 use super::rig::{Placed, Segment, TOLERANCE, Timeline};
 use super::{
-    Actual, Georeference, Keyframe, Motion, NamedType, Object, Predecessor, Scene, ScheduleOptions,
-    Span, Task, TaskType, Up, Visibility,
+    Actual, Georeference, Keyframe, Motion, NamedType, Object, ObjectSkin, Predecessor, Scene,
+    ScheduleOptions, Span, Task, TaskType, Up, Visibility,
 };
 use crate::error::{Error, Result};
 use crate::io::glb::GlbBuilder;
@@ -1039,17 +1039,19 @@ fn check(scene: &Scene) -> Result<()> {
         if !o.color.iter().all(|c| (0.0..=1.0).contains(c)) {
             return bad(at, format!("colour {:?} is not within [0, 1]", o.color));
         }
-        if let Some(k) = o
-            .motion
-            .iter()
+        let skin = o.skin.as_deref();
+        let motions = o.motion.iter().chain(
+            skin.iter()
+                .flat_map(|s| s.joints.iter().flat_map(|j| &j.motion)),
+        );
+        if let Some(k) = motions
+            .clone()
             .flat_map(|m| m.keyframes())
             .find(|k| !in_range(k.t))
         {
             return bad(at, format!("keyframe time {} is out of range", k.t));
         }
-        if let Some(k) = o
-            .motion
-            .iter()
+        if let Some(k) = motions
             .flat_map(|m| m.keyframes())
             .find(|k| k.scale.cmple(glam::Vec3::ZERO).any())
         {
@@ -1057,6 +1059,11 @@ fn check(scene: &Scene) -> Result<()> {
                 at,
                 format!("keyframe scale {} has a component <= 0", k.scale),
             );
+        }
+        if let Some(skin) = skin
+            && let Some(why) = skin_problem(skin, mesh)
+        {
+            return bad(at, format!("skin: {why}"));
         }
     }
     for (m, mesh) in scene.meshes.iter().enumerate() {
@@ -1126,15 +1133,75 @@ fn check(scene: &Scene) -> Result<()> {
     Ok(())
 }
 
+/// The times of every keyframe of the joints of `skin`, sorted and
+/// distinct: the clip that moves them in a saved scene has one key at
+/// each. Empty when no joint moves.
+fn skin_times(skin: &ObjectSkin) -> Vec<f64> {
+    let mut times: Vec<f64> = skin
+        .joints
+        .iter()
+        .filter_map(|j| j.motion.as_ref())
+        .flat_map(|m| m.keyframes().iter().map(|k| k.t))
+        .collect();
+    times.sort_by(f64::total_cmp);
+    times.dedup();
+    times
+}
+
+/// Why `skin` cannot deform `mesh` in a saved scene, if it cannot.
+fn skin_problem(skin: &ObjectSkin, mesh: &crate::geometry::Mesh) -> Option<String> {
+    let n = skin.joints.len();
+    if n == 0 || n > usize::from(u16::MAX) + 1 {
+        return Some(format!("{n} joints (1 to 65536)"));
+    }
+    if skin.inverse_bind.len() != n {
+        return Some(format!(
+            "{} inverse bind matrices for {n} joints",
+            skin.inverse_bind.len()
+        ));
+    }
+    if let Some(k) = skin.inverse_bind.iter().position(|m| !m.is_finite()) {
+        return Some(format!("inverse bind matrix {k} is not finite"));
+    }
+    if let Some(k) = skin.joints.iter().position(|j| !j.transform.is_finite()) {
+        return Some(format!("joint {k}'s transform is not finite"));
+    }
+    // Every joint index is written, also under a zero weight.
+    if let Some(v) = skin
+        .vertices
+        .joints
+        .iter()
+        .position(|j| j.iter().any(|&k| usize::from(k) >= n))
+    {
+        return Some(format!("vertex {v} names a joint beyond the {n} joints"));
+    }
+    skin.vertices.problem(mesh, n)
+}
+
 /// One GLB for the whole scene: each mesh written once, a glTF mesh per
-/// (mesh, colour) pair over the same accessors, a node per object.
+/// (mesh, colour) pair over the same accessors, a node per object. A
+/// skinned object has a primitive of its own with its joints and weights,
+/// its skin, and an animation of its joints when they move, in the order
+/// of the objects ([`skin_times`]).
 fn scene_glb(scene: &Scene) -> Result<Vec<u8>> {
     let mut glb = GlbBuilder::new();
     let mut accessors = vec![None; scene.meshes.len()];
     let mut primitives = HashMap::new();
     let mut nodes = Vec::with_capacity(scene.objects.len());
+    let mut skeletons = Vec::new();
     for o in &scene.objects {
         let acc = *accessors[o.mesh].get_or_insert_with(|| glb.add_mesh(&scene.meshes[o.mesh]));
+        if let Some(skin) = &o.skin {
+            let skinned = glb.with_influences(&acc, &skin.vertices);
+            let material = glb.material(o.color);
+            let mesh = glb.add_primitive(&skinned, Some(material));
+            let node = glb.add_node(mesh, &o.transform, Some(&o.id));
+            let (index, skeleton) = glb.add_skin(&o.id, skin, &skin_times(skin));
+            glb.set_skin(node, index);
+            nodes.push(node);
+            skeletons.push(skeleton);
+            continue;
+        }
         let key = (o.mesh, o.color.map(f32::to_bits));
         let mesh = match primitives.get(&key) {
             Some(&m) => m,
@@ -1157,6 +1224,7 @@ fn scene_glb(scene: &Scene) -> Result<Vec<u8>> {
             ),
         ));
     }
+    nodes.extend(skeletons);
     Ok(glb.finish(nodes))
 }
 
@@ -1240,7 +1308,32 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
         schedule_options: Some(scene.schedule_options),
         appearance: scene.appearance.as_ref().map(Profile::to_file),
         georeference: scene.georeference,
-        // Saved as the motions they make, above.
-        clips: Vec::new(),
+        // The clips of the models are saved as the motions they make,
+        // above; only the joints of skins move with clips, one animation
+        // per skinned object whose joints move, which plays keyframe `k`
+        // at clip time `k`.
+        clips: scene
+            .objects
+            .iter()
+            .filter_map(|o| o.skin.as_deref())
+            .map(skin_times)
+            .filter(|times| !times.is_empty())
+            .enumerate()
+            .map(|(animation, times)| ClipFile {
+                model: None,
+                animation: AnimationRef::Index(animation),
+                speed: 1.0,
+                play: Vec::new(),
+                repeat: None,
+                keys: times
+                    .iter()
+                    .enumerate()
+                    .map(|(k, &t)| ClipKeyFile {
+                        t: time(t),
+                        clip_time: k as f64,
+                    })
+                    .collect(),
+            })
+            .collect(),
     }
 }
