@@ -462,7 +462,7 @@ fn bad_skins_are_refused_naming_the_file_the_node_or_skin_and_the_fault() {
             attributes.remove("JOINTS_0");
             attributes.remove("WEIGHTS_0");
         }),
-        &format!("{mesh}: has no JOINTS_0 and WEIGHTS_0, which the node's skins[0] needs"),
+        &format!("{mesh}: has no JOINTS_0, which the node's skins[0] needs"),
     );
 }
 

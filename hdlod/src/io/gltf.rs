@@ -774,7 +774,7 @@ fn read_node_mesh(
         && !has(gltf::Semantic::Joints(0)).any(|b| b)
     {
         return Err(format!(
-            "has no JOINTS_0 and WEIGHTS_0, which the node's skins[{k}] needs"
+            "has no JOINTS_0, which the node's skins[{k}] needs"
         ));
     }
 
