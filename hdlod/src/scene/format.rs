@@ -674,7 +674,8 @@ impl Loader<'_> {
         for ((o, &(m, node)), joints) in objects.iter_mut().zip(&rigs.nodes).zip(&rigs.joints) {
             let rig = &rigs.rigs[m];
             if let Some(skin) = &mut o.skin {
-                self.move_joints(skin, &meshes[o.mesh], joints, rig, &placed[m], time, &o.id)?;
+                move_joints(skin, &meshes[o.mesh], joints, rig, &placed[m], time.seconds)
+                    .map_err(|(k, m)| self.err(format!("object {:?} joint {k}", o.id), m))?;
             }
             if placed[m].is_empty() || !rig.moves(node, &placed[m]) {
                 continue;
@@ -693,52 +694,6 @@ impl Loader<'_> {
                 .keyframes(node, &placed[m], bounds, (0.0, time.seconds), TOLERANCE)
                 .map_err(|m| self.err(&at, m))?;
             o.motion = Some(Motion::new(keys).map_err(|e| self.err(&at, e.to_string()))?);
-        }
-        Ok(())
-    }
-
-    /// Each joint of `skin` (at the nodes `joints` of `rig`) that `placed`
-    /// animates, or a node above it, gets its world transform as keyframes,
-    /// held within the tolerance at the corners of the box, in the joint's
-    /// frame, of the vertices it moves (its origin when it moves none).
-    #[allow(clippy::too_many_arguments)]
-    fn move_joints(
-        &self,
-        skin: &mut crate::scene::ObjectSkin,
-        mesh: &crate::geometry::Mesh,
-        joints: &[usize],
-        rig: &crate::scene::rig::Rig,
-        placed: &[Placed],
-        time: &TimeSpan,
-        id: &str,
-    ) -> Result<()> {
-        for (k, (joint, &node)) in skin.joints.iter_mut().zip(joints).enumerate() {
-            if placed.is_empty() || !rig.moves(node, placed) {
-                continue;
-            }
-            let inverse = skin.inverse_bind[k];
-            let moved = skin
-                .vertices
-                .joints
-                .iter()
-                .zip(&skin.vertices.weights)
-                .zip(&mesh.positions)
-                .filter(|((j, w), _)| (0..4).any(|i| usize::from(j[i]) == k && w[i] > 0.0))
-                .map(|(_, p)| inverse.transform_point3(*p));
-            let bounds = moved.fold(None, |b: Option<(Vec3, Vec3)>, p| {
-                Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p))))
-            });
-            let at = format!("object {id:?} joint {k}");
-            let keys = rig
-                .keyframes(
-                    node,
-                    placed,
-                    bounds.unwrap_or((Vec3::ZERO, Vec3::ZERO)),
-                    (0.0, time.seconds),
-                    TOLERANCE,
-                )
-                .map_err(|m| self.err(&at, m))?;
-            joint.motion = Some(Motion::new(keys).map_err(|e| self.err(&at, e.to_string()))?);
         }
         Ok(())
     }
@@ -916,6 +871,49 @@ impl Loader<'_> {
         }
         Ok((meshes, objects, rigs))
     }
+}
+
+/// Each joint of `skin` (at the nodes `joints` of `rig`) that `placed`
+/// animates, or a node above it, gets its world transform over the scene's
+/// `[0, end]` as keyframes, held within the tolerance at the corners of the
+/// box, in the joint's frame, of the vertices it moves (its origin when it
+/// moves none). An error names the joint.
+fn move_joints(
+    skin: &mut crate::scene::ObjectSkin,
+    mesh: &crate::geometry::Mesh,
+    joints: &[usize],
+    rig: &crate::scene::rig::Rig,
+    placed: &[Placed],
+    end: f64,
+) -> std::result::Result<(), (usize, String)> {
+    for (k, (joint, &node)) in skin.joints.iter_mut().zip(joints).enumerate() {
+        if placed.is_empty() || !rig.moves(node, placed) {
+            continue;
+        }
+        let inverse = skin.inverse_bind[k];
+        let moved = skin
+            .vertices
+            .joints
+            .iter()
+            .zip(&skin.vertices.weights)
+            .zip(&mesh.positions)
+            .filter(|((j, w), _)| (0..4).any(|i| usize::from(j[i]) == k && w[i] > 0.0))
+            .map(|(_, p)| inverse.transform_point3(*p));
+        let bounds = moved.fold(None, |b: Option<(Vec3, Vec3)>, p| {
+            Some(b.map_or((p, p), |(lo, hi)| (lo.min(p), hi.max(p))))
+        });
+        let keys = rig
+            .keyframes(
+                node,
+                placed,
+                bounds.unwrap_or((Vec3::ZERO, Vec3::ZERO)),
+                (0.0, end),
+                TOLERANCE,
+            )
+            .map_err(|m| (k, m))?;
+        joint.motion = Some(Motion::new(keys).map_err(|e| (k, e.to_string()))?);
+    }
+    Ok(())
 }
 
 /// The models' rigs, and each object's model and node, and its skin's
