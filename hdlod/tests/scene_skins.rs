@@ -377,6 +377,34 @@ fn normalized_short_weights_are_read_and_scaled_to_sum_to_one() {
     }
 }
 
+#[test]
+fn a_skin_without_inverse_binds_binds_at_identity_and_a_node_without_a_skin_is_rigid() {
+    let dir = tempfile::tempdir().unwrap();
+    let mut gltf = write_leg(dir.path(), &leg());
+    gltf["skins"][0]
+        .as_object_mut()
+        .unwrap()
+        .remove("inverseBindMatrices");
+    // The same mesh on a node of its own, without the skin.
+    gltf["nodes"]
+        .as_array_mut()
+        .unwrap()
+        .push(serde_json::json!({"name": "rigid", "mesh": 0}));
+    gltf["scenes"][0]["nodes"] = serde_json::json!([0, 1, 4]);
+    write_gltf(dir.path(), &gltf);
+    let scene = format::load(&write_scene(dir.path())).unwrap_or_else(|e| panic!("{e}"));
+    let skin = scene.objects[0].skin.as_ref().unwrap();
+    assert_eq!(skin.inverse_bind, [Mat4::IDENTITY; 2]);
+    // At identity inverse binds each joint carries the mesh from the
+    // origin to where it stands: the knee-only foot ring 1 m up.
+    let foot = Vec3::from(leg().positions[0]);
+    assert!(posed(&scene, 0.0)[0].distance(foot + ROOT + Vec3::Y) < 1e-5);
+    let rigid = &scene.objects[1];
+    assert_eq!(rigid.id, "rigid");
+    assert!(rigid.skin.is_none() && rigid.motion.is_none());
+    assert_eq!(scene.meshes[rigid.mesh].positions.len(), RINGS * SIDES);
+}
+
 /// The error loading the scene of the leg `leg`, its glTF changed by
 /// `edit`.
 fn leg_error(leg: &Leg, edit: impl FnOnce(&mut serde_json::Value)) -> (String, PathBuf) {
