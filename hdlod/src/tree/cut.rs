@@ -88,6 +88,10 @@ pub struct CutItem {
     pub id: u32,
     /// The cluster's pose at `t` (dynamic clusters only).
     pub transform: Option<Mat4>,
+    /// A skinned cluster's joint matrices at `t`, in [`Cut::joints`]
+    /// ([`Cut::joints_of`]): kept beside the items so that an item stays
+    /// a plain copy and a cut of rigid clusters allocates nothing.
+    pub joints: Option<JointRange>,
     /// `v_c(t)`.
     pub visibility: f32,
     /// `delta_c(t)`, in world units.
@@ -102,10 +106,32 @@ pub struct CutStats {
     pub visited: usize,
 }
 
+/// Where an item's joint matrices lie in [`Cut::joints`].
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct JointRange {
+    pub first: u32,
+    pub count: u32,
+}
+
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Cut {
     pub items: Vec<CutItem>,
     pub stats: CutStats,
+    /// The joint matrices of the skinned items, one run per item: each
+    /// joint's world transform at `t` after its inverse bind matrix (glTF
+    /// 2.0 section 3.7.3). They place the item's vertices in the world by
+    /// themselves, as glTF's skinning does; the item's `transform` places
+    /// its box.
+    pub joints: Vec<Mat4>,
+}
+
+impl Cut {
+    /// The joint matrices of `item`, empty for a rigid one.
+    pub fn joints_of(&self, item: &CutItem) -> &[Mat4] {
+        item.joints.map_or(&[], |r| {
+            &self.joints[r.first as usize..(r.first + r.count) as usize]
+        })
+    }
 }
 
 /// The cut of `tree` at `t` (seconds since the scene's start) for `view`,
@@ -162,7 +188,7 @@ pub fn cut_into(
         if refine {
             push_children(tree, &nodes, i, t, stack);
         } else if v >= drawn && c.has_geometry != 0 {
-            emit(tree, out, c, transform, v, delta);
+            emit(tree, out, c, transform, v, delta, t);
         }
     }
 }
@@ -193,7 +219,7 @@ pub fn present_leaves_into(
         } else if v >= drawn && c.has_geometry != 0 {
             let posed = pose(tree, c, t, &mut sampled);
             let delta = c.delta(v) * posed.map_or(1.0, |p| p.scale);
-            emit(tree, out, c, posed.map(|p| p.matrix), v, delta);
+            emit(tree, out, c, posed.map(|p| p.matrix), v, delta, t);
         }
     }
 }
@@ -201,6 +227,7 @@ pub fn present_leaves_into(
 /// Clears the buffers and pushes the root; answers the least `v_c(t)` drawn.
 fn start(presence: Presence, out: &mut Cut, stack: &mut Vec<u32>) -> f32 {
     out.items.clear();
+    out.joints.clear();
     out.stats = CutStats::default();
     stack.clear();
     stack.push(0);
@@ -281,12 +308,25 @@ fn emit(
     transform: Option<Mat4>,
     visibility: f32,
     error: f64,
+    t: f64,
 ) {
     out.stats.clusters += 1;
     out.stats.triangles += c.triangles(tree);
+    let joints = (c.motion != u32::MAX)
+        .then(|| tree.skeleton_of(c.id))
+        .flatten()
+        .map(|skeleton| {
+            let first = out.joints.len();
+            skeleton.matrices_into(t, &mut out.joints);
+            JointRange {
+                first: first as u32,
+                count: (out.joints.len() - first) as u32,
+            }
+        });
     out.items.push(CutItem {
         id: c.id,
         transform,
+        joints,
         visibility,
         error,
     });

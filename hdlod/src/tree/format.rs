@@ -26,6 +26,8 @@ pub const INDEX_FILE: &str = "clusters.bin";
 /// The object rows of `objects.json` in binary, optional
 /// (`super::object_index`).
 pub const OBJECTS_INDEX_FILE: &str = "objects.bin";
+/// The skinned objects' skeletons, optional (`super::skins`).
+pub const SKINS_FILE: &str = "skins.json";
 /// The objects' source digests, optional (`super::sources`).
 pub const SOURCES_FILE: &str = "sources.bin";
 

@@ -18,6 +18,7 @@ pub mod object_index;
 pub mod objects;
 pub mod presence;
 mod sections;
+pub mod skins;
 pub mod sources;
 pub mod store;
 mod table;
@@ -35,9 +36,10 @@ use crate::time::{TimeSpan, format_date, parse_date};
 
 pub use baseline::Baseline;
 pub use camera::{CameraSpec, View, Viewport};
-pub use cut::{Cut, CutItem, CutStats, cut};
+pub use cut::{Cut, CutItem, CutStats, JointRange, cut};
 pub use format::{ClusterClass, Layout};
 pub use objects::ObjectTables;
+pub use skins::{Skeleton, Skins};
 pub use store::{TreeWriter, load};
 pub use table::Previous;
 
@@ -263,6 +265,9 @@ pub struct Tree {
     /// (`sources.bin`), when the tree has them: what a geometry update
     /// compares.
     pub sources: Option<Vec<sources::Digest>>,
+    /// The skeletons of the skinned objects (`skins.json`), when the tree
+    /// has any: what poses their chains' clusters at a time.
+    pub skins: Option<Skins>,
     /// The root's children by time, made on the first cut (the clusters
     /// must not change after it).
     pub(crate) presence: Derived<presence::Presence>,
@@ -276,6 +281,9 @@ pub struct Tree {
     /// once for the writer's three readers of it (the cluster table, the
     /// index's keyframe ranges, the cut's nodes).
     motion_sources: Derived<Vec<u32>>,
+    /// Each cluster's skeleton in `skins` (`u32::MAX` for none), made on
+    /// first use.
+    skin_sources: Derived<Vec<u32>>,
 }
 
 /// The clusters of a tree: built (or read from `clusters.json`) as
@@ -363,11 +371,13 @@ impl Tree {
             clusters: Clusters::Built(clusters),
             objects: None,
             sources: None,
+            skins: None,
             presence: Derived::default(),
             nodes: Derived::default(),
             summary: Derived::default(),
             baseline: Derived::default(),
             motion_sources: Derived::default(),
+            skin_sources: Derived::default(),
         }
     }
 
@@ -445,6 +455,7 @@ impl Tree {
         self.summary = Derived::default();
         self.baseline = Derived::default();
         self.motion_sources = Derived::default();
+        self.skin_sources = Derived::default();
         match &mut self.clusters {
             Clusters::Built(v) => v,
             Clusters::Mapped(_) => unreachable!("decoded above"),
@@ -633,6 +644,23 @@ impl Tree {
             c = child;
         }
         self.first_object(c)
+    }
+
+    /// The skeleton that poses cluster `id`, when it is a level of a
+    /// skinned object's chain.
+    pub fn skeleton_of(&self, id: u32) -> Option<&Skeleton> {
+        let skins = self.skins.as_ref().filter(|s| !s.is_empty())?;
+        let sources = self.skin_sources.0.get_or_init(|| {
+            (0..self.cluster_count() as u32)
+                .map(|c| {
+                    self.dynamic_object_id(c)
+                        .and_then(|o| skins.position(o))
+                        .map_or(u32::MAX, |k| k as u32)
+                })
+                .collect()
+        });
+        let k = *sources.get(id as usize)?;
+        (k != u32::MAX).then(|| skins.at(k as usize))
     }
 
     pub(crate) fn nodes(&self) -> nodes::NodesRef<'_> {

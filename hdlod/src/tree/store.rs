@@ -33,7 +33,7 @@ use rustc_hash::FxHashSet;
 use super::Tree;
 use super::format::{
     self, CLUSTERS_FILE, GEOMETRY_DIR, INDEX_FILE, Layout, MANIFEST_FILE, OBJECTS_FILE,
-    OBJECTS_INDEX_FILE, SOURCES_FILE,
+    OBJECTS_INDEX_FILE, SKINS_FILE, SOURCES_FILE,
 };
 use super::index::{self, Index};
 use super::object_index::ObjectRows;
@@ -253,6 +253,9 @@ impl TreeWriter {
         clusters_valid?;
         objects_valid?;
         stored_valid?;
+        if let Some(skins) = &tree.skins {
+            skins.validate(tree, &self.target.join(SKINS_FILE))?;
+        }
         let validated = lap();
         write_json(&self.tmp.join(MANIFEST_FILE), &tree.manifest_record(), true)?;
         // The cluster table is most of the time at paper scale (hundreds of
@@ -286,6 +289,9 @@ impl TreeWriter {
                 &self.tmp.join(SOURCES_FILE),
                 &super::sources::encode(digests),
             )?;
+        }
+        if let Some(skins) = tree.skins.as_ref().filter(|s| !s.is_empty()) {
+            write_json(&self.tmp.join(SKINS_FILE), &skins.to_record(), false)?;
         }
         let written = lap();
 
@@ -591,10 +597,25 @@ pub(super) fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
         let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
         Tree::from_records(manifest, clusters, dir)?
     };
+    let skins = load_skins(dir, &tree)?;
     Ok(Tree {
         sources: load_sources(dir)?,
+        skins,
         ..tree
     })
+}
+
+/// The skinned objects' skeletons, when the tree has them, checked
+/// against its clusters.
+fn load_skins(dir: &Path, tree: &Tree) -> Result<Option<super::Skins>> {
+    let path = dir.join(SKINS_FILE);
+    if !path.exists() {
+        return Ok(None);
+    }
+    let record: super::skins::SkinsRecord = read_json(&path)?;
+    let skins = super::Skins::from_record(record, &path)?;
+    skins.validate(tree, &path)?;
+    Ok(Some(skins))
 }
 
 /// The objects' source digests, when the tree has them.
