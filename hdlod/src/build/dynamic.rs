@@ -15,6 +15,7 @@ use rayon::prelude::*;
 use super::context::{Context, Node, add};
 use super::outputs::{LevelStats, Progress, QUANTIZATION_SHARE};
 use super::parent::{bake_colour, reduce_within};
+use super::skinned;
 use super::steps::StepFunction;
 use crate::Result;
 use crate::geometry::bake::Source;
@@ -24,11 +25,11 @@ use crate::tree::{Cluster, ClusterClass};
 
 /// One version of a model: its stored geometry and what the tree records.
 #[derive(Clone)]
-struct Version {
-    hash: String,
-    triangles: u64,
-    eps: f64,
-    bounds: (Vec3, Vec3),
+pub(super) struct Version {
+    pub hash: String,
+    pub triangles: u64,
+    pub eps: f64,
+    pub bounds: (Vec3, Vec3),
 }
 
 /// Builds the chain of one model (finest first): the original, then one
@@ -83,6 +84,10 @@ fn chain(ctx: &Context, mesh: &Mesh) -> Result<Vec<Version>> {
     Ok(out)
 }
 
+/// A chain's model: a scene mesh, a colour (its bits) and, for a skinned
+/// object, the object's index.
+type Model = (usize, [u32; 4], Option<usize>);
+
 /// Adds the clusters of the dynamic objects; answers the tops of their
 /// chains and per-level statistics.
 pub(super) fn dynamic_chains(
@@ -93,22 +98,42 @@ pub(super) fn dynamic_chains(
     progress: &dyn Progress,
 ) -> Result<(Vec<u32>, Vec<LevelStats>)> {
     // A model is a scene mesh with a colour: instances that share both
-    // share every version of the chain.
+    // share every version of the chain. A skinned object is a model of
+    // its own: its joints pose it.
     let key = |i: usize| {
         let o = &scene.objects[i];
-        (o.mesh, o.color.map(f32::to_bits))
+        (
+            o.mesh,
+            o.color.map(f32::to_bits),
+            skinned::is_skinned(o).then_some(i),
+        )
     };
-    let mut models: Vec<(usize, [u32; 4])> = objects.iter().map(|&(i, _)| key(i)).collect();
+    let visibility_of: HashMap<usize, &Visibility> = objects.iter().map(|(i, v)| (*i, v)).collect();
+    let mut models: Vec<Model> = objects.iter().map(|&(i, _)| key(i)).collect();
     models.sort_unstable();
     models.dedup();
     let chains: Vec<Result<Vec<Version>>> = models
         .par_iter()
-        .map(|&(mesh, color)| {
+        .map(|&(mesh, color, skinned)| {
+            let color = color.map(f32::from_bits);
+            if let Some(i) = skinned {
+                let o = &scene.objects[i];
+                let skin = o.skin.as_ref().expect("a skinned model has a skin");
+                let times = skinned::pose_times(skin, visibility_of[&i], scene.time.seconds);
+                // Its vertices one for one with the skin's, which a merge
+                // (welding equal vertices) would not keep.
+                let mut coloured = scene.meshes[mesh].clone();
+                if coloured.colors.is_empty() {
+                    coloured.colors = vec![color; coloured.positions.len()];
+                }
+                coloured.features.clear();
+                return skinned::chain(ctx, &o.id, &coloured, skin, &times);
+            }
             let coloured = geometry::merge(
                 &[Part {
                     mesh: &scene.meshes[mesh],
                     transform: Mat4::IDENTITY,
-                    color: color.map(f32::from_bits),
+                    color,
                     feature: None,
                 }],
                 0.0,
@@ -116,7 +141,7 @@ pub(super) fn dynamic_chains(
             chain(ctx, &coloured)
         })
         .collect();
-    let mut by_model: HashMap<(usize, [u32; 4]), Vec<Version>> = HashMap::new();
+    let mut by_model: HashMap<Model, Vec<Version>> = HashMap::new();
     for (m, c) in models.into_iter().zip(chains) {
         by_model.insert(m, c?);
     }
@@ -133,7 +158,11 @@ pub(super) fn dynamic_chains(
             let node = Node {
                 eps: v.eps,
                 children: below.into_iter().collect(),
-                motion: o.motion.clone(),
+                motion: if skinned::is_skinned(o) {
+                    Some(skinned::world_frame())
+                } else {
+                    o.motion.clone()
+                },
                 geometry: Some((v.hash.clone(), v.triangles)),
                 objects: if level == 0 {
                     vec![o.id.clone()]

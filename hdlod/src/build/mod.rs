@@ -21,6 +21,7 @@ mod level;
 mod local;
 mod outputs;
 mod parent;
+mod skinned;
 mod steps;
 mod update;
 
@@ -170,6 +171,7 @@ pub fn build(
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);
     tree.sources = Some(object_sources(scene));
+    tree.skins = skinned::skeletons(scene, dynamic.iter().map(|(i, _)| *i));
     Ok((tree, stats))
 }
 

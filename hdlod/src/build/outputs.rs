@@ -5,8 +5,9 @@
 use crate::Result;
 use crate::geometry::Mesh;
 use crate::geometry::bake::Baked;
-use crate::io::glb::compact_mesh_to_glb;
+use crate::io::glb::{compact_mesh_to_glb, skinned_mesh_to_glb};
 use crate::io::texture::textured;
+use crate::scene::ObjectSkin;
 use crate::tree::TreeWriter;
 
 /// The share of a cluster's `eps` its stored positions may move by when
@@ -30,6 +31,11 @@ pub struct Stored {
 /// from several threads.
 pub trait GeometrySink: Sync {
     fn put(&self, mesh: &Mesh, baked: Option<&Baked>, allowance: f64) -> Result<Stored>;
+    /// Stores a skinned `mesh` in its bind pose with its joints and
+    /// weights and `skin`'s joints (`skin.vertices` one per vertex of
+    /// `mesh`), its positions exact; answers its hash. `name` names the
+    /// joints' animation.
+    fn put_skinned(&self, mesh: &Mesh, skin: &ObjectSkin, name: &str) -> Result<String>;
 }
 
 impl GeometrySink for TreeWriter {
@@ -45,6 +51,10 @@ impl GeometrySink for TreeWriter {
             hash: self.put_geometry(&glb)?,
             moved: f64::from(moved),
         })
+    }
+
+    fn put_skinned(&self, mesh: &Mesh, skin: &ObjectSkin, name: &str) -> Result<String> {
+        self.put_geometry(&skinned_mesh_to_glb(mesh, skin, name))
     }
 }
 

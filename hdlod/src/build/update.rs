@@ -228,6 +228,8 @@ fn schedule_pass(old: Cow<Tree>, carried: Carried, scene: &Scene, config: &Build
         None => vec![true; n],
     };
     let (bounds, old_config, sources) = (old.bounds, old.config.clone(), old.sources.clone());
+    // The skinned objects' joints are no part of the schedule.
+    let skins = old.skins.clone();
     let mut records: Vec<Cluster> = match old {
         // Decoded on every core: one by one, that was a third of the pass.
         Cow::Borrowed(t) => (0..n as u32)
@@ -297,6 +299,7 @@ fn schedule_pass(old: Cow<Tree>, carried: Carried, scene: &Scene, config: &Build
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);
     tree.sources = sources;
+    tree.skins = skins;
     Update::Updated {
         tree: Box::new(tree),
         stats,

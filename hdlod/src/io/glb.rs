@@ -86,6 +86,25 @@ pub fn textured_mesh_to_glb(mesh: &Mesh, texture: Option<&Texture>) -> Vec<u8> {
     glb_with_features(mesh, texture, None, Encoding::Plain)
 }
 
+/// The GLB of a skinned `mesh` in its bind pose: `JOINTS_0` and
+/// `WEIGHTS_0` from `skin.vertices` (one per vertex of `mesh`), the
+/// skin's joints at their world transforms and an animation `name` of
+/// those that move ([`GlbBuilder::add_skin`]). Plain `f32` data: its
+/// positions are not quantized, as the joints' matrices, not a node's
+/// scale, place them.
+pub fn skinned_mesh_to_glb(mesh: &Mesh, skin: &ObjectSkin, name: &str) -> Vec<u8> {
+    let mesh = &*unit_normals(mesh);
+    let mut glb = GlbBuilder::new();
+    let accessors = glb.add_mesh(mesh);
+    let skinned = glb.with_influences(&accessors, &skin.vertices);
+    let material = glb.material([1.0; 4]);
+    let primitive = glb.add_primitive(&skinned, Some(material));
+    let node = glb.add_node(primitive, &Mat4::IDENTITY, None);
+    let (index, skeleton) = glb.add_skin(name, skin, &skin.times());
+    glb.set_skin(node, index);
+    glb.finish(vec![node, skeleton])
+}
+
 /// [`textured_mesh_to_glb`] with a property table (`EXT_structural_metadata`) whose
 /// rows are the mesh's feature ids: feature `i` of the mesh is row `i`, so
 /// the ids must run over `0..table.count`.

@@ -1131,21 +1131,6 @@ fn check(scene: &Scene) -> Result<()> {
     Ok(())
 }
 
-/// The times of every keyframe of the joints of `skin`, sorted and
-/// distinct: the clip that moves them in a saved scene has one key at
-/// each. Empty when no joint moves.
-fn skin_times(skin: &ObjectSkin) -> Vec<f64> {
-    let mut times: Vec<f64> = skin
-        .joints
-        .iter()
-        .filter_map(|j| j.motion.as_ref())
-        .flat_map(|m| m.keyframes().iter().map(|k| k.t))
-        .collect();
-    times.sort_by(f64::total_cmp);
-    times.dedup();
-    times
-}
-
 /// Why `skin` cannot deform `mesh` in a saved scene, if it cannot.
 fn skin_problem(skin: &ObjectSkin, mesh: &crate::geometry::Mesh) -> Option<String> {
     let n = skin.joints.len();
@@ -1180,7 +1165,7 @@ fn skin_problem(skin: &ObjectSkin, mesh: &crate::geometry::Mesh) -> Option<Strin
 /// (mesh, colour) pair over the same accessors, a node per object. A
 /// skinned object has a primitive of its own with its joints and weights,
 /// its skin, and an animation of its joints when they move, in the order
-/// of the objects ([`skin_times`]).
+/// of the objects ([`ObjectSkin::times`]).
 fn scene_glb(scene: &Scene) -> Result<Vec<u8>> {
     let mut glb = GlbBuilder::new();
     let mut accessors = vec![None; scene.meshes.len()];
@@ -1194,7 +1179,7 @@ fn scene_glb(scene: &Scene) -> Result<Vec<u8>> {
             let material = glb.material(o.color);
             let mesh = glb.add_primitive(&skinned, Some(material));
             let node = glb.add_node(mesh, &o.transform, Some(&o.id));
-            let (index, skeleton) = glb.add_skin(&o.id, skin, &skin_times(skin));
+            let (index, skeleton) = glb.add_skin(&o.id, skin, &skin.times());
             glb.set_skin(node, index);
             nodes.push(node);
             skeletons.push(skeleton);
@@ -1314,7 +1299,7 @@ fn scene_file(scene: &Scene, model: &str) -> SceneFile {
             .objects
             .iter()
             .filter_map(|o| o.skin.as_deref())
-            .map(skin_times)
+            .map(|s| s.times())
             .filter(|times| !times.is_empty())
             .enumerate()
             .map(|(animation, times)| ClipFile {

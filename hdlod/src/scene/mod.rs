@@ -160,8 +160,9 @@ pub struct Object {
     /// Keyframed world transform; replaces `transform` when present.
     pub motion: Option<Motion>,
     /// The joints that deform the mesh, when it is skinned. `transform`
-    /// and `motion` still place the mesh in its bind pose, as every stage
-    /// that does not skin yet draws it.
+    /// and `motion` still place the mesh in its bind pose, as the stages
+    /// that do not skin draw it; the build poses an object whose joints
+    /// move by its joints alone (`build::skinned`).
     pub skin: Option<Box<ObjectSkin>>,
     /// Free-form properties (storey, IFC class, source file, ...).
     pub properties: BTreeMap<String, String>,
@@ -212,6 +213,28 @@ impl ObjectSkin {
             .collect()
     }
 
+    /// True when some joint's pose changes over time.
+    pub fn moves(&self) -> bool {
+        self.joints
+            .iter()
+            .any(|j| j.motion.as_ref().is_some_and(Motion::moves))
+    }
+
+    /// The times of every keyframe of the joints, sorted and distinct:
+    /// where the joints' poses are given, linear between them (a clip that
+    /// moves them has one key at each). Empty when no joint moves.
+    pub fn times(&self) -> Vec<f64> {
+        let mut times: Vec<f64> = self
+            .joints
+            .iter()
+            .filter_map(|j| j.motion.as_ref())
+            .flat_map(|m| m.keyframes().iter().map(|k| k.t))
+            .collect();
+        times.sort_by(f64::total_cmp);
+        times.dedup();
+        times
+    }
+
     /// `mesh` (the object's, in its bind pose) posed at `t`, in world
     /// coordinates. The object's own transform plays no part: the joints
     /// place a skinned mesh (glTF 2.0 section 3.7.3.1).
@@ -229,7 +252,9 @@ impl Object {
     pub fn class(&self, span: f64) -> Class {
         if self.visibility.present_seconds(span) <= 0.0 {
             Class::Absent
-        } else if self.motion.as_ref().is_some_and(Motion::moves) {
+        } else if self.motion.as_ref().is_some_and(Motion::moves)
+            || self.skin.as_ref().is_some_and(|s| s.moves())
+        {
             Class::Dynamic
         } else if self.visibility.kind(span) == VisibilityType::Static {
             Class::Static
