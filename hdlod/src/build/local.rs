@@ -1030,6 +1030,7 @@ impl Plan<'_> {
         tree.config = old.config.clone();
         tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
         tree.sources = Some(self.sources);
+        tree.skins = super::skinned::skeletons(scene, &tree);
         match update_schedule_of(tree, carried, scene, config) {
             Update::Updated {
                 tree,

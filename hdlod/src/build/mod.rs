@@ -171,7 +171,7 @@ pub fn build(
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
     tree.objects = Some(objects);
     tree.sources = Some(object_sources(scene));
-    tree.skins = skinned::skeletons(scene, dynamic.iter().map(|(i, _)| *i));
+    tree.skins = skinned::skeletons(scene, &tree);
     Ok((tree, stats))
 }
 

@@ -11,6 +11,8 @@
 //! alone can tear where a joint bends. Its box holds the mesh in every
 //! pose ([`posed_bounds`]).
 
+use std::collections::HashMap;
+
 use glam::{DVec3, Mat4, Vec3};
 
 use super::context::Context;
@@ -19,7 +21,7 @@ use crate::Result;
 use crate::geometry::Mesh;
 use crate::geometry::skin::{self, Skin};
 use crate::scene::{Keyframe, Motion, Object, ObjectSkin, Scene, Visibility};
-use crate::tree::{Aabb, Skeleton, Skins};
+use crate::tree::{Aabb, ClusterClass, Skeleton, Skins, Tree};
 
 /// True when `o` is built as a skinned object: it has a skin whose joints
 /// move. A skin that stands still poses nothing over time, and its object
@@ -28,13 +30,19 @@ pub(super) fn is_skinned(o: &Object) -> bool {
     o.skin.as_ref().is_some_and(|s| s.moves())
 }
 
-/// The skeletons of the skinned objects among `objects` (indices into
-/// `scene.objects`), for the tree; `None` when there are none.
-pub(super) fn skeletons(scene: &Scene, objects: impl Iterator<Item = usize>) -> Option<Skins> {
-    let skins = Skins::new(objects.filter_map(|i| {
-        let o = &scene.objects[i];
-        let skin = o.skin.as_ref().filter(|_| is_skinned(o))?;
-        Some((o.id.clone(), Skeleton::of(skin)))
+/// The skeletons of the skinned objects of `scene` that are dynamic
+/// leaves of `tree` (`None` when there are none): those whose chains
+/// were made by [`chain`], in a build or an update.
+pub(super) fn skeletons(scene: &Scene, tree: &Tree) -> Option<Skins> {
+    let by_id: HashMap<&str, &Object> = scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
+    let skins = Skins::new((0..tree.cluster_count() as u32).flat_map(|c| {
+        let leaf = tree.class_of(c) == ClusterClass::Dynamic && tree.children_of(c).is_empty();
+        let objects = if leaf { tree.objects_of(c) } else { Vec::new() };
+        objects.into_iter().filter_map(|id| {
+            let o = by_id.get(id)?;
+            let skin = o.skin.as_ref().filter(|_| is_skinned(o))?;
+            Some((o.id.clone(), Skeleton::of(skin)))
+        })
     }));
     (!skins.is_empty()).then_some(skins)
 }

@@ -123,7 +123,7 @@ fn hash_object(hash: &mut Buffered, o: &crate::scene::Object) {
     hash.update(&(o.mesh as u64).to_le_bytes());
     hash.floats(&o.transform.to_cols_array());
     hash.floats(&o.color);
-    match &o.motion {
+    let keys = |hash: &mut Buffered, m: &Option<crate::scene::Motion>| match m {
         None => hash.update(&[0]),
         Some(m) => {
             hash.update(&(m.keyframes().len() as u64).to_le_bytes());
@@ -131,6 +131,21 @@ fn hash_object(hash: &mut Buffered, o: &crate::scene::Object) {
                 hash.update(&k.t.to_le_bytes());
                 hash.floats(&k.matrix().to_cols_array());
             }
+        }
+    };
+    keys(hash, &o.motion);
+    // Only a skinned object's digest grows: the others' stay those of
+    // trees built before skins were kept.
+    if let Some(skin) = &o.skin {
+        hash.update(b"skin");
+        for (j, w) in skin.vertices.joints.iter().zip(&skin.vertices.weights) {
+            hash.update(bytemuck::cast_slice(j));
+            hash.floats(w);
+        }
+        for (inverse, joint) in skin.inverse_bind.iter().zip(&skin.joints) {
+            hash.floats(&inverse.to_cols_array());
+            hash.floats(&joint.transform.to_cols_array());
+            keys(hash, &joint.motion);
         }
     }
 }

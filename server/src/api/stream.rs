@@ -155,7 +155,9 @@ impl Session {
                     out.push(b',');
                 }
                 first = false;
-                scene.fragments.write_cluster(&scene.tree, item, &mut out);
+                scene
+                    .fragments
+                    .write_cluster(&scene.tree, &self.cut, item, &mut out);
             } else if let Some(m) = transform
                 && held.transforms.get(&item.id) != Some(&m)
             {

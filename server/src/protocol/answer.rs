@@ -26,6 +26,10 @@ pub struct ClusterOut<'a> {
     pub object: Option<u32>,
     /// Column-major 4x4 pose at the requested time (dynamic clusters).
     pub transform: Option<[f32; 16]>,
+    /// A skinned cluster's joint matrices at the requested time, each
+    /// column-major, in the order of its GLB's `JOINTS_0` indices.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub joints: Option<Vec<[f32; 16]>>,
     pub triangles: u64,
     /// `delta_c(t)` in world units.
     pub error: f64,
@@ -99,7 +103,7 @@ pub fn scene_path(scene: &str) -> String {
     format!("/api/v1/scenes/{}", segment(scene))
 }
 
-fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a> {
+fn cluster_out<'a>(tree: &'a Tree, cut: &Cut, item: &hdlod::tree::CutItem) -> ClusterOut<'a> {
     let id = item.id;
     ClusterOut {
         id,
@@ -111,6 +115,12 @@ fn cluster_out<'a>(tree: &'a Tree, item: &hdlod::tree::CutItem) -> ClusterOut<'a
         },
         object: tree.dynamic_object(id),
         transform: item.transform.map(|m| m.to_cols_array()),
+        joints: item.joints.map(|_| {
+            cut.joints_of(item)
+                .iter()
+                .map(|m| m.to_cols_array())
+                .collect()
+        }),
         triangles: tree.triangles_of(id),
         error: item.error,
         visibility: item.visibility,
@@ -127,7 +137,11 @@ fn response<'a>(
     CutResponse {
         time: t,
         date: format_date(tree.time.date_at(t)),
-        clusters: cut.items.iter().map(|i| cluster_out(tree, i)).collect(),
+        clusters: cut
+            .items
+            .iter()
+            .map(|i| cluster_out(tree, cut, i))
+            .collect(),
         stats: stats_out(cut, micros, baseline, t),
     }
 }
@@ -147,8 +161,14 @@ impl Fragments {
         }
     }
 
-    /// The JSON of `cluster_out(tree, item)`, byte for byte.
-    pub fn write_cluster(&self, tree: &Tree, item: &hdlod::tree::CutItem, out: &mut Vec<u8>) {
+    /// The JSON of `cluster_out(tree, cut, item)`, byte for byte.
+    pub fn write_cluster(
+        &self,
+        tree: &Tree,
+        cut: &Cut,
+        item: &hdlod::tree::CutItem,
+        out: &mut Vec<u8>,
+    ) {
         let id = item.id;
         out.extend_from_slice(b"{\"id\":");
         write_number(out, &id);
@@ -167,6 +187,16 @@ impl Fragments {
         }
         out.extend_from_slice(b",\"transform\":");
         write_transform(out, item.transform.map(|m| m.to_cols_array()).as_ref());
+        if item.joints.is_some() {
+            out.extend_from_slice(b",\"joints\":[");
+            for (k, m) in cut.joints_of(item).iter().enumerate() {
+                if k > 0 {
+                    out.push(b',');
+                }
+                write_transform(out, Some(&m.to_cols_array()));
+            }
+            out.push(b']');
+        }
         out.extend_from_slice(b",\"triangles\":");
         write_number(out, &tree.triangles_of(id));
         out.extend_from_slice(b",\"error\":");
@@ -205,7 +235,7 @@ fn write_response(
         if k > 0 {
             out.push(b',');
         }
-        fragments.write_cluster(tree, item, out);
+        fragments.write_cluster(tree, cut, item, out);
     }
     out.extend_from_slice(b"],\"stats\":");
     serde_json::to_writer(&mut *out, &stats_out(cut, micros, baseline, t))
