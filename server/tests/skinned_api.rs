@@ -153,3 +153,67 @@ fn a_skinned_cluster_s_answer_carries_its_joint_matrices() {
     }
     assert_ne!(answers[0], answers[1]);
 }
+
+#[test]
+fn the_stream_sends_a_kept_skinned_cluster_s_new_joints() {
+    use futures_util::{SinkExt, StreamExt};
+    use tokio_tungstenite::tungstenite::Message;
+
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    let scene = scene();
+    build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
+    let server = Server::start(&tree);
+    let doc = server.get_json("/api/v1/openapi.json");
+    let skin = scene.objects[0].skin.as_ref().unwrap();
+    let ws_url = server
+        .url("/api/v1/scenes/bar/stream")
+        .replace("http://", "ws://");
+    let view = |t: f64| {
+        json!({"time": t,
+            "camera": {"position": [0.0, 2.0, 12.0], "target": [-1.0, 2.0, 0.0]},
+            "viewport": {"width": 1280, "height": 720}, "pixel_error": 1.0})
+    };
+    let matrices =
+        |t: f64| -> Vec<[f32; 16]> { skin.matrices(t).iter().map(Mat4::to_cols_array).collect() };
+    tokio::runtime::Runtime::new().unwrap().block_on(async {
+        let (mut socket, _) = tokio_tungstenite::connect_async(&ws_url).await.unwrap();
+        let mut ask = async |t: f64| -> Value {
+            socket
+                .send(Message::text(view(t).to_string()))
+                .await
+                .unwrap();
+            let Some(Ok(Message::Text(text))) = socket.next().await else {
+                panic!("no answer at {t}")
+            };
+            let message: Value = serde_json::from_str(text.as_str()).unwrap();
+            assert_component(&doc, "StreamMessage", &message);
+            message
+        };
+        let first = ask(12.0).await;
+        let added: Vec<&Value> = first["add"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .filter(|c| c.get("joints").is_some())
+            .collect();
+        assert_eq!(added.len(), 1, "the bar, once: {first}");
+        let id = added[0]["id"].clone();
+        let got: Vec<[f32; 16]> = serde_json::from_value(added[0]["joints"].clone()).unwrap();
+        assert_eq!(got, matrices(12.0));
+
+        // The same view later: the bar is kept, its joints bent further.
+        let second = ask(19.0).await;
+        assert_eq!(second["add"], json!([]), "{second}");
+        let updates = second["update"].as_array().unwrap();
+        let bar: Vec<&Value> = updates.iter().filter(|u| u["id"] == id).collect();
+        assert_eq!(bar.len(), 1, "the bar's new pose: {second}");
+        let got: Vec<[f32; 16]> = serde_json::from_value(bar[0]["joints"].clone()).unwrap();
+        assert_eq!(got, matrices(19.0));
+        assert_ne!(matrices(12.0), matrices(19.0));
+
+        // Asked again at the same time, nothing changed: nothing is sent.
+        let third = ask(19.0).await;
+        assert_eq!(third["update"], json!([]), "{third}");
+    });
+}

@@ -2,9 +2,10 @@
 //! sends cut requests (the body of `POST .../cut`) as text messages; the
 //! server answers each with what changed since its previous answer
 //! (`schemas/api/stream-message.schema.json`): clusters to add, ids to
-//! remove, new transforms of kept clusters. When the tree was reloaded in
-//! between, ids may mean other clusters, so the answer has `reset: true`
-//! and removes everything the client held.
+//! remove, new transforms (and a skinned cluster's new joint matrices) of
+//! kept clusters. When the tree was reloaded in between, ids may mean other
+//! clusters, so the answer has `reset: true` and removes everything the
+//! client held.
 //!
 //! Limits (docs/api.md): a message is at most [`super::BODY_LIMIT`] bytes,
 //! like a `POST .../cut` body; a longer one closes the stream with 1009
@@ -18,7 +19,8 @@ use axum::extract::State;
 use axum::extract::ws::{CloseFrame, Message, WebSocket, close_code};
 use axum::http::StatusCode;
 use axum::response::Response;
-use hdlod::tree::Cut;
+use glam::Mat4;
+use hdlod::tree::{Cut, CutItem};
 use rustc_hash::FxHashMap;
 use tokio::sync::OwnedSemaphorePermit;
 
@@ -84,6 +86,10 @@ struct Held {
     /// The transforms of the moving ones among them. Ids are small integers
     /// from our own tree, so a fast non-keyed hash is safe.
     transforms: FxHashMap<u32, [f32; 16]>,
+    /// The joint matrices of the skinned ones among them: a skinned
+    /// cluster stands still (its transform is the identity) while its
+    /// joints pose it.
+    joints: FxHashMap<u32, Vec<[f32; 16]>>,
 }
 
 #[derive(Default)]
@@ -130,6 +136,7 @@ impl Session {
             held.stamp.resize(tree.cluster_count(), 0);
             held.answer = 0;
             held.transforms.clear();
+            held.joints.clear();
         }
         let mut out = Vec::with_capacity(self.last_len.max(256));
         out.extend_from_slice(b"{\"seq\":");
@@ -143,13 +150,19 @@ impl Session {
         out.extend_from_slice(b",\"add\":[");
         let (before, now) = (held.answer, held.answer + 1);
         held.answer = now;
-        let mut moved: Vec<(u32, [f32; 16])> = Vec::new();
+        // Kept clusters whose transform or joints changed: the item, and
+        // whether its joints did.
+        let mut moved: Vec<(&CutItem, bool)> = Vec::new();
         let mut first = true;
         for item in &self.cut.items {
             let stamp = &mut held.stamp[item.id as usize];
             let kept = before != 0 && *stamp == before;
             *stamp = now;
             let transform = item.transform.map(|m| m.to_cols_array());
+            let joints: Option<Vec<[f32; 16]>> = item.joints.map(|_| {
+                let matrices = self.cut.joints_of(item);
+                matrices.iter().map(Mat4::to_cols_array).collect()
+            });
             if !kept {
                 if !first {
                     out.push(b',');
@@ -158,19 +171,27 @@ impl Session {
                 scene
                     .fragments
                     .write_cluster(&scene.tree, &self.cut, item, &mut out);
-            } else if let Some(m) = transform
-                && held.transforms.get(&item.id) != Some(&m)
-            {
-                moved.push((item.id, m));
+            } else {
+                let turned = transform.is_some_and(|m| held.transforms.get(&item.id) != Some(&m));
+                let posed = joints
+                    .as_ref()
+                    .is_some_and(|j| held.joints.get(&item.id) != Some(j));
+                if turned || posed {
+                    moved.push((item, posed));
+                }
             }
             if let Some(m) = transform {
                 held.transforms.insert(item.id, m);
+            }
+            if let Some(j) = joints {
+                held.joints.insert(item.id, j);
             }
         }
         for &id in &held.ids {
             if held.stamp[id as usize] != now {
                 remove.push(id);
                 held.transforms.remove(&id);
+                held.joints.remove(&id);
             }
         }
         held.ids.clear();
@@ -179,14 +200,24 @@ impl Session {
         out.extend_from_slice(b"],\"remove\":");
         serde_json::to_writer(&mut out, &remove).expect("numbers serialise");
         out.extend_from_slice(b",\"update\":[");
-        for (k, (id, transform)) in moved.iter().enumerate() {
+        for (k, (item, posed)) in moved.iter().enumerate() {
             if k > 0 {
                 out.push(b',');
             }
             out.extend_from_slice(b"{\"id\":");
-            write_number(&mut out, id);
+            write_number(&mut out, &item.id);
             out.extend_from_slice(b",\"transform\":");
-            write_transform(&mut out, Some(transform));
+            write_transform(&mut out, item.transform.map(|m| m.to_cols_array()).as_ref());
+            if *posed {
+                out.extend_from_slice(b",\"joints\":[");
+                for (j, m) in self.cut.joints_of(item).iter().enumerate() {
+                    if j > 0 {
+                        out.push(b',');
+                    }
+                    write_transform(&mut out, Some(&m.to_cols_array()));
+                }
+                out.push(b']');
+            }
             out.push(b'}');
         }
         out.extend_from_slice(b"],\"stats\":");
