@@ -111,6 +111,19 @@ function readFeatureIds(gltf, bin, decoded, index, what) {
   return data instanceof Float32Array ? data : Float32Array.from(data);
 }
 
+// A skinned primitive's JOINTS_0 (unsigned bytes or shorts) and WEIGHTS_0
+// (floats, or normalized unsigned bytes or shorts), four a vertex, as
+// floats: {joints, weights}. The joints index the matrices the cut answer
+// gives the cluster.
+function readSkin(gltf, bin, decoded, a, count, what) {
+  const j = readAccessor(gltf, bin, decoded, a.JOINTS_0, `${what} JOINTS_0`);
+  const w = readAccessor(gltf, bin, decoded, a.WEIGHTS_0, `${what} WEIGHTS_0`);
+  for (const [name, x] of [["JOINTS_0", j], ["WEIGHTS_0", w]]) {
+    if (x.components !== 4 || x.count !== count) throw new GlbError(`${what}: ${name} is not one VEC4 per vertex`);
+  }
+  return { joints: Float32Array.from(j.data), weights: w.data instanceof Float32Array ? w.data : Float32Array.from(w.data) };
+}
+
 // The PNG (or other image) bytes of a primitive's base colour texture when
 // they are in the binary chunk: {bytes, type}, or null.
 function readImage(gltf, bin, decoded, prim, what) {
@@ -124,7 +137,8 @@ function readImage(gltf, bin, decoded, prim, what) {
 }
 
 // -> {positions, normals|null, colors|null (RGBA), features|null (one per
-// vertex, -1 for none), uvs|null (texture coordinates), image|null (the
+// vertex, -1 for none), joints|null and weights|null (four per vertex, a
+// skinned cluster's), uvs|null (texture coordinates), image|null (the
 // bytes and MIME type of the colour texture), indices (Uint32Array),
 // triangles}
 export function parseGlb(buffer) {
@@ -166,6 +180,7 @@ export function parseGlb(buffer) {
       const nor = a.NORMAL !== undefined ? readAccessor(gltf, bin, decoded, a.NORMAL, `${what} NORMAL`) : null;
       const col = a.COLOR_0 !== undefined ? readAccessor(gltf, bin, decoded, a.COLOR_0, `${what} COLOR_0`) : null;
       const fid = a._FEATURE_ID_0 !== undefined ? readFeatureIds(gltf, bin, decoded, a._FEATURE_ID_0, `${what} _FEATURE_ID_0`) : null;
+      const skin = a.JOINTS_0 !== undefined && a.WEIGHTS_0 !== undefined ? readSkin(gltf, bin, decoded, a, pos.count, what) : null;
       const image = readImage(gltf, bin, decoded, prim, what);
       const uvName = image && `TEXCOORD_${image.texCoord}`;
       const uv = image && a[uvName] !== undefined ? readAccessor(gltf, bin, decoded, a[uvName], `${what} ${uvName}`) : null;
@@ -174,7 +189,7 @@ export function parseGlb(buffer) {
         ? readAccessor(gltf, bin, decoded, prim.indices, `${what} indices`).data
         : Uint32Array.from({ length: pos.count }, (_, i) => i);
       if (fid && fid.length !== pos.count) throw new GlbError(`${what}: ${fid.length} feature ids for ${pos.count} vertices`);
-      parts.push({ pos, nor, col, fid, idx, uv, image: uv ? image : null, origin: origins.get(m) });
+      parts.push({ pos, nor, col, fid, skin, idx, uv, image: uv ? image : null, origin: origins.get(m) });
     }
   }
   if (!parts.length) throw new GlbError("no triangle primitive");
@@ -192,6 +207,10 @@ export function parseGlb(buffer) {
   // read its corner (our writer makes one primitive).
   const textured = parts.find((p) => p.uv);
   const uvs = textured ? new Float32Array(vertices * 2) : null;
+  // Skinned when every primitive is: the joints place all its vertices.
+  const skinned = parts.every((p) => p.skin);
+  const joints = skinned ? new Float32Array(vertices * 4) : null;
+  const weights = skinned ? new Float32Array(vertices * 4) : null;
   const indices = new Uint32Array(indexCount);
   let v = 0;
   let i = 0;
@@ -205,6 +224,10 @@ export function parseGlb(buffer) {
     }
     if (normals) normals.set(p.nor.data, v * 3);
     if (features && p.fid) features.set(p.fid, v);
+    if (skinned) {
+      joints.set(p.skin.joints, v * 4);
+      weights.set(p.skin.weights, v * 4);
+    }
     if (p === textured) uvs.set(p.uv.data, v * 2);
     if (colors && p.col) {
       for (let k = 0; k < p.col.count; k++) {
@@ -218,5 +241,5 @@ export function parseGlb(buffer) {
     v += p.pos.count;
     i += p.idx.length;
   }
-  return { positions, normals, colors, features, uvs, image: textured ? textured.image : null, indices, triangles: indexCount / 3 };
+  return { positions, normals, colors, features, joints, weights, uvs, image: textured ? textured.image : null, indices, triangles: indexCount / 3 };
 }

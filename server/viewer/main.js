@@ -49,8 +49,8 @@ const viewer = {
   lod: null,
   colourMode: "vertex",
   playing: false,
-  clusters: new Map(), // id -> {info (cut cluster), gpu, transform}
-  missing: new Map(), // id -> {info, transform}: in the cut, geometry not loaded yet
+  clusters: new Map(), // id -> {info (cut cluster), gpu, transform, joints (a skinned cluster's)}
+  missing: new Map(), // id -> {info, transform, joints}: in the cut, geometry not loaded yet
   missingTimer: null,
   stats: null, // the last answer's stats
   latency: 0,
@@ -309,12 +309,16 @@ async function onMessage(msg, request, millis) {
   }
   msg.add.forEach((c, i) => {
     const transform = c.transform && new Float32Array(c.transform);
-    if (loads[i].status === "fulfilled") viewer.clusters.set(c.id, { info: c, gpu: loads[i].value, transform });
-    else viewer.missing.set(c.id, { info: c, transform });
+    const joints = c.joints ? new Float32Array(c.joints.flat()) : null;
+    if (loads[i].status === "fulfilled") viewer.clusters.set(c.id, { info: c, gpu: loads[i].value, transform, joints });
+    else viewer.missing.set(c.id, { info: c, transform, joints });
   });
   for (const u of msg.update) {
     const held = viewer.clusters.get(u.id) || viewer.missing.get(u.id);
-    if (held) held.transform = u.transform && new Float32Array(u.transform);
+    if (!held) continue;
+    held.transform = u.transform && new Float32Array(u.transform);
+    // A skinned cluster's new pose.
+    if (u.joints) held.joints = new Float32Array(u.joints.flat());
   }
   if (viewer.missing.size > 0) retryMissingLater();
   cache.evict(new Set([...viewer.clusters.values(), ...viewer.missing.values()].map((c) => c.info.geometry)));
@@ -351,7 +355,7 @@ async function retryMissing() {
       return;
     }
     viewer.missing.delete(id);
-    viewer.clusters.set(id, { info: m.info, gpu: loads[i].value, transform: m.transform });
+    viewer.clusters.set(id, { info: m.info, gpu: loads[i].value, transform: m.transform, joints: m.joints });
     viewer.needsDraw = true;
   });
   updateStats();
@@ -374,7 +378,7 @@ function drawItems() {
   for (const c of viewer.clusters.values()) {
     // A dynamic cluster's GLB (shared by the model's instances) has no
     // feature ids; the answer names its object.
-    items.push({ gpu: c.gpu, transform: c.transform, tint: tint(c), feature: c.info.object ?? null });
+    items.push({ gpu: c.gpu, transform: c.transform, joints: c.joints, tint: tint(c), feature: c.info.object ?? null });
   }
   return items;
 }

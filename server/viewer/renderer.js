@@ -3,7 +3,11 @@
 // texture when it has one (or a colour per class or level). The texture's
 // texels are sRGB, as glTF's base colour: an SRGB8_ALPHA8 texture gives
 // them back linear, as the vertex colours are.
-// Dynamic clusters get their cut transform as the model matrix. Picking is
+// Dynamic clusters get their cut transform as the model matrix; a skinned
+// cluster's vertices are placed by its joint matrices at the cut's time
+// instead (linear blend skinning, glTF 2.0 section 3.7.3), at most
+// MAX_JOINTS of them: uniforms, which every WebGL2 device has room for
+// (256 vertex vectors at the least). Picking is
 // one more pass of the same clusters into an offscreen framebuffer with
 // feature ids as colours, scissored to the pixel under the cursor, read
 // back as that one pixel.
@@ -16,14 +20,22 @@
 // per-feature texture, the looks (colours.js), gives a colour mode's
 // colour and opacity per feature, or hides it: opaque looks are drawn in
 // the first pass, translucent ones blended in the second with the ghosts.
+// The most joints a skinned cluster is drawn posed with; one with more is
+// drawn in its bind pose.
+const MAX_JOINTS = 32;
+
 const VERTEX = `#version 300 es
 layout(location = 0) in vec3 aPosition;
 layout(location = 1) in vec3 aNormal;
 layout(location = 2) in vec4 aColor;
 layout(location = 3) in float aFeature;
 layout(location = 4) in vec2 aUv;
+layout(location = 5) in vec4 aJoints;
+layout(location = 6) in vec4 aWeights;
 uniform mat4 uViewProj;
 uniform mat4 uModel;
+uniform bool uSkinned;
+uniform mat4 uJoints[${MAX_JOINTS}];
 uniform sampler2D uState;
 uniform bool uHasState;
 uniform int uStateWidth;
@@ -62,9 +74,14 @@ void main() {
     gl_Position = vec4(2.0, 2.0, 2.0, 1.0);
     return;
   }
-  vec4 world = uModel * vec4(aPosition, 1.0);
+  mat4 model = uModel;
+  if (uSkinned) {
+    model = aWeights.x * uJoints[int(aJoints.x)] + aWeights.y * uJoints[int(aJoints.y)]
+      + aWeights.z * uJoints[int(aJoints.z)] + aWeights.w * uJoints[int(aJoints.w)];
+  }
+  vec4 world = model * vec4(aPosition, 1.0);
   vWorld = world.xyz;
-  vNormal = mat3(uModel) * aNormal;
+  vNormal = mat3(model) * aNormal;
   vColor = aColor;
   vUv = aUv;
   vFeature = aFeature;
@@ -162,7 +179,7 @@ export class Renderer {
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
     this.program = program;
     this.u = {};
-    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass", "uColour", "uHasTexture"]) {
+    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass", "uColour", "uHasTexture", "uSkinned", "uJoints"]) {
       this.u[name] = gl.getUniformLocation(program, name);
     }
     gl.enable(gl.DEPTH_TEST);
@@ -238,6 +255,10 @@ export class Renderer {
     if (mesh.normals) attribute(1, mesh.normals, 3);
     if (mesh.colors) attribute(2, mesh.colors, 4);
     if (mesh.features) attribute(3, mesh.features, 1);
+    if (mesh.joints) {
+      attribute(5, mesh.joints, 4);
+      attribute(6, mesh.weights, 4);
+    }
     let texture = null;
     if (mesh.uvs && image) {
       attribute(4, mesh.uvs, 2);
@@ -260,11 +281,11 @@ export class Renderer {
     gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, ib);
     gl.bufferData(gl.ELEMENT_ARRAY_BUFFER, mesh.indices, gl.STATIC_DRAW);
     gl.bindVertexArray(null);
-    const attributes = [mesh.positions, mesh.normals, mesh.colors, mesh.features, texture && mesh.uvs, mesh.indices];
+    const attributes = [mesh.positions, mesh.normals, mesh.colors, mesh.features, mesh.joints, mesh.weights, texture && mesh.uvs, mesh.indices];
     const bytes = attributes.reduce((s, a) => s + (a ? a.byteLength : 0), 0) + (texture ? Math.ceil((4 * 4 * image.width * image.height) / 3) : 0); // with its mipmaps
     return {
       vao, buffers, texture, bytes, count: mesh.indices.length,
-      hasNormals: !!mesh.normals, hasColors: !!mesh.colors, hasFeatures: !!mesh.features,
+      hasNormals: !!mesh.normals, hasColors: !!mesh.colors, hasFeatures: !!mesh.features, hasSkin: !!mesh.joints,
     };
   }
 
@@ -276,8 +297,9 @@ export class Renderer {
     if (gpu.texture) gl.deleteTexture(gpu.texture);
   }
 
-  // items: [{gpu, transform (Float32Array|null), tint ([r,g,b]|null),
-  // feature (the whole item's feature id where its GLB has none, or null)}];
+  // items: [{gpu, transform (Float32Array|null), joints (Float32Array of
+  // 16 per joint, column-major, or null), tint ([r,g,b]|null), feature (the
+  // whole item's feature id where its GLB has none, or null)}];
   // isolating: features not flagged as isolated are drawn as ghosts;
   // translucent: some looks have a transparency, drawn blended.
   draw(items, camera, width, height, isolating, translucent) {
@@ -323,6 +345,9 @@ export class Renderer {
       const g = item.gpu;
       if (which === 2 && !g.hasFeatures && item.feature == null) continue;
       gl.uniformMatrix4fv(this.u.uModel, false, item.transform || IDENTITY);
+      const skinned = g.hasSkin && item.joints && item.joints.length <= 16 * MAX_JOINTS;
+      gl.uniform1i(this.u.uSkinned, skinned ? 1 : 0);
+      if (skinned) gl.uniformMatrix4fv(this.u.uJoints, false, item.joints);
       gl.uniform4f(this.u.uTint, ...(item.tint || [0, 0, 0]), item.tint ? 1 : 0);
       gl.uniform1i(this.u.uHasNormals, g.hasNormals ? 1 : 0);
       gl.uniform1i(this.u.uHasTexture, g.texture ? 1 : 0);
