@@ -1,7 +1,8 @@
 //! Time slices as 3D Tiles 1.1 on the tree built from the committed tiny
 //! fixture: the files follow the official 3D Tiles 1.1 JSON schemas, and a
 //! 3D Tiles traversal of them (transforms composed down the tiles, external
-//! tilesets followed, content URIs resolved) reproduces the cut.
+//! tilesets followed, content URIs resolved) reproduces the cut. A skinned
+//! object's tiles hold its mesh posed at the slice's time.
 
 mod common;
 
@@ -12,9 +13,10 @@ use common::{schema_errors, tileset_validator};
 use glam::{DMat4, DVec3};
 use hdlod::build::{BuildConfig, Silent, build_to};
 use hdlod::scene::{Up, format};
+use hdlod::io::gltf::read_skinned_mesh;
 use hdlod::tiles::{
-    DEFAULT_MAX_BYTES, Frame, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP, root_transform,
-    time_slice,
+    ContentNames, DEFAULT_MAX_BYTES, Frame, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP,
+    root_transform, time_slice,
 };
 use hdlod::tree::{Aabb, CameraSpec, Tree, View, Viewport, cut, load};
 use rand::{Rng, SeedableRng};
@@ -484,4 +486,105 @@ fn bad_arguments_are_named() {
         .unwrap()
         .external;
     assert!(files.is_empty());
+}
+
+/// A skinned cluster's tile names content made for the slice's time, its
+/// mesh posed by its skeleton then, inside its tile's box; rigid tiles name
+/// what they always did. A skinned cluster whose GLB lost its joints is an
+/// error naming the file and the attribute.
+#[test]
+fn a_skinned_cluster_s_content_is_its_mesh_posed_at_the_slice_s_time() {
+    let validator = tileset_validator();
+    let tmp = tempfile::tempdir().unwrap();
+    let dir = tmp.path().join("tree");
+    let scene = common::skinned_bar_scene();
+    build_to(&scene, &BuildConfig::default(), &dir, &Silent).unwrap();
+    let tree = load(&dir).unwrap();
+    let tables = tree.objects.as_ref().expect("a build writes object tables");
+    let skin = scene.objects[0].skin.as_ref().unwrap();
+    let glb_of = |id: u32| tree.geometry_file(&dir, &tree.geometry_of(id).unwrap());
+    let mut skinned = Vec::new();
+    for t in [12.0, 19.0] {
+        let options = Options {
+            content: ContentNames::Cluster,
+            posed_dir: format!("posed/{t}"),
+            ..Options::new("content", "tilesets")
+        };
+        let slice = time_slice(&tree, t, &options).unwrap();
+        if let Some(validator) = &validator {
+            let json = serde_json::to_value(&slice.root).unwrap();
+            let errors = schema_errors(validator, &json);
+            assert!(errors.is_empty(), "t = {t}: {errors:?}");
+        }
+        let client = Client {
+            slice: &slice,
+            options: &options,
+        };
+        let mut rigid = 0;
+        for visit in client.all() {
+            let Some(content) = &visit.tile.content else {
+                continue;
+            };
+            let id = visit.tile.extras.unwrap().cluster;
+            let Some(skeleton) = tree.skeleton_of(id) else {
+                assert_eq!(content.uri, format!("content/{id}.glb"), "rigid, as before");
+                rigid += 1;
+                continue;
+            };
+            assert_eq!(content.uri, format!("posed/{t}/{id}.glb"));
+            let glb = hdlod::tiles::content::cluster(&tree, tables, id, &glb_of(id), Some(t), None)
+                .unwrap();
+            let file = tmp.path().join(format!("{t}-{id}.glb"));
+            std::fs::write(&file, glb).unwrap();
+            let posed = hdlod::io::read_mesh(&file).unwrap();
+            // The stored bind-pose mesh moved by the skeleton's matrices.
+            let (stored, vertices) =
+                read_skinned_mesh(&glb_of(id), skeleton.joints.len()).unwrap();
+            let mut matrices = Vec::new();
+            skeleton.matrices_into(t, &mut matrices);
+            let expected = vertices.pose(&stored, &matrices);
+            assert_eq!(posed.positions.len(), expected.positions.len());
+            for (p, q) in posed.positions.iter().zip(&expected.positions) {
+                assert!(p.distance(*q) < 1e-4, "t = {t}, cluster {id}: {p} against {q}");
+            }
+            // ... each a vertex of the scene's bar posed then, inside the
+            // tile's box.
+            let scene_posed = skin.pose(&scene.meshes[1], t);
+            let b = Client::world_box(&visit);
+            for p in &posed.positions {
+                let near = scene_posed
+                    .positions
+                    .iter()
+                    .map(|q| p.distance(*q))
+                    .fold(f32::INFINITY, f32::min);
+                assert!(near < 1e-4, "t = {t}: {p} is {near} from the posed bar");
+                let z_up = Y_UP_TO_Z_UP.transform_point3(p.as_dvec3());
+                assert!(
+                    b.min.cmple(z_up + 1e-6).all() && b.max.cmpge(z_up - 1e-6).all(),
+                    "t = {t}: {z_up} outside the tile's box {b:?}"
+                );
+            }
+            skinned.push((t, id, posed.positions));
+        }
+        assert!(rigid > 0, "t = {t}: the box is drawn");
+    }
+    let leaf = |t: f64| {
+        skinned
+            .iter()
+            .filter(|s| s.0 == t)
+            .max_by_key(|s| s.2.len())
+            .unwrap_or_else(|| panic!("t = {t}: no skinned tile"))
+    };
+    let (early, late) = (leaf(12.0), leaf(19.0));
+    assert_eq!(early.1, late.1, "the same cluster at both times");
+    assert_ne!(early.2, late.2, "posed differently");
+
+    // A skinned cluster's GLB without its joints and weights.
+    let id = early.1;
+    hdlod::io::glb::write_mesh(&scene.meshes[1], &glb_of(id)).unwrap();
+    let err = hdlod::tiles::content::cluster(&tree, tables, id, &glb_of(id), Some(12.0), None)
+        .unwrap_err()
+        .to_string();
+    let name = glb_of(id).file_name().unwrap().to_string_lossy().into_owned();
+    assert!(err.contains(&name) && err.contains("JOINTS_0"), "{err}");
 }

@@ -5,123 +5,17 @@
 
 mod common;
 
-use glam::{Mat4, Quat, Vec3};
+use glam::Mat4;
 use hdlod::build::{BuildConfig, Silent, build_to};
-use hdlod::geometry::Mesh;
-use hdlod::geometry::skin::Skin;
-use hdlod::scene::{
-    Joint, Keyframe, Motion, Object, ObjectSkin, Scene, ScheduleOptions, Up, Visibility,
-};
-use hdlod::time::{TimeSpan, parse_date};
 use serde_json::{Value, json};
 
-use common::{Server, assert_component, browser_ready, repo};
-
-/// A square tube along Y from 0 to 4 in rings every 0.25 m: below 1.5 m
-/// on joint 0 (at the origin), above 2.5 m on joint 1 (at y = 2), blended
-/// between. Joint 1 turns a quarter about X from 10 s to 20 s.
-fn bar() -> (Mesh, ObjectSkin) {
-    let mut mesh = Mesh::default();
-    let mut vertices = Skin {
-        joints: Vec::new(),
-        weights: Vec::new(),
-    };
-    const RINGS: u32 = 17;
-    for r in 0..RINGS {
-        let y = 0.25 * r as f32;
-        let top = ((y - 1.5) / 1.0).clamp(0.0, 1.0);
-        for (x, z) in [(0.2, 0.2), (-0.2, 0.2), (-0.2, -0.2), (0.2, -0.2)] {
-            mesh.positions.push(Vec3::new(x, y, z));
-            vertices.joints.push([0, 1, 0, 0]);
-            vertices.weights.push([1.0 - top, top, 0.0, 0.0]);
-        }
-    }
-    for r in 0..RINGS - 1 {
-        for k in 0..4 {
-            let at = |r: u32, k: u32| r * 4 + k % 4;
-            let (a, b, c, d) = (at(r, k), at(r, k + 1), at(r + 1, k), at(r + 1, k + 1));
-            mesh.indices.extend([a, c, b, b, c, d]);
-        }
-    }
-    let turn = |t: f64, angle: f32| Keyframe {
-        t,
-        translation: Vec3::Y * 2.0,
-        rotation: Quat::from_rotation_x(angle),
-        scale: Vec3::ONE,
-    };
-    let skin = ObjectSkin {
-        vertices,
-        inverse_bind: vec![Mat4::IDENTITY, Mat4::from_translation(-Vec3::Y * 2.0)],
-        joints: vec![
-            Joint {
-                name: Some("base".into()),
-                transform: Mat4::IDENTITY,
-                motion: None,
-            },
-            Joint {
-                name: Some("middle".into()),
-                transform: Mat4::from_translation(Vec3::Y * 2.0),
-                motion: Some(
-                    Motion::new(vec![
-                        turn(10.0, 0.0),
-                        turn(20.0, std::f32::consts::FRAC_PI_2),
-                    ])
-                    .unwrap(),
-                ),
-            },
-        ],
-    };
-    (mesh, skin)
-}
-
-fn scene() -> Scene {
-    let (mesh, skin) = bar();
-    let object = |id: &str, mesh: usize, transform: Mat4| Object {
-        id: id.into(),
-        mesh,
-        transform,
-        color: [0.6, 0.6, 0.6, 1.0],
-        visibility: Visibility::always(),
-        motion: None,
-        skin: None,
-        properties: Default::default(),
-    };
-    let mut bar = object("bar", 1, Mat4::IDENTITY);
-    bar.skin = Some(Box::new(skin));
-    let cube = Mesh {
-        positions: (0..8)
-            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
-            .collect(),
-        indices: vec![
-            0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4,
-            6, 1, 3, 5, 3, 7, 5,
-        ],
-        ..Mesh::default()
-    };
-    Scene {
-        name: "bar".into(),
-        up: Up::Y,
-        time: TimeSpan {
-            start: parse_date("2026-03-02T08:00:00Z").unwrap(),
-            seconds: 100.0,
-        },
-        meshes: vec![cube, mesh],
-        objects: vec![
-            bar,
-            object("box", 0, Mat4::from_translation(Vec3::new(-3.0, 0.0, 0.0))),
-        ],
-        tasks: Vec::new(),
-        schedule_options: ScheduleOptions::default(),
-        appearance: None,
-        georeference: None,
-    }
-}
+use common::{Server, assert_component, browser_ready, repo, skinned_bar_scene};
 
 #[test]
 fn a_skinned_cluster_s_answer_carries_its_joint_matrices() {
     let dir = tempfile::tempdir().unwrap();
     let tree = dir.path().join("tree");
-    let scene = scene();
+    let scene = skinned_bar_scene();
     build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
     let server = Server::start(&tree);
     let doc = server.get_json("/api/v1/openapi.json");
@@ -162,7 +56,7 @@ fn the_stream_sends_a_kept_skinned_cluster_s_new_joints() {
 
     let dir = tempfile::tempdir().unwrap();
     let tree = dir.path().join("tree");
-    let scene = scene();
+    let scene = skinned_bar_scene();
     build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
     let server = Server::start(&tree);
     let doc = server.get_json("/api/v1/openapi.json");
@@ -226,7 +120,7 @@ fn the_viewer_draws_a_skinned_cluster_in_its_pose_in_chromium() {
     }
     let dir = tempfile::tempdir().unwrap();
     let tree = dir.path().join("tree");
-    build_to(&scene(), &BuildConfig::default(), &tree, &Silent).unwrap();
+    build_to(&skinned_bar_scene(), &BuildConfig::default(), &tree, &Silent).unwrap();
     let server = Server::start(&tree);
     let shots = dir.path().join("shots");
     // Straight at 10 s, its top half turned 0.9 of a quarter towards the

@@ -102,6 +102,45 @@ pub fn read_textured_mesh(path: &Path) -> Result<(Mesh, Option<Texture>)> {
     Ok((flatten(&model), texture))
 }
 
+/// A tree's skinned cluster GLB (docs/formats.md, "Skinned clusters"):
+/// its one mesh node's mesh in the bind pose and each vertex's joints and
+/// weights, which must name joints among the skeleton's `joint_count`.
+/// The tree says the cluster is skinned (`skins.json`), so a mesh without
+/// `JOINTS_0` and `WEIGHTS_0` is an error naming the file and attribute.
+pub fn read_skinned_mesh(path: &Path, joint_count: usize) -> Result<(Mesh, Skin)> {
+    let model = read_model(path)?;
+    let [node] = &model.nodes[..] else {
+        return Err(Error::invalid(
+            path,
+            "nodes",
+            format!(
+                "{} mesh nodes: a skinned cluster's GLB has one",
+                model.nodes.len()
+            ),
+        ));
+    };
+    let Some(skin) = &node.skin else {
+        return Err(Error::invalid(
+            path,
+            format!("{} JOINTS_0", node.describe()),
+            "the cluster is skinned (skins.json) but its mesh has no skin: no JOINTS_0 and \
+             WEIGHTS_0 to pose it by",
+        ));
+    };
+    // The joints place a skinned mesh, not its node (glTF 2.0 section
+    // 3.7.3.1): its node's transform is not applied.
+    let mesh = model.meshes[node.mesh].clone();
+    let vertices = skin.skin.vertices.clone();
+    if let Some(problem) = vertices.problem(&mesh, joint_count) {
+        return Err(Error::invalid(
+            path,
+            format!("{} JOINTS_0", node.describe()),
+            format!("against the {joint_count} joints of skins.json: {problem}"),
+        ));
+    }
+    Ok((mesh, vertices))
+}
+
 fn flatten(model: &Model) -> Mesh {
     let used = |node: &ModelNode| &model.meshes[node.mesh];
     let first_color = model.nodes.first().map(|n| n.color);

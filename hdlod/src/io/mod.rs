@@ -1,6 +1,7 @@
 //! Mesh file formats: glTF/GLB in ([`gltf`]) and out ([`glb`]), OBJ in and
 //! out ([`obj`]), PLY in ([`ply`]), a mesh's colour texture ([`texture`]);
-//! [`read_mesh`] picks the reader by the file's extension.
+//! [`read_mesh`] picks the reader by the file's extension;
+//! [`gltf::read_skinned_mesh`] reads a tree's skinned cluster GLB.
 
 pub mod compact;
 pub mod glb;

@@ -15,7 +15,15 @@
 //! index (the feature id of the tree's own GLBs) is the `index` property.
 //! A dynamic cluster's GLB, shared by every instance of a model, carries no
 //! ids: the tree names its object, which all its vertices take.
+//!
+//! A skinned cluster's GLB holds its mesh in the bind pose, which 3D Tiles
+//! clients would draw as it is (they do not animate content): its content
+//! at a time is the mesh posed by its skeleton then ([`cluster`]), written
+//! as plain glTF without the skin.
 
+use std::path::Path;
+
+use crate::error::Result;
 use crate::geometry::Mesh;
 use crate::io::glb::{
     Column, Encoding, PropertyTable, mesh_to_glb_with_table, textured_mesh_to_glb,
@@ -23,7 +31,7 @@ use crate::io::glb::{
 use crate::io::texture::Texture;
 use crate::scene::appearance::Look;
 use crate::scene::{Profile, property};
-use crate::tree::ObjectTables;
+use crate::tree::{ObjectTables, Tree};
 
 /// The class of the property table, and the id of its schema.
 pub const CLASS: &str = "element";
@@ -69,6 +77,35 @@ pub fn content(
         &table(&objects, tables, state),
         Encoding::Plain,
     )
+}
+
+/// The content of cluster `id` of `tree`, read from its GLB `file`: a
+/// skinned cluster posed by its skeleton at `pose` (its bind pose without
+/// a time), the elements' state when `state` is given.
+pub fn cluster(
+    tree: &Tree,
+    tables: &ObjectTables,
+    id: u32,
+    file: &Path,
+    pose: Option<f64>,
+    state: Option<State>,
+) -> Result<Vec<u8>> {
+    let object = tree.dynamic_object(id);
+    if let (Some(skeleton), Some(t)) = (tree.skeleton_of(id), pose) {
+        let (mesh, skin) = crate::io::gltf::read_skinned_mesh(file, skeleton.joints.len())?;
+        let mut matrices = Vec::with_capacity(skeleton.joints.len());
+        skeleton.matrices_into(t, &mut matrices);
+        // Skinned GLBs carry no baked colour: no texture to keep.
+        return Ok(content(
+            &skin.pose(&mesh, &matrices),
+            None,
+            object,
+            tables,
+            state,
+        ));
+    }
+    let (mesh, texture) = crate::io::read_textured_mesh(file)?;
+    Ok(content(&mesh, texture.as_ref(), object, tables, state))
 }
 
 fn table(objects: &[u32], tables: &ObjectTables, state: Option<State>) -> PropertyTable {

@@ -6,7 +6,10 @@
 //! Per cluster `c` with `v = v_c(t)`:
 //! - `v == 0`: the tile and its subtree are left out (the cut skips them);
 //! - content (the cluster's GLB) only where `v >= 0.5`, otherwise a tile
-//!   without content: the cut draws nothing there either;
+//!   without content: the cut draws nothing there either. A skinned
+//!   cluster's content is its mesh posed at `t` (`tiles::content::cluster`),
+//!   under `Options::posed_dir`: a URI of its own at each time, since 3D
+//!   Tiles clients draw content as it is and would show the bind pose;
 //! - the bounding volume is the box the cut tests, `Aabb::transformed` of
 //!   the cluster's bounds at `t` for dynamic clusters, written in the tile's
 //!   own frame, so that a client that applies the tile transforms gets the
@@ -71,6 +74,11 @@ pub struct Options {
     pub max_bytes: usize,
     /// How content files are named in `content_dir`.
     pub content: ContentNames,
+    /// The directory of content made for the slice's time alone: a skinned
+    /// cluster's mesh posed at `t`, `{cluster}.glb`. Relative, no trailing
+    /// `/`; the URI must name the time (`posed` beside the tileset by
+    /// default, for a directory that holds one slice).
+    pub posed_dir: String,
     /// Whether a georeferenced scene is placed on Earth.
     pub frame: Frame,
 }
@@ -107,6 +115,7 @@ impl Options {
             subtileset_dir: subtileset_dir.into(),
             max_bytes: DEFAULT_MAX_BYTES,
             content: ContentNames::Geometry,
+            posed_dir: "posed".into(),
             frame: Frame::Earth,
         }
     }
@@ -238,6 +247,7 @@ struct Slice<'a> {
     t: f64,
     content_dir: &'a str,
     names: ContentNames,
+    posed_dir: &'a str,
 }
 
 impl Slice<'_> {
@@ -281,9 +291,13 @@ impl Slice<'_> {
             .fold(delta, f64::max);
         let content = match &c.geometry {
             Some(hash) if v >= 0.5 => Some(Content {
-                uri: match self.names {
-                    ContentNames::Geometry => format!("{}/{hash}.glb", self.content_dir),
-                    ContentNames::Cluster => format!("{}/{id}.glb", self.content_dir),
+                uri: if self.tree.skeleton_of(id).is_some() {
+                    format!("{}/{id}.glb", self.posed_dir)
+                } else {
+                    match self.names {
+                        ContentNames::Geometry => format!("{}/{hash}.glb", self.content_dir),
+                        ContentNames::Cluster => format!("{}/{id}.glb", self.content_dir),
+                    }
                 },
             }),
             _ => None,
@@ -318,6 +332,7 @@ pub fn tileset(tree: &Tree, t: f64, options: &Options) -> Result<Tileset> {
         t,
         content_dir: options.content_dir.trim_end_matches('/'),
         names: options.content,
+        posed_dir: options.posed_dir.trim_end_matches('/'),
     };
     let root = tree.root();
     let v = root.visibility.at(t);

@@ -9,10 +9,12 @@ use std::path::{Path, PathBuf};
 
 use glam::{Mat4, Quat, Vec3};
 use hdlod::geometry::Mesh;
+use hdlod::geometry::skin::Skin;
 use hdlod::scene::appearance::Look;
 use hdlod::scene::{
-    Actual, Geographic, Georeference, Instant, Keyframe, LinkType, Motion, Object, Predecessor,
-    Profile, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
+    Actual, Geographic, Georeference, Instant, Joint, Keyframe, LinkType, Motion, Object,
+    ObjectSkin, Predecessor, Profile, Scene, ScheduleOptions, Span, Task, TaskType, Up,
+    Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 
@@ -180,6 +182,108 @@ pub fn saved_sample(dir: &Path) -> PathBuf {
     let out = dir.join("sample");
     hdlod::scene::format::save(&sample_scene(), &out).unwrap();
     out
+}
+
+/// A square tube along Y from 0 to 4 in rings every 0.25 m: below 1.5 m
+/// on joint 0 (at the origin), above 2.5 m on joint 1 (at y = 2), blended
+/// between. Joint 1 turns a quarter about X from 10 s to 20 s.
+pub fn skinned_bar() -> (Mesh, ObjectSkin) {
+    let mut mesh = Mesh::default();
+    let mut vertices = Skin {
+        joints: Vec::new(),
+        weights: Vec::new(),
+    };
+    const RINGS: u32 = 17;
+    for r in 0..RINGS {
+        let y = 0.25 * r as f32;
+        let top = ((y - 1.5) / 1.0).clamp(0.0, 1.0);
+        for (x, z) in [(0.2, 0.2), (-0.2, 0.2), (-0.2, -0.2), (0.2, -0.2)] {
+            mesh.positions.push(Vec3::new(x, y, z));
+            vertices.joints.push([0, 1, 0, 0]);
+            vertices.weights.push([1.0 - top, top, 0.0, 0.0]);
+        }
+    }
+    for r in 0..RINGS - 1 {
+        for k in 0..4 {
+            let at = |r: u32, k: u32| r * 4 + k % 4;
+            let (a, b, c, d) = (at(r, k), at(r, k + 1), at(r + 1, k), at(r + 1, k + 1));
+            mesh.indices.extend([a, c, b, b, c, d]);
+        }
+    }
+    let turn = |t: f64, angle: f32| Keyframe {
+        t,
+        translation: Vec3::Y * 2.0,
+        rotation: Quat::from_rotation_x(angle),
+        scale: Vec3::ONE,
+    };
+    let skin = ObjectSkin {
+        vertices,
+        inverse_bind: vec![Mat4::IDENTITY, Mat4::from_translation(-Vec3::Y * 2.0)],
+        joints: vec![
+            Joint {
+                name: Some("base".into()),
+                transform: Mat4::IDENTITY,
+                motion: None,
+            },
+            Joint {
+                name: Some("middle".into()),
+                transform: Mat4::from_translation(Vec3::Y * 2.0),
+                motion: Some(
+                    Motion::new(vec![
+                        turn(10.0, 0.0),
+                        turn(20.0, std::f32::consts::FRAC_PI_2),
+                    ])
+                    .unwrap(),
+                ),
+            },
+        ],
+    };
+    (mesh, skin)
+}
+
+/// The scene `bar` of 100 s: [`skinned_bar`] (object 0, mesh 1) and a
+/// static unit box 3 m aside (object 1, mesh 0).
+pub fn skinned_bar_scene() -> Scene {
+    let (mesh, skin) = skinned_bar();
+    let object = |id: &str, mesh: usize, transform: Mat4| Object {
+        id: id.into(),
+        mesh,
+        transform,
+        color: [0.6, 0.6, 0.6, 1.0],
+        visibility: Visibility::always(),
+        motion: None,
+        skin: None,
+        properties: Default::default(),
+    };
+    let mut bar = object("bar", 1, Mat4::IDENTITY);
+    bar.skin = Some(Box::new(skin));
+    let cube = Mesh {
+        positions: (0..8)
+            .map(|i| Vec3::new((i & 1) as f32, ((i >> 1) & 1) as f32, ((i >> 2) & 1) as f32))
+            .collect(),
+        indices: vec![
+            0, 2, 1, 1, 2, 3, 4, 5, 6, 5, 7, 6, 0, 1, 4, 1, 5, 4, 2, 6, 3, 3, 6, 7, 0, 4, 2, 2, 4,
+            6, 1, 3, 5, 3, 7, 5,
+        ],
+        ..Mesh::default()
+    };
+    Scene {
+        name: "bar".into(),
+        up: Up::Y,
+        time: TimeSpan {
+            start: parse_date("2026-03-02T08:00:00Z").unwrap(),
+            seconds: 100.0,
+        },
+        meshes: vec![cube, mesh],
+        objects: vec![
+            bar,
+            object("box", 0, Mat4::from_translation(Vec3::new(-3.0, 0.0, 0.0))),
+        ],
+        tasks: Vec::new(),
+        schedule_options: ScheduleOptions::default(),
+        appearance: None,
+        georeference: None,
+    }
 }
 
 /// The repository root.

@@ -324,6 +324,10 @@ pub fn router(state: Arc<AppState>, cors: &Cors) -> Router {
             get(tiles::content),
         )
         .route(
+            "/api/v1/scenes/{scene}/tiles/posed/{version}/{time}/{file}",
+            get(tiles::posed),
+        )
+        .route(
             "/api/v1/scenes/{scene}/tiles/{time}/{file}",
             get(tiles::external),
         )

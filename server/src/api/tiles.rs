@@ -18,7 +18,11 @@
 //!   ([`LoadedScene::version`]), which a rebuild changes;
 //! - `GET /api/v1/scenes/{scene}/tiles/{seconds}/content/{cluster}.glb`:
 //!   the same with each element's task status, deviation and look at that
-//!   time, for `status=true` slices.
+//!   time, for `status=true` slices (a skinned cluster's posed then);
+//! - `GET /api/v1/scenes/{scene}/tiles/posed/{version}/{seconds}/{cluster}.glb`:
+//!   a skinned cluster's content, its mesh posed by its skeleton at that
+//!   time, which the default slices name instead of its bind pose; cached
+//!   as immutable as `content/`, the time being in the URL.
 //!
 //! A tree without object tables points at the geometry endpoint
 //! (`../geometry/HASH.glb` from the root file), whose GLBs are
@@ -56,12 +60,18 @@ enum Kind {
 /// external tilesets sit in `.../tiles/{t}/` (`status-{t}/` with state);
 /// the content in `.../tiles/content/{version}/` or, with state,
 /// `.../tiles/{t}/content/` when the tree has object tables, else the GLBs
-/// in `.../geometry/`. The frame only matters to the root file.
+/// in `.../geometry/`; skinned clusters' posed content in
+/// `.../tiles/posed/{version}/{t}/`, or with the rest of a slice with
+/// state. The frame only matters to the root file.
 fn options(s: &LoadedScene, t: f64, max_bytes: usize, frame: Frame, kind: Kind) -> Options {
     let (dir, content) = match (&s.tree.objects, kind) {
         (None, _) => ("../geometry".to_owned(), ContentNames::Geometry),
         (Some(_), Kind::Static) => (format!("content/{}", s.version), ContentNames::Cluster),
         (Some(_), Kind::Status) => (format!("{t}/content"), ContentNames::Cluster),
+    };
+    let posed_dir = match kind {
+        Kind::Static => format!("posed/{}/{t}", s.version),
+        Kind::Status => format!("{t}/content"),
     };
     let subtilesets = match kind {
         Kind::Static => format!("{t}"),
@@ -70,6 +80,7 @@ fn options(s: &LoadedScene, t: f64, max_bytes: usize, frame: Frame, kind: Kind) 
     Options {
         max_bytes,
         content,
+        posed_dir,
         frame,
         ..Options::new(dir, subtilesets)
     }
@@ -173,16 +184,22 @@ fn seconds(time: &str) -> Result<f64, ApiError> {
     Ok(within_period("time", t)?)
 }
 
-/// The GLB of cluster `file` (`{cluster}.glb`), with the elements' state at
-/// `t` when given.
-async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<Vec<u8>, ApiError> {
-    let tree = &s.tree;
-    let id: u32 = file
-        .strip_suffix(".glb")
+/// The cluster `{cluster}.glb` names.
+fn cluster_of(file: &str) -> Result<u32, ApiError> {
+    file.strip_suffix(".glb")
         .and_then(|id| id.parse().ok())
-        .ok_or_else(|| {
-            ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(file)))
-        })?;
+        .ok_or_else(|| ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(file))))
+}
+
+/// The GLB of cluster `id`: a skinned cluster posed at `pose`, with the
+/// elements' state at `status` when given.
+async fn cluster_glb(
+    s: Arc<LoadedScene>,
+    id: u32,
+    pose: Option<f64>,
+    status: Option<f64>,
+) -> Result<Vec<u8>, ApiError> {
+    let tree = &s.tree;
     let hash = tree
         .get_cluster(id)
         .and_then(|c| c.geometry.clone())
@@ -196,22 +213,30 @@ async fn cluster_glb(s: Arc<LoadedScene>, file: &str, t: Option<f64>) -> Result<
     let path = s.geometry_file(&hash);
     // Reading and writing a GLB is blocking work.
     tokio::task::spawn_blocking(move || -> Result<Vec<u8>, ApiError> {
-        let (mesh, texture) = hdlod::io::read_textured_mesh(&path)?;
         let tree = &s.tree;
         let tables = tree.objects.as_ref().expect("checked above");
         let default = Profile::default();
         let profile = tables.appearance().unwrap_or(&default);
-        let state = t.map(|t| content::State { profile, t });
-        Ok(content::content(
-            &mesh,
-            texture.as_ref(),
-            tree.dynamic_object(id),
-            tables,
-            state,
-        ))
+        let state = status.map(|t| content::State { profile, t });
+        Ok(content::cluster(tree, tables, id, &path, pose, state)?)
     })
     .await
     .map_err(|e| ApiError::new(StatusCode::INTERNAL_SERVER_ERROR, None, e.to_string()))?
+}
+
+/// The tree's version, when `version` names it.
+fn current(s: &LoadedScene, version: &str) -> Result<(), ApiError> {
+    if version == s.version {
+        return Ok(());
+    }
+    Err(ApiError::not_found(
+        "version",
+        format!(
+            "the tree is at version {}, not {}: it was rebuilt, ask for the tileset again",
+            s.version,
+            quote(version)
+        ),
+    ))
 }
 
 /// `content/{version}/{cluster}.glb`: the same at every date.
@@ -221,23 +246,39 @@ pub async fn content(
     headers: HeaderMap,
 ) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;
-    if version != s.version {
-        return Err(ApiError::not_found(
-            "version",
-            format!(
-                "the tree is at version {}, not {}: it was rebuilt, ask for the tileset again",
-                s.version,
-                quote(&version)
-            ),
-        ));
-    }
-    let etag = HeaderValue::from_str(&format!("\"{version}-{file}\"")).map_err(|_| {
-        ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(&file)))
-    })?;
+    current(&s, &version)?;
+    let id = cluster_of(&file)?;
+    let etag = HeaderValue::from_str(&format!("\"{version}-{id}.glb\"")).expect("ASCII");
     if let Some(answer) = not_modified(&headers, &etag) {
         return Ok(answer);
     }
-    let glb = cluster_glb(s, &file, None).await?;
+    let glb = cluster_glb(s, id, None, None).await?;
+    Ok(immutable_glb(etag, glb))
+}
+
+/// `posed/{version}/{seconds}/{cluster}.glb`: a skinned cluster posed at
+/// that time. A rigid cluster's content is the same at every time, so it
+/// has no URL here: one GLB, one URL.
+pub async fn posed(
+    State(state): State<Arc<AppState>>,
+    Segments((name, version, time, file)): Segments<(String, String, String, String)>,
+    headers: HeaderMap,
+) -> Result<Response, ApiError> {
+    let s = find(&state, &name)?;
+    current(&s, &version)?;
+    let t = seconds(&time)?;
+    let id = cluster_of(&file)?;
+    if s.tree.get_cluster(id).is_some() && s.tree.skeleton_of(id).is_none() {
+        return Err(ApiError::not_found(
+            "cluster",
+            format!("cluster {id} is not skinned: its content is content/{version}/{id}.glb"),
+        ));
+    }
+    let etag = HeaderValue::from_str(&format!("\"{version}-{t}-{id}.glb\"")).expect("ASCII");
+    if let Some(answer) = not_modified(&headers, &etag) {
+        return Ok(answer);
+    }
+    let glb = cluster_glb(s, id, Some(t), None).await?;
     Ok(immutable_glb(etag, glb))
 }
 
@@ -249,7 +290,7 @@ pub async fn content_at(
 ) -> Result<Response, ApiError> {
     let s = find(&state, &name)?;
     let t = seconds(&time)?;
-    let glb = cluster_glb(s, &file, Some(t)).await?;
+    let glb = cluster_glb(s, cluster_of(&file)?, Some(t), Some(t)).await?;
     Ok((
         [(
             axum::http::header::CONTENT_TYPE,

@@ -5,7 +5,8 @@
 //! class, storey and task (and with `--status` its task status and look at
 //! T) as per-feature properties when the tree has object tables, else
 //! `DIR/geometry/{hash}.glb` copied from the tree (flat, whatever the
-//! tree's layout: the tileset's URIs name them so). Written
+//! tree's layout: the tileset's URIs name them so); a skinned cluster's
+//! posed at T, `DIR/content/{seconds}/{cluster}.glb`. Written
 //! into a temporary sibling directory first and renamed into place, so DIR
 //! is either the old export or the whole new one.
 
@@ -57,15 +58,21 @@ enum FrameArg {
     Local,
 }
 
-fn collect(tile: &Tile, hashes: &mut BTreeSet<String>, tiles: &mut usize) {
+/// The content GLBs `tile` and its subtree name, relative to the export's
+/// directory (an external file's URIs start one directory down).
+fn collect(tile: &Tile, external: bool, files: &mut BTreeSet<String>, tiles: &mut usize) {
     *tiles += 1;
     if let Some(c) = &tile.content
-        && let Some(file) = c.uri.rsplit('/').next().filter(|f| f.ends_with(".glb"))
+        && c.uri.ends_with(".glb")
     {
-        hashes.insert(file.to_owned());
+        let uri = match external {
+            true => c.uri.strip_prefix("../").unwrap_or(&c.uri),
+            false => &c.uri,
+        };
+        files.insert(uri.to_owned());
     }
     for child in &tile.children {
-        collect(child, hashes, tiles);
+        collect(child, external, files, tiles);
     }
 }
 
@@ -83,49 +90,48 @@ fn write(
     status: bool,
 ) -> anyhow::Result<()> {
     let sub = tmp.join(SUBTILESETS);
-    let own = tree.objects.is_some();
-    let geometry = tmp.join(if own { CONTENT } else { GEOMETRY_DIR });
-    for dir in [&sub, &geometry] {
-        fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
-    }
-    let mut hashes = BTreeSet::new();
+    fs::create_dir_all(&sub).with_context(|| sub.display().to_string())?;
+    let mut files = BTreeSet::new();
     let mut tiles = 0;
     write_json(&tmp.join("tileset.json"), &slice.root)?;
-    collect(&slice.root.root, &mut hashes, &mut tiles);
+    collect(&slice.root.root, false, &mut files, &mut tiles);
     for (id, tileset) in &slice.external {
         write_json(&sub.join(format!("{id}.json")), tileset)?;
-        collect(&tileset.root, &mut hashes, &mut tiles);
+        collect(&tileset.root, true, &mut files, &mut tiles);
     }
     let default = Profile::default();
-    for file in &hashes {
-        let to = geometry.join(file);
+    for file in &files {
+        let to = tmp.join(file);
+        if let Some(dir) = to.parent() {
+            fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
+        }
+        let name = file.rsplit('/').next().unwrap_or(file).trim_end_matches(".glb");
         match &tree.objects {
             Some(tables) => {
-                let id: u32 = file
-                    .trim_end_matches(".glb")
-                    .parse()
-                    .context("content files are named by cluster")?;
+                let id: u32 = name.parse().context("content files are named by cluster")?;
                 let hash = tree
                     .geometry_of(id)
                     .context("a tile with content has geometry")?;
-                let (mesh, texture) =
-                    hdlod::io::read_textured_mesh(&tree.geometry_file(tree_dir, &hash))?;
                 let state = status.then(|| content::State {
                     profile: tables.appearance().unwrap_or(&default),
                     t: slice.time,
                 });
-                let glb = content::content(
-                    &mesh,
-                    texture.as_ref(),
-                    tree.dynamic_object(id),
+                let glb = content::cluster(
+                    tree,
                     tables,
+                    id,
+                    &tree.geometry_file(tree_dir, &hash),
+                    Some(slice.time),
                     state,
-                );
+                )?;
                 fs::write(&to, glb).with_context(|| to.display().to_string())?;
             }
+            None if file.starts_with(&format!("{CONTENT}/")) => anyhow::bail!(
+                "{file}: a skinned cluster's posed content needs the tree's object tables \
+                 (objects.json)"
+            ),
             None => {
-                let hash = file.trim_end_matches(".glb");
-                let from = tree.geometry_file(tree_dir, hash);
+                let from = tree.geometry_file(tree_dir, name);
                 fs::copy(&from, &to).with_context(|| from.display().to_string())?;
             }
         }
@@ -134,7 +140,7 @@ fn write(
         "{} tiles, {} external tilesets, {} content files",
         tiles - slice.external.len(),
         slice.external.len(),
-        hashes.len()
+        files.len()
     );
     Ok(())
 }
@@ -149,6 +155,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let options = Options {
         max_bytes: args.max_bytes,
         content: names,
+        posed_dir: format!("{CONTENT}/{t}"),
         frame: match args.frame {
             FrameArg::Earth => Frame::Earth,
             FrameArg::Local => Frame::Local,

@@ -16,7 +16,7 @@ use std::time::Duration;
 pub use library::{
     assert_matches_schema, assert_no_gltf_errors, assert_valid, checked_manifest, data,
     flatten_tree, geometry_files, gltf_reports, repo, sample_scene, saved_sample, schema,
-    schema_errors, tileset_validator,
+    schema_errors, skinned_bar, skinned_bar_scene, tileset_validator,
 };
 use reqwest::blocking::Client;
 use serde_json::Value;
