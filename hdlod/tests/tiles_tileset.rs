@@ -12,8 +12,8 @@ use std::sync::OnceLock;
 use common::{schema_errors, tileset_validator};
 use glam::{DMat4, DVec3};
 use hdlod::build::{BuildConfig, Silent, build_to};
-use hdlod::scene::{Up, format};
 use hdlod::io::gltf::read_skinned_mesh;
+use hdlod::scene::{Up, format};
 use hdlod::tiles::{
     ContentNames, DEFAULT_MAX_BYTES, Frame, Options, Tile, Tileset, TimeSlice, Y_UP_TO_Z_UP,
     root_transform, time_slice,
@@ -538,14 +538,16 @@ fn a_skinned_cluster_s_content_is_its_mesh_posed_at_the_slice_s_time() {
             std::fs::write(&file, glb).unwrap();
             let posed = hdlod::io::read_mesh(&file).unwrap();
             // The stored bind-pose mesh moved by the skeleton's matrices.
-            let (stored, vertices) =
-                read_skinned_mesh(&glb_of(id), skeleton.joints.len()).unwrap();
+            let (stored, vertices) = read_skinned_mesh(&glb_of(id), skeleton.joints.len()).unwrap();
             let mut matrices = Vec::new();
             skeleton.matrices_into(t, &mut matrices);
             let expected = vertices.pose(&stored, &matrices);
             assert_eq!(posed.positions.len(), expected.positions.len());
             for (p, q) in posed.positions.iter().zip(&expected.positions) {
-                assert!(p.distance(*q) < 1e-4, "t = {t}, cluster {id}: {p} against {q}");
+                assert!(
+                    p.distance(*q) < 1e-4,
+                    "t = {t}, cluster {id}: {p} against {q}"
+                );
             }
             // ... each a vertex of the scene's bar posed then, inside the
             // tile's box.
@@ -585,6 +587,10 @@ fn a_skinned_cluster_s_content_is_its_mesh_posed_at_the_slice_s_time() {
     let err = hdlod::tiles::content::cluster(&tree, tables, id, &glb_of(id), Some(12.0), None)
         .unwrap_err()
         .to_string();
-    let name = glb_of(id).file_name().unwrap().to_string_lossy().into_owned();
+    let name = glb_of(id)
+        .file_name()
+        .unwrap()
+        .to_string_lossy()
+        .into_owned();
     assert!(err.contains(&name) && err.contains("JOINTS_0"), "{err}");
 }

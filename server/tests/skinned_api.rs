@@ -1,15 +1,20 @@
 //! The cut answer of a tree with a skinned object: a bar bending at its
 //! middle joint beside a static box. Its clusters carry their joint
 //! matrices at the requested time; the box's carry none. The stream sends
-//! their change, and the web viewer draws the bar bent.
+//! their change, and the web viewer draws the bar bent. A 3D Tiles slice's
+//! tile of it holds its mesh posed at the slice's time.
 
 mod common;
 
 use glam::Mat4;
 use hdlod::build::{BuildConfig, Silent, build_to};
+use reqwest::StatusCode;
 use serde_json::{Value, json};
 
-use common::{Server, assert_component, browser_ready, repo, skinned_bar_scene};
+use common::{
+    Server, assert_component, assert_content_type, assert_no_gltf_errors, assert_success,
+    assert_valid, browser_ready, client, hdlod, repo, skinned_bar_scene, tileset_validator,
+};
 
 #[test]
 fn a_skinned_cluster_s_answer_carries_its_joint_matrices() {
@@ -120,7 +125,13 @@ fn the_viewer_draws_a_skinned_cluster_in_its_pose_in_chromium() {
     }
     let dir = tempfile::tempdir().unwrap();
     let tree = dir.path().join("tree");
-    build_to(&skinned_bar_scene(), &BuildConfig::default(), &tree, &Silent).unwrap();
+    build_to(
+        &skinned_bar_scene(),
+        &BuildConfig::default(),
+        &tree,
+        &Silent,
+    )
+    .unwrap();
     let server = Server::start(&tree);
     let shots = dir.path().join("shots");
     // Straight at 10 s, its top half turned 0.9 of a quarter towards the
@@ -162,5 +173,205 @@ fn the_viewer_draws_a_skinned_cluster_in_its_pose_in_chromium() {
     assert!(
         f64::from(out["diff"]["differ"].as_u64().unwrap() as u32) > 500.0,
         "{out:#}"
+    );
+}
+
+/// Every tile of a tileset with content: `(cluster, uri)`, depth first.
+fn content_tiles(tile: &Value, out: &mut Vec<(u64, String)>) {
+    if let Some(uri) = tile["content"]["uri"].as_str() {
+        out.push((tile["extras"]["cluster"].as_u64().unwrap(), uri.to_owned()));
+    }
+    for child in tile["children"].as_array().into_iter().flatten() {
+        content_tiles(child, out);
+    }
+}
+
+/// The largest distance from a vertex of `mesh` to the nearest of `to`.
+fn farthest(mesh: &hdlod::geometry::Mesh, to: &hdlod::geometry::Mesh) -> f32 {
+    mesh.positions
+        .iter()
+        .map(|p| {
+            to.positions
+                .iter()
+                .map(|q| p.distance(*q))
+                .fold(f32::INFINITY, f32::min)
+        })
+        .fold(0.0, f32::max)
+}
+
+/// A slice's skinned tile is served posed at the slice's time, under a URL
+/// of that time, and `hdlod export-tiles` writes the same; its rigid tiles
+/// name their content as before.
+#[test]
+fn a_slice_s_skinned_tile_is_its_mesh_posed_at_the_slice_s_time() {
+    let validator = tileset_validator();
+    let dir = tempfile::tempdir().unwrap();
+    let tree = dir.path().join("tree");
+    let scene = skinned_bar_scene();
+    build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
+    let server = Server::start(&tree);
+    let doc = server.get_json("/api/v1/openapi.json");
+    assert!(
+        doc["paths"]
+            .get("/api/v1/scenes/{scene}/tiles/posed/{version}/{time}/{id}.glb")
+            .is_some()
+    );
+    let http = client();
+    let tiles = |rest: &str| server.url(&format!("/api/v1/scenes/bar/tiles/{rest}"));
+    let skin = scene.objects[0].skin.as_ref().unwrap();
+    let read = |bytes: &[u8], name: &str| {
+        let file = dir.path().join(name);
+        std::fs::write(&file, bytes).unwrap();
+        (hdlod::io::read_mesh(&file).unwrap(), file)
+    };
+    let mut posed = Vec::new();
+    let mut files = Vec::new();
+    let mut rigid_uris = Vec::new();
+    let mut skinned_id = 0;
+    let mut version = String::new();
+    for t in [12.0, 19.0] {
+        let tileset: Value = http
+            .get(tiles(&format!("{t}.json")))
+            .send()
+            .unwrap()
+            .json()
+            .unwrap();
+        if let Some(v) = &validator {
+            assert_valid(v, &tileset, &format!("the slice at {t} s"));
+        }
+        let mut named = Vec::new();
+        content_tiles(&tileset["root"], &mut named);
+        let (skinned, rigid): (Vec<_>, Vec<_>) = named
+            .into_iter()
+            .partition(|(_, uri)| uri.starts_with("posed/"));
+        // The finest level of the bar: the one with the most vertices.
+        let mut best: Option<(hdlod::geometry::Mesh, u64)> = None;
+        for (id, uri) in &skinned {
+            let parts: Vec<&str> = uri.split('/').collect();
+            assert_eq!(parts[2..], [t.to_string(), format!("{id}.glb")], "{uri}");
+            version = parts[1].to_owned();
+            let answer = http.get(tiles(uri)).send().unwrap();
+            assert_eq!(answer.status(), StatusCode::OK, "{uri}");
+            assert_content_type(&answer, "model/gltf-binary");
+            let cache = answer.headers()["cache-control"]
+                .to_str()
+                .unwrap()
+                .to_owned();
+            assert!(cache.contains("immutable"), "{cache}");
+            let etag = answer.headers()["etag"].clone();
+            let glb = answer.bytes().unwrap();
+            let again = http
+                .get(tiles(uri))
+                .header("If-None-Match", etag)
+                .send()
+                .unwrap();
+            assert_eq!(again.status(), StatusCode::NOT_MODIFIED, "{uri}");
+            let (mesh, file) = read(&glb, &format!("{t}-{id}.glb"));
+            // Every vertex is one of the scene's bar posed at t.
+            let far = farthest(&mesh, &skin.pose(&scene.meshes[1], t));
+            assert!(far < 1e-4, "{uri}: {far} from the posed bar");
+            files.push(file);
+            if best
+                .as_ref()
+                .is_none_or(|b| b.0.positions.len() < mesh.positions.len())
+            {
+                best = Some((mesh, *id));
+            }
+        }
+        let (mesh, id) = best.unwrap_or_else(|| panic!("no skinned tile at {t}: {tileset}"));
+        skinned_id = id;
+        posed.push(mesh);
+        // Rigid tiles name the same content at every date, as before.
+        assert!(!rigid.is_empty(), "the box at {t}");
+        for (id, uri) in &rigid {
+            assert_eq!(*uri, format!("content/{version}/{id}.glb"));
+        }
+        rigid_uris.push(rigid);
+    }
+    assert_eq!(rigid_uris[0], rigid_uris[1]);
+    assert!(
+        farthest(&posed[0], &posed[1]) > 0.5,
+        "the bar's top turned between the two times"
+    );
+    let reports = assert_no_gltf_errors(&files);
+    for report in &reports {
+        // Plain glTF: no skin for a client to apply a second time.
+        assert_eq!(report["info"]["hasSkins"], false, "{report}");
+        assert_eq!(report["info"]["maxInfluences"], 0, "{report}");
+    }
+
+    // With state, the skinned tile's content is the slice's own, posed too.
+    let status: Value = http
+        .get(tiles("19.json?status=true"))
+        .send()
+        .unwrap()
+        .json()
+        .unwrap();
+    let mut named = Vec::new();
+    content_tiles(&status["root"], &mut named);
+    let uri = format!("19/content/{skinned_id}.glb");
+    assert!(named.iter().any(|(_, u)| *u == uri), "{named:?}");
+    let answer = http.get(tiles(&uri)).send().unwrap();
+    assert_eq!(answer.status(), StatusCode::OK, "{uri}");
+    let (mesh, _) = read(&answer.bytes().unwrap(), "status.glb");
+    assert_eq!(mesh.positions, posed[1].positions);
+
+    // The export writes it where its tileset names it.
+    let out = dir.path().join("export");
+    assert_success(&hdlod(&[
+        "export-tiles".as_ref(),
+        tree.as_os_str(),
+        "--time".as_ref(),
+        "19".as_ref(),
+        "--out".as_ref(),
+        out.as_os_str(),
+    ]));
+    let exported: Value =
+        serde_json::from_slice(&std::fs::read(out.join("tileset.json")).unwrap()).unwrap();
+    let mut named = Vec::new();
+    content_tiles(&exported["root"], &mut named);
+    let uri = format!("content/19/{skinned_id}.glb");
+    assert!(named.iter().any(|(_, u)| *u == uri), "{named:?}");
+    let mesh = hdlod::io::read_mesh(&out.join(&uri)).unwrap();
+    assert_eq!(mesh.positions, posed[1].positions);
+
+    // Bad times and clusters get a 4xx naming the field.
+    let error = |rest: &str, status: StatusCode, field: &str| {
+        let answer = http.get(tiles(rest)).send().unwrap();
+        assert_eq!(answer.status(), status, "{rest}");
+        let body: Value = answer.json().unwrap();
+        assert_eq!(body["error"]["field"], field, "{rest}: {body}");
+    };
+    let id = skinned_id;
+    error(
+        &format!("posed/{version}/soon/{id}.glb"),
+        StatusCode::NOT_FOUND,
+        "time",
+    );
+    error(
+        &format!("posed/{version}/1e300/{id}.glb"),
+        StatusCode::BAD_REQUEST,
+        "time",
+    );
+    error(
+        &format!("posed/{version}/inf/{id}.glb"),
+        StatusCode::NOT_FOUND,
+        "time",
+    );
+    error(
+        &format!("posed/0123456789abcdef/12/{id}.glb"),
+        StatusCode::NOT_FOUND,
+        "version",
+    );
+    error(
+        &format!("posed/{version}/12/x.glb"),
+        StatusCode::NOT_FOUND,
+        "cluster",
+    );
+    let (rigid, _) = &rigid_uris[0][0];
+    error(
+        &format!("posed/{version}/12/{rigid}.glb"),
+        StatusCode::NOT_FOUND,
+        "cluster",
     );
 }

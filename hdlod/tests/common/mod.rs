@@ -13,8 +13,7 @@ use hdlod::geometry::skin::Skin;
 use hdlod::scene::appearance::Look;
 use hdlod::scene::{
     Actual, Geographic, Georeference, Instant, Joint, Keyframe, LinkType, Motion, Object,
-    ObjectSkin, Predecessor, Profile, Scene, ScheduleOptions, Span, Task, TaskType, Up,
-    Visibility,
+    ObjectSkin, Predecessor, Profile, Scene, ScheduleOptions, Span, Task, TaskType, Up, Visibility,
 };
 use hdlod::time::{TimeSpan, parse_date};
 

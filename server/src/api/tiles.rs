@@ -188,7 +188,9 @@ fn seconds(time: &str) -> Result<f64, ApiError> {
 fn cluster_of(file: &str) -> Result<u32, ApiError> {
     file.strip_suffix(".glb")
         .and_then(|id| id.parse().ok())
-        .ok_or_else(|| ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(file))))
+        .ok_or_else(|| {
+            ApiError::not_found("cluster", format!("{} is not CLUSTER.glb", quote(file)))
+        })
 }
 
 /// The GLB of cluster `id`: a skinned cluster posed at `pose`, with the

@@ -105,7 +105,11 @@ fn write(
         if let Some(dir) = to.parent() {
             fs::create_dir_all(dir).with_context(|| dir.display().to_string())?;
         }
-        let name = file.rsplit('/').next().unwrap_or(file).trim_end_matches(".glb");
+        let name = file
+            .rsplit('/')
+            .next()
+            .unwrap_or(file)
+            .trim_end_matches(".glb");
         match &tree.objects {
             Some(tables) => {
                 let id: u32 = name.parse().context("content files are named by cluster")?;
