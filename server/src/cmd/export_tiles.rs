@@ -65,9 +65,10 @@ fn collect(tile: &Tile, external: bool, files: &mut BTreeSet<String>, tiles: &mu
     if let Some(c) = &tile.content
         && c.uri.ends_with(".glb")
     {
-        let uri = match external {
-            true => c.uri.strip_prefix("../").unwrap_or(&c.uri),
-            false => &c.uri,
+        let uri = if external {
+            c.uri.strip_prefix("../").unwrap_or(&c.uri)
+        } else {
+            &c.uri
         };
         files.insert(uri.to_owned());
     }
