@@ -8,29 +8,47 @@ mod common;
 
 use glam::Mat4;
 use hdlod::build::{BuildConfig, Silent, build_to};
+use hdlod::scene::Scene;
 use reqwest::StatusCode;
 use serde_json::{Value, json};
 
 use common::{
     Server, assert_component, assert_content_type, assert_no_gltf_errors, assert_success,
-    assert_valid, browser_ready, client, hdlod, repo, skinned_bar_scene, tileset_validator,
+    assert_valid, browser_driver, browser_ready, client, hdlod, skinned_bar_scene,
+    tileset_validator,
 };
 
-#[test]
-fn a_skinned_cluster_s_answer_carries_its_joint_matrices() {
+/// The skinned bar's scene, its tree built in a temporary directory (also
+/// kept there for other files) and served.
+fn served_bar() -> (tempfile::TempDir, Scene, Server) {
     let dir = tempfile::tempdir().unwrap();
     let tree = dir.path().join("tree");
     let scene = skinned_bar_scene();
     build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
     let server = Server::start(&tree);
-    let doc = server.get_json("/api/v1/openapi.json");
+    (dir, scene, server)
+}
+
+/// The cut request of the bar's tests at `t`.
+fn view(t: f64) -> Value {
+    json!({"time": t,
+        "camera": {"position": [0.0, 2.0, 12.0], "target": [-1.0, 2.0, 0.0]},
+        "viewport": {"width": 1280, "height": 720}, "pixel_error": 1.0})
+}
+
+/// The bar's joint matrices at `t`, as the answers write them.
+fn matrices(scene: &Scene, t: f64) -> Vec<[f32; 16]> {
     let skin = scene.objects[0].skin.as_ref().unwrap();
+    skin.matrices(t).iter().map(Mat4::to_cols_array).collect()
+}
+
+#[test]
+fn a_skinned_cluster_s_answer_carries_its_joint_matrices() {
+    let (_dir, scene, server) = served_bar();
+    let doc = server.get_json("/api/v1/openapi.json");
     let mut answers = Vec::new();
     for t in [12.0, 19.0] {
-        let body = json!({"time": t,
-            "camera": {"position": [0.0, 2.0, 12.0], "target": [-1.0, 2.0, 0.0]},
-            "viewport": {"width": 1280, "height": 720}, "pixel_error": 1.0});
-        let cut = server.post_json("/api/v1/scenes/bar/cut", &body);
+        let cut = server.post_json("/api/v1/scenes/bar/cut", &view(t));
         assert_component(&doc, "CutResponse", &cut);
         let clusters = cut["clusters"].as_array().unwrap();
         let skinned: Vec<&Value> = clusters
@@ -38,9 +56,8 @@ fn a_skinned_cluster_s_answer_carries_its_joint_matrices() {
             .filter(|c| c.get("joints").is_some())
             .collect();
         assert_eq!(skinned.len(), 1, "the bar, once: {cut}");
-        let expected: Vec<[f32; 16]> = skin.matrices(t).iter().map(Mat4::to_cols_array).collect();
         let got: Vec<[f32; 16]> = serde_json::from_value(skinned[0]["joints"].clone()).unwrap();
-        assert_eq!(got, expected, "at {t}");
+        assert_eq!(got, matrices(&scene, t), "at {t}");
         assert_eq!(skinned[0]["class"], "dynamic");
         // The box is drawn, and rigid.
         assert!(clusters.iter().any(|c| c["class"] == "static"), "{cut}");
@@ -59,23 +76,12 @@ fn the_stream_sends_a_kept_skinned_cluster_s_new_joints() {
     use futures_util::{SinkExt, StreamExt};
     use tokio_tungstenite::tungstenite::Message;
 
-    let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("tree");
-    let scene = skinned_bar_scene();
-    build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
-    let server = Server::start(&tree);
+    let (_dir, scene, server) = served_bar();
     let doc = server.get_json("/api/v1/openapi.json");
-    let skin = scene.objects[0].skin.as_ref().unwrap();
     let ws_url = server
         .url("/api/v1/scenes/bar/stream")
         .replace("http://", "ws://");
-    let view = |t: f64| {
-        json!({"time": t,
-            "camera": {"position": [0.0, 2.0, 12.0], "target": [-1.0, 2.0, 0.0]},
-            "viewport": {"width": 1280, "height": 720}, "pixel_error": 1.0})
-    };
-    let matrices =
-        |t: f64| -> Vec<[f32; 16]> { skin.matrices(t).iter().map(Mat4::to_cols_array).collect() };
+    let matrices = |t: f64| matrices(&scene, t);
     tokio::runtime::Runtime::new().unwrap().block_on(async {
         let (mut socket, _) = tokio_tungstenite::connect_async(&ws_url).await.unwrap();
         let mut ask = async |t: f64| -> Value {
@@ -123,35 +129,20 @@ fn the_viewer_draws_a_skinned_cluster_in_its_pose_in_chromium() {
     if !browser_ready() {
         return;
     }
-    let dir = tempfile::tempdir().unwrap();
-    let tree = dir.path().join("tree");
-    build_to(
-        &skinned_bar_scene(),
-        &BuildConfig::default(),
-        &tree,
-        &Silent,
-    )
-    .unwrap();
-    let server = Server::start(&tree);
+    let (dir, _scene, server) = served_bar();
     let shots = dir.path().join("shots");
     // Straight at 10 s, its top half turned 0.9 of a quarter towards the
     // camera at 19 s.
-    let run = std::process::Command::new("node")
-        .arg(repo().join("tools/browser/skinned.mjs"))
-        .args([server.base.as_str(), "bar"])
-        .arg(&shots)
-        .args(["10", "19"])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "driver failed: {}\n{stdout}",
-        String::from_utf8_lossy(&run.stderr)
+    let out = browser_driver(
+        "skinned.mjs",
+        &[
+            server.base.as_ref(),
+            "bar".as_ref(),
+            shots.as_os_str(),
+            "10".as_ref(),
+            "19".as_ref(),
+        ],
     );
-    let out: Value = serde_json::from_str(stdout.trim())
-        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
-    assert_eq!(out["errors"], json!([]), "{out:#}");
     let (straight, bent) = (&out["shots"][0], &out["shots"][1]);
     // The same clusters at both times: only the pose moved the pixels.
     assert_eq!(straight["ids"], bent["ids"], "{out:#}");
@@ -205,11 +196,8 @@ fn farthest(mesh: &hdlod::geometry::Mesh, to: &hdlod::geometry::Mesh) -> f32 {
 #[test]
 fn a_slice_s_skinned_tile_is_its_mesh_posed_at_the_slice_s_time() {
     let validator = tileset_validator();
-    let dir = tempfile::tempdir().unwrap();
+    let (dir, scene, server) = served_bar();
     let tree = dir.path().join("tree");
-    let scene = skinned_bar_scene();
-    build_to(&scene, &BuildConfig::default(), &tree, &Silent).unwrap();
-    let server = Server::start(&tree);
     let doc = server.get_json("/api/v1/openapi.json");
     assert!(
         doc["paths"]

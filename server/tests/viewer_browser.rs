@@ -14,8 +14,8 @@ use std::path::Path;
 use std::process::{Command, Stdio};
 
 use common::{
-    SCENE, Server, assert_content_type, assert_success, assert_valid, browser_ready, build_tree,
-    hdlod, repo, schema,
+    SCENE, Server, assert_content_type, assert_success, assert_valid, browser_driver,
+    browser_ready, build_tree, hdlod, repo, schema,
 };
 use serde_json::Value;
 
@@ -109,21 +109,10 @@ fn the_viewer_draws_the_schedule_in_chromium() {
         .and_then(Path::parent)
         .unwrap()
         .join("browser-screenshots/viewer");
-    let run = Command::new("node")
-        .arg(repo().join("tools/browser/viewer.mjs"))
-        .args([base, SCENE])
-        .arg(&shots)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "driver failed: {}\n{stdout}",
-        String::from_utf8_lossy(&run.stderr)
+    let out = browser_driver(
+        "viewer.mjs",
+        &[base.as_ref(), SCENE.as_ref(), shots.as_os_str()],
     );
-    let out: Value = serde_json::from_str(stdout.trim())
-        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
-    assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
     assert_eq!(out["hasStats"], true);
 
     // The site pad, 25 cm over the ground, keeps its pixels at two and four
@@ -428,21 +417,10 @@ fn the_viewer_reviews_the_schedule_in_chromium() {
         .and_then(Path::parent)
         .unwrap()
         .join("browser-screenshots/review");
-    let run = Command::new("node")
-        .arg(repo().join("tools/browser/review.mjs"))
-        .args([server.base.as_str(), SCENE])
-        .arg(&shots)
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "driver failed: {}\n{stdout}",
-        String::from_utf8_lossy(&run.stderr)
+    let out = browser_driver(
+        "review.mjs",
+        &[server.base.as_ref(), SCENE.as_ref(), shots.as_os_str()],
     );
-    let out: Value = serde_json::from_str(stdout.trim())
-        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
-    assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
     let schedule = server.get_json(&format!("/api/v1/scenes/{SCENE}/schedule"));
     assert_eq!(
         f(&out["tasks"]),
@@ -781,20 +759,10 @@ fn the_viewer_loads_every_cluster_of_a_large_cut_in_chromium() {
         tree.as_os_str(),
     ]));
     let server = Server::start(&tree);
-    let run = Command::new("node")
-        .arg(repo().join("tools/browser/loads.mjs"))
-        .args([server.base.as_str(), "skyscraper-small", "2024-12-01"])
-        .output()
-        .unwrap();
-    let stdout = String::from_utf8_lossy(&run.stdout);
-    assert!(
-        run.status.success(),
-        "driver failed: {}\n{stdout}",
-        String::from_utf8_lossy(&run.stderr)
+    let out = browser_driver(
+        "loads.mjs",
+        &[server.base.as_str(), "skyscraper-small", "2024-12-01"],
     );
-    let out: Value = serde_json::from_str(stdout.trim())
-        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
-    assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
     let (before, after, requests) = (&out["before"], &out["after"], &out["requests"]);
     let added = f(&after["clusters"]) - f(&before["clusters"]);
     assert!(

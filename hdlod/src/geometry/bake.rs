@@ -923,6 +923,17 @@ mod tests {
         panic!("{p} is not on the quad");
     }
 
+    /// How the tests sample `chart`: texels of `texel`, the source within
+    /// 5 cm of it.
+    fn sampling(chart: &Chart, texel: f32) -> Sampling<'_> {
+        Sampling {
+            chart,
+            texel,
+            reach: 0.05,
+            row: chart.texels(texel)[0],
+        }
+    }
+
     fn options(texel: f32, max_size: u32) -> BakeOptions {
         BakeOptions {
             texel,
@@ -1088,12 +1099,7 @@ mod tests {
         for texel in [0.013, 0.07, 0.3] {
             let size = chart.texels(texel);
             let filled = surface.sample(chart, size, texel, 0.05);
-            let at = Sampling {
-                chart,
-                texel,
-                reach: 0.05,
-                row: size[0],
-            };
+            let at = sampling(chart, texel);
             for j in 0..size[1] {
                 for i in 0..size[0] {
                     let one = surface.texel_average(&at, i, j, &mut None).unwrap();
@@ -1120,12 +1126,7 @@ mod tests {
         // 0.6, the wall below the border at 0.5 and the band above it.
         let texel = 0.3;
         let size = chart.texels(texel);
-        let at = Sampling {
-            chart,
-            texel,
-            reach: 0.05,
-            row: size[0],
-        };
+        let at = sampling(chart, texel);
         let row = (0..size[1])
             .find(|&j| {
                 let p = chart.point(5.0, j as f32 + 0.5, texel);
@@ -1194,12 +1195,7 @@ mod tests {
                 let surface = Surface::new(&sources).unwrap();
                 let chart = &charts(&proxy, &[0, 1])[0];
                 let size = chart.texels(texel);
-                let at = Sampling {
-                    chart,
-                    texel,
-                    reach: 0.05,
-                    row: size[0],
-                };
+                let at = sampling(chart, texel);
                 // The texel in the middle of the wall whose square holds
                 // the strip's start, and the share of its square the strip
                 // covers.

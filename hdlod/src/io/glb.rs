@@ -685,26 +685,8 @@ impl GlbBuilder {
         min_max: Option<(Vec<f32>, Vec<f32>)>,
     ) -> json::Index<json::Accessor> {
         let view = self.push_view(bytes, None);
-        let (min, max) = match min_max {
-            Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
-            None => (None, None),
-        };
-        self.root.push(json::Accessor {
-            buffer_view: Some(view),
-            byte_offset: None,
-            count: USize64::from(count),
-            component_type: Valid(json::accessor::GenericComponentType(
-                json::accessor::ComponentType::F32,
-            )),
-            extensions: None,
-            extras: None,
-            type_: Valid(kind),
-            min,
-            max,
-            name: None,
-            normalized: false,
-            sparse: None,
-        })
+        let f32 = json::accessor::ComponentType::F32;
+        self.accessor_on(view, count, kind, f32, min_max)
     }
 
     /// Gives `node` the skin `skin`.
@@ -775,6 +757,18 @@ impl GlbBuilder {
     ) -> json::Index<json::Accessor> {
         // Every attribute is 4-byte components, so the buffer stays aligned.
         let view = self.push_view(bytes, Some(Valid(target)));
+        self.accessor_on(view, count, kind, component, min_max)
+    }
+
+    /// An accessor of `count` elements from the start of `view`.
+    fn accessor_on(
+        &mut self,
+        view: json::Index<json::buffer::View>,
+        count: usize,
+        kind: json::accessor::Type,
+        component: json::accessor::ComponentType,
+        min_max: Option<(Vec<f32>, Vec<f32>)>,
+    ) -> json::Index<json::Accessor> {
         let (min, max) = match min_max {
             Some((lo, hi)) => (Some(json::Value::from(lo)), Some(json::Value::from(hi))),
             None => (None, None),

@@ -202,15 +202,24 @@ impl Joint {
     }
 }
 
+/// Appends the joint matrices at `t` to `out`: each joint's world transform
+/// after its inverse bind matrix (glTF 2.0 section 3.7.3).
+pub fn joint_matrices_into(joints: &[Joint], inverse_bind: &[Mat4], t: f64, out: &mut Vec<Mat4>) {
+    out.extend(
+        joints
+            .iter()
+            .zip(inverse_bind)
+            .map(|(j, inverse)| j.pose(t) * *inverse),
+    );
+}
+
 impl ObjectSkin {
     /// The joint matrices at `t`: each joint's world transform after its
     /// inverse bind matrix.
     pub fn matrices(&self, t: f64) -> Vec<Mat4> {
-        self.joints
-            .iter()
-            .zip(&self.inverse_bind)
-            .map(|(j, inverse)| j.pose(t) * *inverse)
-            .collect()
+        let mut out = Vec::with_capacity(self.joints.len());
+        joint_matrices_into(&self.joints, &self.inverse_bind, t, &mut out);
+        out
     }
 
     /// True when some joint's pose changes over time.

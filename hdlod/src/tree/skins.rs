@@ -15,7 +15,7 @@ use serde::{Deserialize, Serialize};
 use super::format::KeyframeRecord;
 use super::{ClusterClass, Tree};
 use crate::error::{Error, Result};
-use crate::scene::{Joint, Keyframe, ObjectSkin};
+use crate::scene::{Joint, Keyframe, ObjectSkin, joint_matrices_into};
 
 /// What the cut needs to pose a skinned cluster: the joints' world
 /// transforms over time and their inverse bind matrices (glTF 2.0 section
@@ -39,12 +39,7 @@ impl Skeleton {
     /// transform after its inverse bind matrix, as
     /// [`ObjectSkin::matrices`] makes them.
     pub fn matrices_into(&self, t: f64, out: &mut Vec<Mat4>) {
-        out.extend(
-            self.joints
-                .iter()
-                .zip(&self.inverse_bind)
-                .map(|(j, inverse)| j.pose(t) * *inverse),
-        );
+        joint_matrices_into(&self.joints, &self.inverse_bind, t, out);
     }
 }
 

@@ -281,6 +281,27 @@ impl Drop for Server {
     }
 }
 
+/// Runs the browser driver `tools/browser/{script}` with `args` and answers
+/// the JSON object it prints, once it exited cleanly and its page reported
+/// no errors (its `errors` list empty).
+pub fn browser_driver<S: AsRef<OsStr>>(script: &str, args: &[S]) -> Value {
+    let run = Command::new("node")
+        .arg(repo().join("tools/browser").join(script))
+        .args(args)
+        .output()
+        .unwrap();
+    let stdout = String::from_utf8_lossy(&run.stdout);
+    assert!(
+        run.status.success(),
+        "driver failed: {}\n{stdout}",
+        String::from_utf8_lossy(&run.stderr)
+    );
+    let out: Value = serde_json::from_str(stdout.trim())
+        .unwrap_or_else(|e| panic!("driver output is not JSON ({e}): {stdout}"));
+    assert_eq!(out["errors"], serde_json::json!([]), "{out:#}");
+    out
+}
+
 /// Whether the browser tests can run: chromium (`HDLOD_CHROMIUM`, else
 /// `/usr/bin/chromium`), node and `tools/node_modules/playwright-core`. When
 /// one is missing the test says so loudly and passes, unless
