@@ -5,6 +5,7 @@ pub mod bake;
 mod closest;
 mod color_bound;
 mod distance;
+mod ellipsoid;
 mod features;
 mod hausdorff;
 pub mod measure;

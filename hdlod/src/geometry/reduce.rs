@@ -29,6 +29,7 @@ use glam::Vec3;
 
 use super::Mesh;
 use super::color_bound::{ColoredSet, ErrorMetric, bound_within};
+use super::ellipsoid::{Shape, off_ellipsoid, push_ellipsoid};
 use super::proxy::{Look, part_bounds, part_look, parts, push_box, push_quad, push_triangles};
 use super::simplify::{SimplifyOptions, Strategy, edge_collapse_placed, simplify};
 
@@ -82,6 +83,9 @@ struct PartState {
     lo: Vec3,
     hi: Vec3,
     look: Look,
+    /// How far the part lies off the ellipsoid in its box
+    /// (`ellipsoid::off_ellipsoid`).
+    off_ellipsoid: f32,
     tried: Vec<Tried>,
 }
 
@@ -94,6 +98,8 @@ enum Candidate {
     Simplified(u32),
     /// Edge collapse with vertex placement to this many triangles.
     Placed(usize),
+    /// A polytope over the part's box (`ellipsoid`).
+    Ellipsoid(Shape),
 }
 
 /// What measuring a candidate found.
@@ -189,6 +195,22 @@ impl PartState {
                 self.try_candidate(Candidate::Quad, proxy(push_quad), budget, tolerance, metric)
             })
             .flatten();
+        // A round part: the fewest triangles of the polytopes that fit,
+        // before its box, which stands farther off it than the octahedron.
+        if reduced.is_none() && budget > 0.0 && self.off_ellipsoid <= budget {
+            for shape in Shape::ALL.into_iter().filter(|s| s.triangles() < n) {
+                let polytope = move |_: &mut PartState| {
+                    let mut proxy = Mesh::default();
+                    push_ellipsoid(&mut proxy, lo, hi, look, shape);
+                    Some(proxy)
+                };
+                let candidate = Candidate::Ellipsoid(shape);
+                reduced = self.try_candidate(candidate, polytope, budget, tolerance, metric);
+                if reduced.is_some() {
+                    break;
+                }
+            }
+        }
         if reduced.is_none() && budget > 0.0 && n > BOX_TRIANGLES {
             reduced = self
                 .try_candidate(Candidate::Box, proxy(push_box), budget, tolerance, metric)
@@ -274,6 +296,7 @@ impl<M: Borrow<Mesh>> Parts<M> {
                 let (lo, hi) = part_bounds(whole, &triangles);
                 let look = part_look(whole, &triangles);
                 PartState {
+                    off_ellipsoid: off_ellipsoid(input.positions.iter().copied(), lo, hi),
                     input,
                     welded: None,
                     lo,
