@@ -859,9 +859,10 @@ fn the_viewer_resumes_its_view_after_the_server_restarts_in_chromium() {
 /// 1 px and at full detail, the report following its schema, full detail
 /// drawing leaves only and more triangles than the cut, the pictures kept.
 /// `hdlod bench image --json` on `tree` at 640x360, pictures in `pictures`,
-/// each pixel `supersample` device pixels a side.
-fn bench_image(tree: &Path, pictures: &Path, supersample: u32) -> Value {
-    let supersample = supersample.to_string();
+/// each pixel `supersample` device pixels a side, each picture the mean of
+/// `jitter` x `jitter` frames.
+fn bench_image(tree: &Path, pictures: &Path, supersample: u32, jitter: u32) -> Value {
+    let (supersample, jitter) = (supersample.to_string(), jitter.to_string());
     let out = hdlod(&[
         "bench".as_ref(),
         "image".as_ref(),
@@ -875,6 +876,8 @@ fn bench_image(tree: &Path, pictures: &Path, supersample: u32) -> Value {
         pictures.as_os_str(),
         "--supersample".as_ref(),
         supersample.as_ref(),
+        "--jitter".as_ref(),
+        jitter.as_ref(),
         "--tools".as_ref(),
         repo().join("tools").as_os_str(),
     ]);
@@ -896,7 +899,7 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
     let dir = tempfile::tempdir().unwrap();
     let tree = build_tree(dir.path());
     let pictures = dir.path().join("pictures");
-    let report = bench_image(&tree, &pictures, 1);
+    let report = bench_image(&tree, &pictures, 1, 1);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(cells.len(), 12);
     let mut differs = 0;
@@ -934,10 +937,13 @@ fn hdlod_bench_image_compares_the_cut_with_full_detail() {
     let without = report;
     // Two device pixels a side: the viewer's pixel error is scaled with
     // them, so the cut is the same, and moving by one device pixel is half
-    // a pixel, which changes fewer pixels than a whole one.
-    let report = bench_image(&baked, &dir.path().join("baked-pictures"), 2);
+    // a pixel, which changes fewer pixels than a whole one. Each picture
+    // the mean of 2 x 2 frames moved within a device pixel (the viewer's
+    // `accumulate`).
+    let report = bench_image(&baked, &dir.path().join("baked-pictures"), 2, 2);
     let cells = report["cells"].as_array().unwrap();
     assert_eq!(report["supersample"], 2);
+    assert_eq!(report["jitter"], 2);
     for (a, b) in cells.iter().zip(without["cells"].as_array().unwrap()) {
         assert_eq!(a["cut"]["clusters"], b["cut"]["clusters"], "{a}");
         assert_eq!(f(&a["shifted"]["pixels"]), 0.5);

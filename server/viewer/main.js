@@ -13,7 +13,7 @@
 import { Camera, FOV_Y_DEG } from "./camera.js";
 import { Renderer, classColour, levelColour } from "./renderer.js";
 import { CutConnection, GeometryCache } from "./stream.js";
-import { project } from "./mat4.js";
+import { multiply, project } from "./mat4.js";
 import { FeatureState } from "./featurestate.js";
 import { ObjectPanel, objectField, searchObjects } from "./objects.js";
 import { PHASES, TASK_TYPES, running, parseProfile } from "./appearance.js";
@@ -813,6 +813,41 @@ function testHook() {
         ms.push(performance.now() - start);
       }
       return ms;
+    },
+    // Test only: the canvas averaged over frames drawn with the projection
+    // moved by each of `offsets` ([dx, dy], device pixels), as a PNG in
+    // base64, rows from the top like a screenshot. More samples a pixel
+    // than multisampling gives, for the image benchmark's pictures of
+    // sub-pixel detail (at most 257 frames: the sums are 16-bit).
+    accumulate: async (offsets) => {
+      const [width, height] = viewportSize();
+      const gl = renderer.gl;
+      const m = viewer.matrices;
+      const frame = new Uint8Array(4 * width * height);
+      const sum = new Uint16Array(4 * width * height);
+      uploadFeatureState();
+      for (const [dx, dy] of offsets) {
+        const shift = new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, (2 * dx) / width, (2 * dy) / height, 0, 1]);
+        const moved = { ...m, viewProj: multiply(shift, m.viewProj) };
+        renderer.draw(drawItems(), moved, width, height, viewer.features.isolating(), viewer.colours.translucent > 0);
+        gl.readPixels(0, 0, width, height, gl.RGBA, gl.UNSIGNED_BYTE, frame);
+        for (let i = 0; i < frame.length; i++) sum[i] += frame[i];
+      }
+      viewer.needsDraw = true;
+      const image = new ImageData(width, height);
+      const n = offsets.length;
+      for (let y = 0; y < height; y++) {
+        // readPixels' rows run from the bottom.
+        const from = 4 * (height - 1 - y) * width;
+        const to = 4 * y * width;
+        for (let i = 0; i < 4 * width; i++) image.data[to + i] = (i & 3) === 3 ? 255 : Math.round(sum[from + i] / n);
+      }
+      const canvas = new OffscreenCanvas(width, height);
+      canvas.getContext("2d").putImageData(image, 0, 0);
+      const png = new Uint8Array(await (await canvas.convertToBlob({ type: "image/png" })).arrayBuffer());
+      let text = "";
+      for (let i = 0; i < png.length; i += 0x8000) text += String.fromCharCode(...png.subarray(i, i + 0x8000));
+      return btoa(text);
     },
     setColourMode: (m) => setColourMode(m),
     // The tasks of feature i, by index into the schedule.

@@ -1,5 +1,5 @@
 // What the eye sees of the cut, for `hdlod bench image` (server/src/cmd/bench_image.rs):
-//   node tools/browser/image.mjs BASE_URL SCENE WIDTH HEIGHT PIXEL_ERROR OUT_DIR [SUPERSAMPLE]
+//   node tools/browser/image.mjs BASE_URL SCENE WIDTH HEIGHT PIXEL_ERROR OUT_DIR [SUPERSAMPLE [JITTER]]
 // renders each cell of table 2 (the start, 1/3, 2/3 and end of the period;
 // the camera of the table at 1, 2 and 4 times the distance where the scene
 // fills the view) twice in the web viewer: the cut at PIXEL_ERROR, and full
@@ -13,7 +13,11 @@
 // SUPERSAMPLE n (default 1) renders at n x n device pixels per pixel, the
 // pixel error scaled to match (the same cut), and averages each n x n
 // block before comparing: more samples per pixel than the GPU's
-// multisampling gives, for pixels that show sub-pixel detail. Each cell
+// multisampling gives, for pixels that show sub-pixel detail. JITTER m
+// (default 1) draws each picture m x m times, the projection moved by a
+// stratified offset within a device pixel each time, and averages them
+// (the viewer's `accumulate`): m^2 times the samples again, so that both
+// pictures come close to what they would converge to. Each cell
 // also compares full detail with itself moved by one device pixel (1/n of
 // a pixel) across: how much of the measure a displacement that small
 // makes alone, the floor a cut whose every point is within its error of
@@ -23,17 +27,21 @@ import { join } from "node:path";
 import { launch } from "./launch.mjs";
 import { BACKGROUND, canvasShot, hook, settle } from "./page.mjs";
 
-const [base, scene, width, height, pixelError, outDir, samples = "1"] = process.argv.slice(2);
+const [base, scene, width, height, pixelError, outDir, samples = "1", jitters = "1"] = process.argv.slice(2);
 if (!outDir) {
-  console.error("usage: node image.mjs BASE_URL SCENE WIDTH HEIGHT PIXEL_ERROR OUT_DIR [SUPERSAMPLE]");
+  console.error("usage: node image.mjs BASE_URL SCENE WIDTH HEIGHT PIXEL_ERROR OUT_DIR [SUPERSAMPLE [JITTER]]");
   process.exit(2);
 }
 const supersample = Number(samples);
+const jitter = Number(jitters);
+// The centres of an m x m grid over a device pixel, around its centre.
+const offsets = [];
+for (let b = 0; b < jitter; b++) for (let a = 0; a < jitter; a++) offsets.push([(a + 0.5) / jitter - 0.5, (b + 0.5) / jitter - 0.5]);
 mkdirSync(outDir, { recursive: true });
 const FULL_DETAIL = 1e-6;
 const SCREENS = [["1/1", 1], ["1/4", 2], ["1/16", 4]];
 const TIMES = [["start", 0], ["1/3", 1 / 3], ["2/3", 2 / 3], ["end", 1]];
-const out = { width: Number(width), height: Number(height), pixelError: Number(pixelError), supersample, cells: [], errors: [] };
+const out = { width: Number(width), height: Number(height), pixelError: Number(pixelError), supersample, jitter, cells: [], errors: [] };
 
 // Two canvas pictures compared over the scene's pixels, decoded by the
 // page; each averaged over blocks of n x n device pixels, the second first
@@ -94,7 +102,7 @@ try {
   const render = async (pe, name) => {
     await hook(page, (v, p) => v.setPixelError(p), pe);
     const s = await settle(page);
-    const png = await canvasShot(page);
+    const png = jitter > 1 ? Buffer.from(await hook(page, (v, o) => v.accumulate(o), offsets), "base64") : await canvasShot(page);
     writeFileSync(join(outDir, `${name}.png`), png);
     return { png, ids: s.ids, triangles: s.triangles, clusters: s.clusters, leaves: s.leafClusters, bytes: s.cutBytes, textureBytes: s.cutTextureBytes };
   };

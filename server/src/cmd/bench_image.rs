@@ -9,7 +9,9 @@
 //! tree's files, those of the same GLBs in the plain form
 //! (`?encoding=plain`); the header gives both for the whole tree.
 //! `--supersample N` renders N x N device pixels to a pixel and averages
-//! them (the same cut: the viewer's pixel error is scaled to match). Each
+//! them (the same cut: the viewer's pixel error is scaled to match);
+//! `--jitter M` draws each picture M x M times, the projection moved within
+//! a device pixel, and averages them, for pictures close to converged. Each
 //! cell also gives full detail against itself moved by one device pixel
 //! (a whole pixel, or 1/N with `--supersample`): the share a displacement
 //! that small makes alone, under what the cut's error allows. Needs
@@ -42,6 +44,10 @@ pub struct Args {
     /// the GPU's multisampling, for pixels with sub-pixel detail.
     #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=4))]
     supersample: u32,
+    /// Frames along each side of a device pixel, the projection moved by a
+    /// stratified offset each time, averaged: M x M times the samples again.
+    #[arg(long, default_value_t = 1, value_parser = clap::value_parser!(u32).range(1..=16))]
+    jitter: u32,
     /// Where the picture pairs go.
     #[arg(long, default_value = "target/bench-image")]
     out: PathBuf,
@@ -58,6 +64,7 @@ struct Report {
     #[serde(rename = "pixelError")]
     pixel_error: f64,
     supersample: u32,
+    jitter: u32,
     cells: Vec<Cell>,
     errors: Vec<String>,
 }
@@ -111,11 +118,12 @@ pub fn run(args: Args) -> anyhow::Result<()> {
     let served = browser::serve(&args.tree)?;
     let scene = served.scene.clone();
     eprintln!(
-        "rendering the 12 cells of {scene:?} twice at {}x{}, {} x {} samples a pixel (pictures in {})",
+        "rendering the 12 cells of {scene:?} twice at {}x{}, {} x {} device pixels a pixel, {} frames each (pictures in {})",
         args.width,
         args.height,
         args.supersample,
         args.supersample,
+        args.jitter * args.jitter,
         args.out.display()
     );
     let mut report: Report = browser::drive(
@@ -128,6 +136,7 @@ pub fn run(args: Args) -> anyhow::Result<()> {
             args.pixel_error.to_string(),
             args.out.display().to_string(),
             args.supersample.to_string(),
+            args.jitter.to_string(),
         ],
     )?;
     if let Some(e) = report.errors.first() {
@@ -153,12 +162,13 @@ pub fn run(args: Args) -> anyhow::Result<()> {
         return Ok(());
     }
     println!(
-        "Scene `{scene}`, {}x{} ({} x {} device pixels a pixel), pixel error {}; full detail: every present leaf; \
-         moved: full detail against itself {} px across.",
+        "Scene `{scene}`, {}x{} ({} x {} device pixels a pixel, {} jittered frames a picture), pixel error {}; \
+         full detail: every present leaf; moved: full detail against itself {} px across.",
         report.width,
         report.height,
         report.supersample,
         report.supersample,
+        report.jitter * report.jitter,
         report.pixel_error,
         1.0 / f64::from(report.supersample)
     );
