@@ -401,10 +401,10 @@ function uploadFeatureState() {
   }
 }
 
-function draw(width, height) {
+function draw(width, height, matrices = viewer.matrices) {
   const start = performance.now();
   uploadFeatureState();
-  renderer.draw(drawItems(), viewer.matrices, width, height, viewer.features.isolating(), viewer.colours.translucent > 0);
+  renderer.draw(drawItems(), matrices, width, height, viewer.features.isolating(), viewer.colours.translucent > 0);
   const ms = performance.now() - start;
   viewer.frameMs = viewer.frameMs ? viewer.frameMs * 0.8 + ms * 0.2 : ms;
 }
@@ -825,11 +825,9 @@ function testHook() {
       const m = viewer.matrices;
       const frame = new Uint8Array(4 * width * height);
       const sum = new Uint16Array(4 * width * height);
-      uploadFeatureState();
       for (const [dx, dy] of offsets) {
         const shift = new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, (2 * dx) / width, (2 * dy) / height, 0, 1]);
-        const moved = { ...m, viewProj: multiply(shift, m.viewProj) };
-        renderer.draw(drawItems(), moved, width, height, viewer.features.isolating(), viewer.colours.translucent > 0);
+        draw(width, height, { ...m, viewProj: multiply(shift, m.viewProj) });
         gl.readPixels(0, 0, width, height, gl.RGBA, gl.UNSIGNED_BYTE, frame);
         for (let i = 0; i < frame.length; i++) sum[i] += frame[i];
       }
