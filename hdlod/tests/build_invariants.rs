@@ -448,7 +448,8 @@ fn an_objects_triangles_lie_within_eps_of_the_object() {
 /// Baked colour changes colour only: built without it, the tree has the
 /// same clusters with the same errors, boxes and triangles, and every
 /// cluster's triangles the same corners and objects in the same order.
-/// Built with it, reduced clusters carry a texture that reads back.
+/// Built with it, reduced clusters carry a texture that reads back, and
+/// those that stand for lattices (the cranes) keep their cover as alpha.
 #[test]
 fn baked_colour_changes_colour_only() {
     let plain = built();
@@ -474,6 +475,7 @@ fn baked_colour_changes_colour_only() {
             .collect()
     };
     let mut textured = 0;
+    let mut translucent = 0;
     let mut files = Vec::new();
     for (a, b) in plain.tree.clusters().zip(baked.tree.clusters()) {
         assert_eq!(
@@ -517,9 +519,23 @@ fn baked_colour_changes_colour_only() {
                 "cluster {}",
                 b.id
             );
+            // A texture with a cover under 1 (a crane's lattice as a box)
+            // is blended, and only then.
+            let bytes = std::fs::read(path(baked, gb)).unwrap();
+            let length = u32::from_le_bytes(bytes[12..16].try_into().unwrap()) as usize;
+            let json: serde_json::Value = serde_json::from_slice(&bytes[20..20 + length]).unwrap();
+            let covered = atlas.texels.iter().all(|t| t[3] == 255);
+            assert_eq!(
+                json["materials"][0]["alphaMode"] == "BLEND",
+                !covered,
+                "cluster {}",
+                b.id
+            );
+            translucent += usize::from(!covered);
         }
     }
     assert!(textured > 10, "{textured} textured clusters");
+    assert!(translucent > 0, "no cluster keeps a cover under 1");
     common::assert_no_gltf_errors(&files);
 }
 

@@ -121,7 +121,8 @@ void main() {
   float lambert = abs(dot(n, l));
   // A look (task colour) or a tint stands for the whole feature, texture
   // and all, as it does for vertex colours.
-  vec3 own = uHasTexture ? vColor.rgb * texture(uColour, vUv).rgb : vColor.rgb;
+  vec4 texel = uHasTexture ? texture(uColour, vUv) : vec4(1.0);
+  vec3 own = vColor.rgb * texel.rgb;
   vec3 base = vLook.a >= 0.0 ? vLook.rgb : uTint.a > 0.0 ? uTint.rgb : own;
   if (vState.a > 0.5) base = mix(base, vec3(0.1, 0.75, 0.95), 0.6);
   if (vState.b > 0.5) base = mix(base, vec3(1.0, 0.45, 0.0), 0.75);
@@ -132,7 +133,10 @@ void main() {
   } else if (uPass == 1) {
     outColor = vec4(lit, vLook.a);
   } else {
-    outColor = vec4(lit, 1.0);
+    // A baked texel's alpha is how much of it the part covers (a crane's
+    // lattice drawn as a box): it becomes the share of the pixel's samples
+    // written (alpha to coverage).
+    outColor = vec4(lit, texel.a);
   }
 }`;
 
@@ -308,7 +312,13 @@ export class Renderer {
     gl.viewport(0, 0, width, height);
     gl.clearColor(...BACKGROUND, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    // Opaque, but a baked texel's cover (its alpha) decides how many of a
+    // pixel's samples it takes; the canvas's own alpha stays 1.
+    gl.enable(gl.SAMPLE_ALPHA_TO_COVERAGE);
+    gl.colorMask(true, true, true, false);
     this.pass(items, camera, 0, isolating);
+    gl.colorMask(true, true, true, true);
+    gl.disable(gl.SAMPLE_ALPHA_TO_COVERAGE);
     if (isolating || translucent) {
       // Ghosts faint and translucent looks behind nothing: blended over the
       // opaque picture without writing depth, so what is behind them

@@ -24,7 +24,9 @@
 //! are filled block by block (`Surface::fill`), so only colour borders
 //! cost queries texel by texel: a few samples each, multi-jittered (Chiu,
 //! Shirley and Wang 1994), so that thin bands along the chart's axes get
-//! their share of the texel.
+//! their share of the texel. A chart the source does not cover (a box
+//! standing for a lattice) keeps, as each texel's alpha, how much of it
+//! the source covers (`Surface::covers`).
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
@@ -89,8 +91,9 @@ const COARSER: f32 = 1.25;
 /// the colour the source shows there seen from the front of its chart (the
 /// first source surface met along the chart's normal from `reach` in front
 /// of the texel to `reach` behind it), or, where that meets none, of the
-/// source's nearest point. Charts of one colour that their triangles'
-/// vertices already have keep their vertex colours. `None` when all do,
+/// source's nearest point; on a chart the source does not cover, alpha is
+/// the share of the texel it covers. Charts of one colour that their
+/// triangles' vertices already have keep their vertex colours. `None` when all do,
 /// when the sources are empty, or when the charts cannot fit `max_size`
 /// even at a texel each.
 pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Baked> {
@@ -127,7 +130,9 @@ pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Ba
     for (k, (_, size, texels)) in first.iter().enumerate() {
         let uniform = is_uniform(texels, *size);
         let centre = texels[(GUTTER * size[0] + GUTTER) as usize];
-        let own = vertex_colour(mesh, &charts[k].triangles).map(encode);
+        let own = vertex_colour(mesh, &charts[k].triangles)
+            .map(opaque)
+            .map(encode);
         let plain =
             uniform && own.is_some_and(|c| (0..4).all(|i| c[i].abs_diff(centre[i]) <= UNIFORM));
         if !plain {
@@ -179,6 +184,13 @@ pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Ba
     Some(assemble(mesh, &chosen, &sizes, &layout, &texels, texel))
 }
 
+/// A vertex colour as a texel holds it: opaque, since a texel's alpha is
+/// how much of it the source covers, and vertex colours are drawn opaque
+/// whatever their alpha (a glass pane's colour is seen, not seen through).
+fn opaque([r, g, b, _]: [f32; 4]) -> [f32; 4] {
+    [r, g, b, 1.0]
+}
+
 /// The one colour of every vertex of `triangles`, if they have one.
 fn vertex_colour(mesh: &Mesh, triangles: &[usize]) -> Option<[f32; 4]> {
     let colour = |i: u32| mesh.colors.get(i as usize).copied().unwrap_or([1.0; 4]);
@@ -206,6 +218,9 @@ struct Chart {
     /// The plane's normal, the side the chart is seen from (`None` for a
     /// segment or a point).
     normal: Option<Vec3>,
+    /// Points inside its triangles (at most [`PROBES`]), where a ray tells
+    /// whether the source covers the chart ([`Surface::covers`]).
+    probes: Vec<Vec3>,
 }
 
 impl Chart {
@@ -342,6 +357,19 @@ fn chart(triangles: &[usize], corners: &dyn Fn(usize) -> [Vec3; 3]) -> Chart {
             (u, u.any_orthonormal_vector())
         }
     };
+    // Each triangle's centroid and the points halfway from it to each
+    // corner, from triangles spread over the chart.
+    let step = (4 * triangles.len()).div_ceil(PROBES).max(1);
+    let probes = triangles
+        .iter()
+        .step_by(step.div_ceil(4).max(1))
+        .flat_map(|&k| {
+            let [a, b, c] = corners(k);
+            let m = (a + b + c) / 3.0;
+            [m, (m + a) / 2.0, (m + b) / 2.0, (m + c) / 2.0]
+        })
+        .take(PROBES)
+        .collect();
     let mut lo = Vec2::splat(f32::INFINITY);
     let mut hi = Vec2::splat(f32::NEG_INFINITY);
     for &k in triangles {
@@ -360,6 +388,7 @@ fn chart(triangles: &[usize], corners: &dyn Fn(usize) -> [Vec3; 3]) -> Chart {
         size: hi - lo,
         point: hi == lo,
         normal,
+        probes,
     }
 }
 
@@ -497,6 +526,9 @@ struct Sampling<'a> {
     row: u32,
 }
 
+/// The most points a chart is probed at for its cover.
+const PROBES: usize = 64;
+
 /// Blocks of at most this many texels are sampled texel by texel.
 const LEAST_BLOCK: u32 = 2;
 /// Samples along each side of a texel on a colour border (their mean is
@@ -548,7 +580,7 @@ impl<'a> Surface<'a> {
                                 .unwrap_or([1.0; 4])
                         };
                         (colour(0) == colour(1) && colour(0) == colour(2))
-                            .then(|| encode(colour(0)))
+                            .then(|| encode(opaque(colour(0))))
                     }
                 }
             })
@@ -571,8 +603,73 @@ impl<'a> Surface<'a> {
             reach,
             row: w,
         };
-        self.fill(&at, [0, 0, w, h], &mut out, &mut hint);
+        if self.covers(&at) {
+            self.fill(&at, [0, 0, w, h], &mut out, &mut hint);
+        } else {
+            for j in 0..h {
+                for i in 0..w {
+                    out[(j * w + i) as usize] = self.texel_coverage(&at, i, j, &mut hint);
+                }
+            }
+        }
         out
+    }
+
+    /// Whether the source covers the chart: a ray along its normal through
+    /// each of its probes meets the source within `reach` either side. A
+    /// chart that stands for a lattice (a crane's mast or jib as a box) or
+    /// overhangs its part does not, and its texels then hold how much of
+    /// them the source covers as alpha ([`Self::texel_coverage`]), where a
+    /// covered chart is opaque.
+    fn covers(&self, at: &Sampling) -> bool {
+        let Some(n) = at.chart.normal.filter(|_| at.reach > 0.0) else {
+            return true;
+        };
+        at.chart.probes.iter().all(|&p| {
+            self.set
+                .first_hit(p + n * at.reach, -n, 2.0 * at.reach)
+                .is_some()
+        })
+    }
+
+    /// Texel `(i, j)` of a chart the source does not cover: as
+    /// [`Self::texel_average`], with its alpha the share of its samples
+    /// whose ray meets the source (times that source's own alpha), its
+    /// colour the mean of what they meet. A texel no ray meets takes the
+    /// colour of the source's nearest point, transparent, so that
+    /// filtering across its edge blends towards the right colour.
+    fn texel_coverage(&self, at: &Sampling, i: u32, j: u32, hint: &mut Option<u32>) -> [u8; 4] {
+        let n = at.chart.normal.expect("a covered chart has a normal");
+        let mut sum = [0.0f32; 3];
+        let mut alpha = 0.0f32;
+        for b in 0..SUBSAMPLES {
+            for a in 0..SUBSAMPLES {
+                let (x, y) = sample_offset(a, b);
+                let p = at.chart.point(i as f32 + x, j as f32 + y, at.texel);
+                if let Some((t, along)) = self.set.first_hit(p + n * at.reach, -n, 2.0 * at.reach) {
+                    let c = self.colour_at(p + n * (at.reach - along), t);
+                    for k in 0..3 {
+                        sum[k] += c[k] * c[3];
+                    }
+                    alpha += c[3];
+                }
+            }
+        }
+        let samples = (SUBSAMPLES * SUBSAMPLES) as f32;
+        let rgb = if alpha > 0.0 {
+            sum.map(|s| s / alpha)
+        } else {
+            let centre = at.chart.point(i as f32 + 0.5, j as f32 + 0.5, at.texel);
+            match self.set.nearest(centre, *hint) {
+                Some(near) => {
+                    *hint = Some(near.triangle);
+                    let c = self.colour_at(centre, near.triangle);
+                    [c[0], c[1], c[2]]
+                }
+                None => [1.0; 3],
+            }
+        };
+        encode([rgb[0], rgb[1], rgb[2], alpha / samples])
     }
 
     /// Texel `(i, j)` of a chart on a colour border: the mean of the
@@ -730,7 +827,9 @@ impl<'a> Surface<'a> {
                 .unwrap_or([1.0; 4])
         };
         let (ca, cb, cc) = (colour(0), colour(1), colour(2));
-        std::array::from_fn(|i| ca[i] * w[0] + cb[i] * w[1] + cc[i] * w[2])
+        opaque(std::array::from_fn(|i| {
+            ca[i] * w[0] + cb[i] * w[1] + cc[i] * w[2]
+        }))
     }
 }
 
@@ -970,6 +1069,55 @@ mod tests {
         assert_eq!(drawn.triangle_count(), quad.triangle_count());
         assert!(drawn.positions.iter().all(|p| quad.positions.contains(p)));
         assert_eq!(drawn.features, vec![7; drawn.positions.len()]);
+    }
+
+    #[test]
+    fn a_lattice_reduced_to_a_quad_keeps_its_cover_as_alpha() {
+        // Bars 0.3 wide every metre, a hundredth of a metre behind a quad
+        // over them, and a wall the quad covers whole: the wall's texels
+        // are opaque (its glass too), the lattice's cover 30%, opaque on a
+        // bar and transparent between, the colour there the bars'.
+        let (mut wall, quad) = banded_wall();
+        // Glass: a vertex colour's alpha is drawn opaque, not as a cover.
+        for c in &mut wall.colors {
+            c[3] = 0.45;
+        }
+        let solid = bake(
+            &quad,
+            &[Source {
+                mesh: &wall,
+                baked: None,
+            }],
+            &options(0.1, 1024),
+        );
+        assert!(solid.unwrap().atlas.texels.iter().all(|t| t[3] == 255));
+        let mut bars = Mesh::default();
+        for b in 0..10 {
+            let (x0, x1) = (b as f32, b as f32 + 0.3);
+            let base = bars.positions.len() as u32;
+            for (x, y) in [(x0, 0.0), (x1, 0.0), (x1, 3.0), (x0, 3.0)] {
+                bars.positions.push(Vec3::new(x, y, 0.0));
+                bars.colors.push(BAND);
+                bars.normals.push(Vec3::Z);
+                bars.features.push(7);
+            }
+            bars.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        let sources = [Source {
+            mesh: &bars,
+            baked: None,
+        }];
+        let baked = bake(&quad, &sources, &options(0.1, 1024)).unwrap();
+        let at = |x: f32| colour_on_quad(&quad, &baked, Vec3::new(x, 1.5, 0.01));
+        assert_eq!(at(0.15)[3], 1.0);
+        assert_eq!(at(0.65)[3], 0.0);
+        assert!(near(at(0.65), BAND), "{:?}", at(0.65));
+        let mean = (0..1000)
+            .map(|k| at(0.005 + 0.01 * k as f32)[3])
+            .sum::<f32>()
+            / 1000.0;
+        assert!((mean - 0.3).abs() < 0.02, "cover {mean}");
     }
 
     #[test]

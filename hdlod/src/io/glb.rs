@@ -167,7 +167,7 @@ fn glb_within(
             if encoding == Encoding::Plain {
                 accessors.uvs = Some(glb.add_uvs(&t.uvs));
             }
-            glb.add_texture(&t.png)
+            (glb.add_texture(&t.png), t.translucent())
         });
         let material = glb.double_sided_material(texture);
         let m = glb.add_primitive(&accessors, Some(material));
@@ -892,12 +892,20 @@ impl GlbBuilder {
     }
 
     /// A white, non-metallic material seen from both sides, with `texture`
-    /// as its base colour when given.
+    /// as its base colour when given, blended when the texture is
+    /// translucent (its alpha a chart's cover).
     fn double_sided_material(
         &mut self,
-        texture: Option<json::Index<json::Texture>>,
+        texture: Option<(json::Index<json::Texture>, bool)>,
     ) -> json::Index<json::Material> {
+        let blend = texture.is_some_and(|(_, translucent)| translucent);
+        let texture = texture.map(|(index, _)| index);
         self.root.push(json::Material {
+            alpha_mode: Valid(if blend {
+                json::material::AlphaMode::Blend
+            } else {
+                json::material::AlphaMode::Opaque
+            }),
             double_sided: true,
             pbr_metallic_roughness: json::material::PbrMetallicRoughness {
                 metallic_factor: json::material::StrengthFactor(0.0),

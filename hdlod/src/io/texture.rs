@@ -29,6 +29,15 @@ pub fn textured(mesh: &Mesh, baked: &Baked) -> (Mesh, Texture) {
     )
 }
 
+impl Texture {
+    /// Whether some texel is not opaque: a baked chart that its part does
+    /// not cover holds its cover as alpha (`geometry::bake`), and its
+    /// material is then blended.
+    pub fn translucent(&self) -> bool {
+        decode_png(&self.png).is_ok_and(|a| a.texels.iter().any(|t| t[3] < 255))
+    }
+}
+
 /// The atlas as an RGBA PNG marked sRGB. Deterministic: the GLB's bytes,
 /// and so its name, depend on the texels alone.
 pub fn encode_png(atlas: &Atlas) -> Vec<u8> {
