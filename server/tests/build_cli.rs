@@ -12,7 +12,7 @@ fn builds_the_tiny_fixture_and_inspects_the_tree() {
     let tree = tmp.path().join("tree");
     let fixture = repo().join("fixtures/skyscraper-tiny");
     let summary = built(&fixture, &tree, &[]);
-    assert_eq!(summary["objects"], 632);
+    assert_eq!(summary["objects"], 633);
     assert_eq!(summary["mode"], "full");
 
     // The same scene again: its schedule is updated, no geometry made.
