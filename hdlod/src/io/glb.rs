@@ -590,7 +590,10 @@ impl GlbBuilder {
                 Some((vec![first], vec![last])),
             );
             let translations: Vec<Vec3> = keys.iter().map(|k| k.translation).collect();
-            let rotations: Vec<glam::Quat> = keys.iter().map(|k| k.rotation.normalize()).collect();
+            let rotations: Vec<glam::Quat> = keys
+                .iter()
+                .map(|k| crate::scene::unit(k.rotation))
+                .collect();
             let scales: Vec<Vec3> = keys.iter().map(|k| k.scale).collect();
             use json::accessor::Type::{Vec3 as V3, Vec4 as V4};
             use json::animation::Property;

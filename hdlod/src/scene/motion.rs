@@ -33,6 +33,18 @@ impl Keyframe {
     }
 }
 
+/// `q` normalised if it is off the unit sphere by more than `f32`
+/// rounding, else `q` itself: normalising a unit quaternion again can move
+/// its last bit, and a motion read back from a file must equal the one
+/// written.
+pub(crate) fn unit(q: Quat) -> Quat {
+    if (q.length_squared() - 1.0).abs() > 1e-6 {
+        q.normalize()
+    } else {
+        q
+    }
+}
+
 /// Keyframes sorted by time, at least one.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Motion {
@@ -64,13 +76,8 @@ impl Motion {
         if let Some(w) = keys.windows(2).find(|w| w[0].t == w[1].t) {
             return Err(Error::value(format!("two keyframes at t = {}", w[0].t)));
         }
-        // Only rotations off the unit sphere by more than `f32` rounding:
-        // normalising a unit quaternion again can move its last bit, and a
-        // motion read back from a file must equal the one written.
         for k in &mut keys {
-            if (k.rotation.length_squared() - 1.0).abs() > 1e-6 {
-                k.rotation = k.rotation.normalize();
-            }
+            k.rotation = unit(k.rotation);
         }
         Ok(Motion { keys })
     }

@@ -272,11 +272,13 @@ impl Channel {
             Values::Scale(v) => Sampled::Scale(self.vec(v, a, b, s, dt)),
             Values::Rotation(v) => Sampled::Rotation(match self.interpolation {
                 Interpolation::Step => v[a],
+                // On a key, its value exactly: slerp at 0 need not give it.
+                Interpolation::Linear if s == 0.0 => v[a],
                 Interpolation::Linear => v[a].slerp(v[b], s),
                 Interpolation::CubicSpline => {
                     let [p0, m0, p1, m1] =
                         [v[3 * a + 1], v[3 * a + 2], v[3 * b + 1], v[3 * b]].map(glam::Vec4::from);
-                    Quat::from_vec4(hermite(p0, m0 * dt, p1, m1 * dt, s)).normalize()
+                    crate::scene::unit(Quat::from_vec4(hermite(p0, m0 * dt, p1, m1 * dt, s)))
                 }
             }),
         }
@@ -349,28 +351,60 @@ impl Rig {
             .any(|p| chain.iter().any(|&n| p.channels(n).next().is_some()))
     }
 
+    /// Node `n`'s transform relative to its parent at scene time `t`, when
+    /// `placed` animates it.
+    fn local(&self, n: usize, placed: &[Placed], t: f64) -> Option<Trs> {
+        let mut trs: Option<Trs> = None;
+        for p in placed {
+            let tau = p.timeline.tau(t);
+            for c in p.channels(n) {
+                let v = trs.get_or_insert(self.rest_trs[n]);
+                match c.sample(tau) {
+                    Sampled::Translation(x) => v.translation = x,
+                    Sampled::Rotation(x) => v.rotation = crate::scene::unit(x),
+                    Sampled::Scale(x) => v.scale = x,
+                }
+            }
+        }
+        trs
+    }
+
     /// The world transform of `node` at scene time `t`.
     fn world(&self, chain: &[usize], placed: &[Placed], t: f64) -> Mat4 {
         let mut world = Mat4::IDENTITY;
         for &n in chain.iter().rev() {
-            let mut trs: Option<Trs> = None;
-            for p in placed {
-                let tau = p.timeline.tau(t);
-                for c in p.channels(n) {
-                    let v = trs.get_or_insert(self.rest_trs[n]);
-                    match c.sample(tau) {
-                        Sampled::Translation(x) => v.translation = x,
-                        Sampled::Rotation(x) => v.rotation = x.normalize(),
-                        Sampled::Scale(x) => v.scale = x,
-                    }
-                }
-            }
-            let local = trs.map_or(self.rest[n], |v| {
+            let local = self.local(n, placed, t).map_or(self.rest[n], |v| {
                 Mat4::from_scale_rotation_translation(v.scale, v.rotation, v.translation)
             });
             world *= local;
         }
         world
+    }
+
+    /// The keyframe of the world transform of `chain` at `t`. Where one
+    /// animated node is all that moves it (the nodes above it rest at
+    /// identity, as a saved skeleton's root does), it is that node's
+    /// sampled transform as it is: through a matrix it would move in the
+    /// last bits, and a scene saved with the keyframes as a clip and loaded
+    /// again must give back the same keyframes.
+    fn key_at(&self, chain: &[usize], placed: &[Placed], t: f64) -> (Keyframe, Mat4) {
+        let world = self.world(chain, placed, t);
+        let animated = |n: usize| placed.iter().any(|p| p.channels(n).next().is_some());
+        let mut moving = chain
+            .iter()
+            .filter(|&&n| animated(n) || self.rest[n] != Mat4::IDENTITY);
+        if let (Some(&n), None) = (moving.next(), moving.next())
+            && let Some(v) = self.local(n, placed, t)
+        {
+            let key = Keyframe {
+                t,
+                translation: v.translation,
+                rotation: v.rotation,
+                scale: v.scale,
+            };
+            return (key, world);
+        }
+        (Keyframe::of_matrix(t, &world), world)
     }
 
     /// The keyframes of `node`'s world transform under the clips `placed`
@@ -420,8 +454,7 @@ impl Rig {
             })
             .collect();
         let key = |t: f64| -> Result<Keyframe, String> {
-            let m = self.world(&chain, placed, t);
-            let k = Keyframe::of_matrix(t, &m);
+            let (k, m) = self.key_at(&chain, placed, t);
             let off = far(&corners, &m, &k.matrix());
             if off.is_nan() || off > tolerance {
                 return Err(format!(
@@ -491,7 +524,7 @@ impl Rig {
                 b
             } else {
                 let t = a.t + (b.t - a.t) * k as f64 / n as f64;
-                Keyframe::of_matrix(t, &self.world(fit.chain, fit.placed, t))
+                self.key_at(fit.chain, fit.placed, t).0
             };
             self.refine(fit, from, to, depth + 1, out);
             if k < n {
