@@ -21,6 +21,19 @@ export async function settle(p) {
   return p.evaluate(() => window.hdlodViewer.state());
 }
 
+// A page of `width` x `height` on the viewer at `base` showing `scene`,
+// settled; its script errors and console errors go to `errors`.
+export async function openScene(browser, base, scene, width, height, errors) {
+  const page = await browser.newPage({ viewport: { width, height } });
+  page.on("pageerror", (e) => errors.push(`page error: ${e.message}`));
+  page.on("console", (m) => {
+    if (m.type() === "error") errors.push(`console: ${m.text()}`);
+  });
+  await page.goto(`${base}/?scene=${encodeURIComponent(scene)}`);
+  await settle(page);
+  return page;
+}
+
 // f(hook, arg) run in the page against the test hook.
 export function hook(p, f, arg) {
   return p.evaluate(([body, a]) => new Function("v", "a", `return (${body})(v, a)`)(window.hdlodViewer, a), [f.toString(), arg]);

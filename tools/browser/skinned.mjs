@@ -7,7 +7,7 @@
 // pictures (kept in OUT_DIR); and the page's errors.
 import { mkdirSync } from "node:fs";
 import { launch } from "./launch.mjs";
-import { BACKGROUND, canvasShot, compare, hook, settle } from "./page.mjs";
+import { BACKGROUND, canvasShot, compare, hook, openScene, settle } from "./page.mjs";
 
 const [base, scene, outDir, t1, t2] = process.argv.slice(2);
 if (!t2) {
@@ -19,13 +19,7 @@ const [width, height] = [800, 600];
 const out = { errors: [], shots: [] };
 const browser = await launch();
 try {
-  const page = await browser.newPage({ viewport: { width, height } });
-  page.on("pageerror", (e) => out.errors.push(`page error: ${e.message}`));
-  page.on("console", (m) => {
-    if (m.type() === "error") out.errors.push(`console: ${m.text()}`);
-  });
-  await page.goto(`${base}/?scene=${encodeURIComponent(scene)}`);
-  await settle(page);
+  const page = await openScene(browser, base, scene, width, height, out.errors);
   await hook(page, (v) => v.setCamera({ target: [0, 2, 0], distance: 10, azimuth: Math.PI / 2, elevation: 0 }));
   const pictures = [];
   for (const t of [Number(t1), Number(t2)]) {

@@ -8,7 +8,7 @@
 // pictures that differ (kept in OUT_DIR); and the page's errors.
 import { mkdirSync } from "node:fs";
 import { launch } from "./launch.mjs";
-import { canvasShot, compare, hook, settle } from "./page.mjs";
+import { canvasShot, compare, hook, openScene, settle } from "./page.mjs";
 
 const [base, scene, outDir, feature, t1, t2, target, distance, azimuth, elevation] = process.argv.slice(2);
 if (!elevation) {
@@ -20,13 +20,7 @@ const [width, height] = [800, 600];
 const out = { errors: [], shots: [] };
 const browser = await launch();
 try {
-  const page = await browser.newPage({ viewport: { width, height } });
-  page.on("pageerror", (e) => out.errors.push(`page error: ${e.message}`));
-  page.on("console", (m) => {
-    if (m.type() === "error") out.errors.push(`console: ${m.text()}`);
-  });
-  await page.goto(`${base}/?scene=${encodeURIComponent(scene)}`);
-  await settle(page);
+  const page = await openScene(browser, base, scene, width, height, out.errors);
   const camera = { target: target.split(",").map(Number), distance: Number(distance), azimuth: Number(azimuth), elevation: Number(elevation) };
   await hook(page, (v, c) => v.setCamera(c), camera);
   const pictures = [];
