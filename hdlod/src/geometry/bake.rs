@@ -224,8 +224,9 @@ struct Chart {
 }
 
 impl Chart {
-    /// Texels across and along, gutter included.
-    fn texels(&self, texel: f32) -> [u32; 2] {
+    /// Texels across and along, gutter excluded: at least one, and none
+    /// larger than `texel`.
+    fn cells(&self, texel: f32) -> [u32; 2] {
         let n = |x: f32| {
             if self.point {
                 1
@@ -233,7 +234,26 @@ impl Chart {
                 ((x / texel).ceil() as u32).max(1)
             }
         };
-        [n(self.size.x) + 2 * GUTTER, n(self.size.y) + 2 * GUTTER]
+        [n(self.size.x), n(self.size.y)]
+    }
+
+    /// Texels across and along, gutter included.
+    fn texels(&self, texel: f32) -> [u32; 2] {
+        let [x, y] = self.cells(texel);
+        [x + 2 * GUTTER, y + 2 * GUTTER]
+    }
+
+    /// The sides of the chart's texels, each at most `texel`: the chart's
+    /// rectangle split into whole texels. A texel that ran past the
+    /// rectangle's edge would average what lies beyond it into its colour
+    /// and its cover: a face 1.5 m tall under texels of 2 m kept three
+    /// quarters of its cover.
+    fn step(&self, texel: f32) -> Vec2 {
+        let [x, y] = self.cells(texel);
+        let side = |size: f32, n: u32| {
+            if size > 0.0 { size / n as f32 } else { texel }
+        };
+        Vec2::new(side(self.size.x, x), side(self.size.y, y))
     }
 
     /// Where a point of the plane falls, in texels from the chart's
@@ -243,14 +263,16 @@ impl Chart {
             return Vec2::splat(GUTTER as f32 + 0.5);
         }
         let d = p - self.origin;
-        (Vec2::new(d.dot(self.u), d.dot(self.v)) - self.low) / texel + Vec2::splat(GUTTER as f32)
+        (Vec2::new(d.dot(self.u), d.dot(self.v)) - self.low) / self.step(texel)
+            + Vec2::splat(GUTTER as f32)
     }
 
     /// The point of the plane at `(x, y)` texels from the chart's corner
     /// (gutter included): texel `(i, j)`'s centre is at `(i + 0.5, j + 0.5)`.
     fn point(&self, x: f32, y: f32, texel: f32) -> Vec3 {
-        let x = self.low.x + (x - GUTTER as f32) * texel;
-        let y = self.low.y + (y - GUTTER as f32) * texel;
+        let step = self.step(texel);
+        let x = self.low.x + (x - GUTTER as f32) * step.x;
+        let y = self.low.y + (y - GUTTER as f32) * step.y;
         self.origin + self.u * x + self.v * y
     }
 }
@@ -606,9 +628,19 @@ impl<'a> Surface<'a> {
         if self.covers(&at) {
             self.fill(&at, [0, 0, w, h], &mut out, &mut hint);
         } else {
+            for j in GUTTER..h - GUTTER {
+                for i in GUTTER..w - GUTTER {
+                    out[(j * w + i) as usize] = self.texel_coverage(&at, i, j, &mut hint);
+                }
+            }
+            // The gutter repeats the chart's edge: past the edge of a box
+            // that bounds its lattice there is nothing to cover, and a
+            // transparent gutter would fade the edge texels' cover by
+            // half where filtering reads across it.
             for j in 0..h {
                 for i in 0..w {
-                    out[(j * w + i) as usize] = self.texel_coverage(&at, i, j, &mut hint);
+                    let inner = |k: u32, n: u32| k.clamp(GUTTER, n - GUTTER - 1);
+                    out[(j * w + i) as usize] = out[(inner(j, h) * w + inner(i, w)) as usize];
                 }
             }
         }
@@ -1071,6 +1103,26 @@ mod tests {
         assert_eq!(drawn.features, vec![7; drawn.positions.len()]);
     }
 
+    /// Bars 0.3 m wide and 3 m high every metre in the plane z = 0, the
+    /// band's colour, under `banded_wall`'s quad: a lattice covering 30%
+    /// of it.
+    fn bars() -> Mesh {
+        let mut bars = Mesh::default();
+        for b in 0..10 {
+            let (x0, x1) = (b as f32, b as f32 + 0.3);
+            let base = bars.positions.len() as u32;
+            for (x, y) in [(x0, 0.0), (x1, 0.0), (x1, 3.0), (x0, 3.0)] {
+                bars.positions.push(Vec3::new(x, y, 0.0));
+                bars.colors.push(BAND);
+                bars.normals.push(Vec3::Z);
+                bars.features.push(7);
+            }
+            bars.indices
+                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+        }
+        bars
+    }
+
     #[test]
     fn a_lattice_reduced_to_a_quad_keeps_its_cover_as_alpha() {
         // Bars 0.3 wide every metre, a hundredth of a metre behind a quad
@@ -1091,19 +1143,7 @@ mod tests {
             &options(0.1, 1024),
         );
         assert!(solid.unwrap().atlas.texels.iter().all(|t| t[3] == 255));
-        let mut bars = Mesh::default();
-        for b in 0..10 {
-            let (x0, x1) = (b as f32, b as f32 + 0.3);
-            let base = bars.positions.len() as u32;
-            for (x, y) in [(x0, 0.0), (x1, 0.0), (x1, 3.0), (x0, 3.0)] {
-                bars.positions.push(Vec3::new(x, y, 0.0));
-                bars.colors.push(BAND);
-                bars.normals.push(Vec3::Z);
-                bars.features.push(7);
-            }
-            bars.indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
-        }
+        let bars = bars();
         let sources = [Source {
             mesh: &bars,
             baked: None,
@@ -1118,6 +1158,39 @@ mod tests {
             .sum::<f32>()
             / 1000.0;
         assert!((mean - 0.3).abs() < 0.02, "cover {mean}");
+    }
+
+    #[test]
+    fn a_plate_behind_half_a_quad_keeps_its_cover_to_the_quads_edges() {
+        // A plate behind the left half of the quad (3 m high), baked at
+        // texels of 2.5 m: the quad's two rows of texels are 1.5 m each,
+        // so the upper one does not reach past the quad's top edge and
+        // count the empty space there as uncovered, and the gutter holds
+        // the edge's cover, so filtering does not fade it. The plate's
+        // texels are opaque up to the quad's edges.
+        let (_, quad) = banded_wall();
+        let mut plate = Mesh::default();
+        for (x, y) in [(0.0, 0.0), (5.0, 0.0), (5.0, 3.0), (0.0, 3.0)] {
+            plate.positions.push(Vec3::new(x, y, 0.0));
+            plate.colors.push(BAND);
+            plate.normals.push(Vec3::Z);
+            plate.features.push(7);
+        }
+        plate.indices.extend([0, 1, 2, 0, 2, 3]);
+        let sources = [Source {
+            mesh: &plate,
+            baked: None,
+        }];
+        let baked = bake(&quad, &sources, &options(2.5, 1024)).unwrap();
+        for j in 0..30 {
+            for i in 0..37 {
+                let p = Vec3::new(0.05 + 0.1 * i as f32, 0.05 + 0.1 * j as f32, 0.01);
+                let alpha = colour_on_quad(&quad, &baked, p)[3];
+                assert!(alpha > 0.99, "cover {alpha} at {p}");
+            }
+        }
+        let right = colour_on_quad(&quad, &baked, Vec3::new(9.0, 1.5, 0.01))[3];
+        assert!(right < 0.01, "cover {right} right of the plate");
     }
 
     #[test]
