@@ -101,6 +101,7 @@ pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Ba
         return None;
     }
     let surface = Surface::new(sources)?;
+    let proxy = Proxy::new(mesh);
     let all: Vec<usize> = (0..mesh.triangle_count()).collect();
     let charts = charts(mesh, &all);
     let max = options.max_size.max(WHITE + 2 * GUTTER);
@@ -121,7 +122,7 @@ pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Ba
         .map(|c| {
             let texel = start.max(c.size.max_element() / inner);
             let size = c.texels(texel);
-            (texel, size, surface.sample(c, size, texel, reach))
+            (texel, size, surface.sample(c, size, texel, reach, &proxy))
         })
         .collect();
     // Charts that need a texture: not one colour, or one other than their
@@ -176,7 +177,7 @@ pub fn bake(mesh: &Mesh, sources: &[Source], options: &BakeOptions) -> Option<Ba
             } else if *at == texel {
                 texels.clone()
             } else {
-                surface.sample(&charts[k], size, texel, reach)
+                surface.sample(&charts[k], size, texel, reach, &proxy)
             }
         })
         .collect();
@@ -546,6 +547,37 @@ struct Sampling<'a> {
     texel: f32,
     reach: f32,
     row: u32,
+    proxy: &'a Proxy<'a>,
+}
+
+/// The mesh being baked, as rays see it: how deep the part a chart stands
+/// for lies behind it. Its triangle set is built on first use, since only
+/// a chart its source does not cover asks.
+struct Proxy<'a> {
+    mesh: &'a Mesh,
+    set: std::cell::OnceCell<TriangleSet>,
+}
+
+impl<'a> Proxy<'a> {
+    fn new(mesh: &'a Mesh) -> Self {
+        Proxy {
+            mesh,
+            set: std::cell::OnceCell::new(),
+        }
+    }
+
+    /// How far behind `p`, a point of a chart, the mesh's next surface is
+    /// along `-d`: the far side of the part the chart stands for (a
+    /// lattice mast's box: the opposite face).
+    fn depth(&self, p: Vec3, d: Vec3, reach: f32) -> Option<f32> {
+        let set = self
+            .set
+            .get_or_init(|| TriangleSet::new(self.mesh.triangles()));
+        // Off the chart's own plane, which the ray would meet at once.
+        let lift = reach * 1e-3;
+        set.first_hit(p - d * lift, -d, f32::MAX)
+            .map(|(_, along)| along + lift)
+    }
 }
 
 /// The most points a chart is probed at for its cover.
@@ -574,6 +606,21 @@ fn sample_offset(a: u32, b: u32) -> (f32, f32) {
         (a as f32 + (b as f32 + 0.5) / n) / n,
         (b as f32 + (a as f32 + 0.5) / n) / n,
     )
+}
+
+/// The direction sample `(a, b)` of a texel looks from, over the
+/// hemisphere in front of a chart (axes `u`, `v`, normal `n`):
+/// cosine-weighted (Malley's method: a point of the unit disk lifted onto
+/// the hemisphere), which weighs each direction by the share of the screen
+/// a face takes seen from it, so that the mean cover over the views is the
+/// ink the eye sees. The points are the texel's multi-jittered pattern
+/// ([`sample_offset`]) with its cells permuted, `(a, b)` to
+/// `(a + b, a + 2 b)` modulo 3 (a bijection of the 3 x 3 cells), so that a
+/// sample's place and its direction are not tied to each other.
+fn seen_from(a: u32, b: u32, u: Vec3, v: Vec3, n: Vec3) -> Vec3 {
+    let (x, y) = sample_offset((a + b) % SUBSAMPLES, (a + 2 * b) % SUBSAMPLES);
+    let (r, phi) = (x.sqrt(), std::f32::consts::TAU * y);
+    u * (r * phi.cos()) + v * (r * phi.sin()) + n * (1.0 - x).sqrt()
 }
 
 impl<'a> Surface<'a> {
@@ -616,7 +663,14 @@ impl<'a> Surface<'a> {
     }
 
     /// The texels of `chart`, `size` texels of side `texel`, row by row.
-    fn sample(&self, chart: &Chart, [w, h]: [u32; 2], texel: f32, reach: f32) -> Vec<[u8; 4]> {
+    fn sample(
+        &self,
+        chart: &Chart,
+        [w, h]: [u32; 2],
+        texel: f32,
+        reach: f32,
+        proxy: &Proxy,
+    ) -> Vec<[u8; 4]> {
         let mut out = vec![[255; 4]; (w * h) as usize];
         let mut hint = None;
         let at = Sampling {
@@ -624,6 +678,7 @@ impl<'a> Surface<'a> {
             texel,
             reach,
             row: w,
+            proxy,
         };
         if self.covers(&at) {
             self.fill(&at, [0, 0, w, h], &mut out, &mut hint);
@@ -670,6 +725,14 @@ impl<'a> Surface<'a> {
     /// colour the mean of what they meet. A texel no ray meets takes the
     /// colour of the source's nearest point, transparent, so that
     /// filtering across its edge blends towards the right colour.
+    ///
+    /// Each sample's ray comes from its own direction ([`seen_from`]) and
+    /// goes on through the part to the mesh's far side: the cover is what
+    /// the eye sees through the face from all round, not only straight on.
+    /// A face's drawn share of a pixel shrinks as it turns away, but a
+    /// round member inside the box does not, and the members behind each
+    /// other straight on stand apart at a slant: seen along the normal
+    /// alone, a crane's lattice kept about half the ink the eye sees of it.
     fn texel_coverage(&self, at: &Sampling, i: u32, j: u32, hint: &mut Option<u32>) -> [u8; 4] {
         let n = at.chart.normal.expect("a covered chart has a normal");
         let mut sum = [0.0f32; 3];
@@ -678,8 +741,15 @@ impl<'a> Surface<'a> {
             for a in 0..SUBSAMPLES {
                 let (x, y) = sample_offset(a, b);
                 let p = at.chart.point(i as f32 + x, j as f32 + y, at.texel);
-                if let Some((t, along)) = self.set.first_hit(p + n * at.reach, -n, 2.0 * at.reach) {
-                    let c = self.colour_at(p + n * (at.reach - along), t);
+                let d = seen_from(a, b, at.chart.u, at.chart.v, n);
+                let behind = at
+                    .proxy
+                    .depth(p, d, at.reach)
+                    .map_or(at.reach, |depth| depth.max(at.reach));
+                if let Some((t, along)) =
+                    self.set.first_hit(p + d * at.reach, -d, at.reach + behind)
+                {
+                    let c = self.colour_at(p + d * (at.reach - along), t);
                     for k in 0..3 {
                         sum[k] += c[k] * c[3];
                     }
@@ -775,6 +845,7 @@ impl<'a> Surface<'a> {
             texel,
             reach,
             row,
+            ..
         } = *at;
         if w * h <= LEAST_BLOCK {
             for j in j0..j0 + h {
@@ -1054,14 +1125,15 @@ mod tests {
         panic!("{p} is not on the quad");
     }
 
-    /// How the tests sample `chart`: texels of `texel`, the source within
-    /// 5 cm of it.
-    fn sampling(chart: &Chart, texel: f32) -> Sampling<'_> {
+    /// How the tests sample `chart` (of the mesh `proxy`): texels of
+    /// `texel`, the source within 5 cm of it.
+    fn sampling<'a>(chart: &'a Chart, texel: f32, proxy: &'a Proxy<'a>) -> Sampling<'a> {
         Sampling {
             chart,
             texel,
             reach: 0.05,
             row: chart.texels(texel)[0],
+            proxy,
         }
     }
 
@@ -1103,22 +1175,24 @@ mod tests {
         assert_eq!(drawn.features, vec![7; drawn.positions.len()]);
     }
 
-    /// Bars 0.3 m wide and 3 m high every metre in the plane z = 0, the
-    /// band's colour, under `banded_wall`'s quad: a lattice covering 30%
-    /// of it.
-    fn bars() -> Mesh {
+    /// Bars 0.3 m wide and 3 m high every metre in the plane z = d for each
+    /// d of `depths`, the band's colour, under `banded_wall`'s quad: a
+    /// lattice covering 30% of it straight on.
+    fn bars(depths: &[f32]) -> Mesh {
         let mut bars = Mesh::default();
-        for b in 0..10 {
-            let (x0, x1) = (b as f32, b as f32 + 0.3);
-            let base = bars.positions.len() as u32;
-            for (x, y) in [(x0, 0.0), (x1, 0.0), (x1, 3.0), (x0, 3.0)] {
-                bars.positions.push(Vec3::new(x, y, 0.0));
-                bars.colors.push(BAND);
-                bars.normals.push(Vec3::Z);
-                bars.features.push(7);
+        for &z in depths {
+            for b in 0..10 {
+                let (x0, x1) = (b as f32, b as f32 + 0.3);
+                let base = bars.positions.len() as u32;
+                for (x, y) in [(x0, 0.0), (x1, 0.0), (x1, 3.0), (x0, 3.0)] {
+                    bars.positions.push(Vec3::new(x, y, z));
+                    bars.colors.push(BAND);
+                    bars.normals.push(Vec3::Z);
+                    bars.features.push(7);
+                }
+                bars.indices
+                    .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
             }
-            bars.indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
         }
         bars
     }
@@ -1143,7 +1217,7 @@ mod tests {
             &options(0.1, 1024),
         );
         assert!(solid.unwrap().atlas.texels.iter().all(|t| t[3] == 255));
-        let bars = bars();
+        let bars = bars(&[0.0]);
         let sources = [Source {
             mesh: &bars,
             baked: None,
@@ -1158,6 +1232,32 @@ mod tests {
             .sum::<f32>()
             / 1000.0;
         assert!((mean - 0.3).abs() < 0.02, "cover {mean}");
+    }
+
+    #[test]
+    fn a_lattice_in_depth_covers_more_than_it_shows_straight_on() {
+        // Two layers of the bars, one behind the other, 0.1 m and 0.9 m
+        // deep in a box 1 m deep: straight on, the back bars hide behind
+        // the front ones (30%); at a slant they stand apart, up to 60%.
+        // The box's front face takes the cover seen from all round.
+        let mut boxed = Mesh::cuboid(Vec3::new(0.0, 0.0, -1.0), Vec3::new(10.0, 3.0, 0.0), 1);
+        boxed.colors = vec![WALL; boxed.positions.len()];
+        boxed.features = vec![7; boxed.positions.len()];
+        let layers = bars(&[-0.1, -0.9]);
+        let sources = [Source {
+            mesh: &layers,
+            baked: None,
+        }];
+        let baked = bake(&boxed, &sources, &options(0.1, 1024)).unwrap();
+        let mut sum = 0.0;
+        for j in 0..30 {
+            for i in 0..100 {
+                let p = Vec3::new(0.05 + 0.1 * i as f32, 0.05 + 0.1 * j as f32, 0.0);
+                sum += colour_on_quad(&boxed, &baked, p)[3];
+            }
+        }
+        let cover = sum / 3000.0;
+        assert!(cover > 0.38 && cover < 0.6, "cover {cover}");
     }
 
     #[test]
@@ -1319,8 +1419,9 @@ mod tests {
         let chart = &charts(&quad, &[0, 1])[0];
         for texel in [0.013, 0.07, 0.3] {
             let size = chart.texels(texel);
-            let filled = surface.sample(chart, size, texel, 0.05);
-            let at = sampling(chart, texel);
+            let proxy = Proxy::new(&quad);
+            let filled = surface.sample(chart, size, texel, 0.05, &proxy);
+            let at = sampling(chart, texel, &proxy);
             for j in 0..size[1] {
                 for i in 0..size[0] {
                     let one = surface.texel_average(&at, i, j, &mut None).unwrap();
@@ -1347,7 +1448,8 @@ mod tests {
         // 0.6, the wall below the border at 0.5 and the band above it.
         let texel = 0.3;
         let size = chart.texels(texel);
-        let at = sampling(chart, texel);
+        let proxy = Proxy::new(&quad);
+        let at = sampling(chart, texel, &proxy);
         let row = (0..size[1])
             .find(|&j| {
                 let p = chart.point(5.0, j as f32 + 0.5, texel);
@@ -1416,7 +1518,8 @@ mod tests {
                 let surface = Surface::new(&sources).unwrap();
                 let chart = &charts(&proxy, &[0, 1])[0];
                 let size = chart.texels(texel);
-                let at = sampling(chart, texel);
+                let baked = Proxy::new(&proxy);
+                let at = sampling(chart, texel, &baked);
                 // The texel in the middle of the wall whose square holds
                 // the strip's start, and the share of its square the strip
                 // covers.
