@@ -26,7 +26,10 @@
 //! Shirley and Wang 1994), so that thin bands along the chart's axes get
 //! their share of the texel. A chart the source does not cover (a box
 //! standing for a lattice) keeps, as each texel's alpha, how much of it
-//! the source covers (`Surface::covers`).
+//! the source covers (`Surface::covers`), seen through the part from
+//! directions over the hemisphere in front of it, cosine-weighted (Malley's
+//! method; Pharr, Jakob and Humphreys, "Physically Based Rendering", on
+//! cosine-weighted hemisphere sampling).
 
 use rustc_hash::{FxHashMap, FxHashSet};
 
