@@ -695,9 +695,9 @@ impl<'a> Surface<'a> {
             // that bounds its lattice there is nothing to cover, and a
             // transparent gutter would fade the edge texels' cover by
             // half where filtering reads across it.
+            let inner = |k: u32, n: u32| k.clamp(GUTTER, n - GUTTER - 1);
             for j in 0..h {
                 for i in 0..w {
-                    let inner = |k: u32, n: u32| k.clamp(GUTTER, n - GUTTER - 1);
                     out[(j * w + i) as usize] = out[(inner(j, h) * w + inner(i, w)) as usize];
                 }
             }
@@ -1085,25 +1085,30 @@ mod tests {
         for b in 0..6 {
             let (y0, y1) = (b as f32 * 0.5, (b + 1) as f32 * 0.5);
             let colour = if b % 2 == 1 { BAND } else { WALL };
-            let base = wall.positions.len() as u32;
-            for (x, y) in [(0.0, y0), (10.0, y0), (10.0, y1), (0.0, y1)] {
-                wall.positions.push(Vec3::new(x, y, 0.0));
-                wall.colors.push(colour);
-                wall.normals.push(Vec3::Z);
-                wall.features.push(7);
-            }
-            wall.indices
-                .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+            push_rectangle(&mut wall, [0.0, y0], [10.0, y1], 0.0, colour);
         }
         let mut quad = Mesh::default();
-        for (x, y) in [(0.0, 0.0), (10.0, 0.0), (10.0, 3.0), (0.0, 3.0)] {
-            quad.positions.push(Vec3::new(x, y, 0.01));
-            quad.colors.push(WALL);
-            quad.normals.push(Vec3::Z);
-            quad.features.push(7);
-        }
-        quad.indices.extend([0, 1, 2, 0, 2, 3]);
+        push_rectangle(&mut quad, [0.0, 0.0], [10.0, 3.0], 0.01, WALL);
         (wall, quad)
+    }
+
+    /// Adds the rectangle from `lo` to `hi` in the plane at `z`, facing +z,
+    /// in `colour`, as feature 7.
+    fn push_rectangle(mesh: &mut Mesh, lo: [f32; 2], hi: [f32; 2], z: f32, colour: [f32; 4]) {
+        let base = mesh.positions.len() as u32;
+        for (x, y) in [
+            (lo[0], lo[1]),
+            (hi[0], lo[1]),
+            (hi[0], hi[1]),
+            (lo[0], hi[1]),
+        ] {
+            mesh.positions.push(Vec3::new(x, y, z));
+            mesh.colors.push(colour);
+            mesh.normals.push(Vec3::Z);
+            mesh.features.push(7);
+        }
+        mesh.indices
+            .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
     }
 
     /// The drawn colour at a point of the quad: the texture at its
@@ -1185,16 +1190,8 @@ mod tests {
         let mut bars = Mesh::default();
         for &z in depths {
             for b in 0..10 {
-                let (x0, x1) = (b as f32, b as f32 + 0.3);
-                let base = bars.positions.len() as u32;
-                for (x, y) in [(x0, 0.0), (x1, 0.0), (x1, 3.0), (x0, 3.0)] {
-                    bars.positions.push(Vec3::new(x, y, z));
-                    bars.colors.push(BAND);
-                    bars.normals.push(Vec3::Z);
-                    bars.features.push(7);
-                }
-                bars.indices
-                    .extend([base, base + 1, base + 2, base, base + 2, base + 3]);
+                let x = b as f32;
+                push_rectangle(&mut bars, [x, 0.0], [x + 0.3, 3.0], z, BAND);
             }
         }
         bars
@@ -1273,13 +1270,7 @@ mod tests {
         // texels are opaque up to the quad's edges.
         let (_, quad) = banded_wall();
         let mut plate = Mesh::default();
-        for (x, y) in [(0.0, 0.0), (5.0, 0.0), (5.0, 3.0), (0.0, 3.0)] {
-            plate.positions.push(Vec3::new(x, y, 0.0));
-            plate.colors.push(BAND);
-            plate.normals.push(Vec3::Z);
-            plate.features.push(7);
-        }
-        plate.indices.extend([0, 1, 2, 0, 2, 3]);
+        push_rectangle(&mut plate, [0.0, 0.0], [5.0, 3.0], 0.0, BAND);
         let sources = [Source {
             mesh: &plate,
             baked: None,
