@@ -14,10 +14,12 @@
 //! Only colour changes: positions, triangles and feature ids are the
 //! reduced mesh's as they are, and so is every error bound measured on
 //! them. A texel takes the colour the source surface shows in front of
-//! it: the first source surface met along the chart's normal from `reach`
-//! in front of the texel to `reach` behind it (a wall kept as it was takes
-//! the window bands the reduction dropped in front of it), else the
-//! nearest point of the source. The source is the original objects where
+//! it: the first source surface met along rays through it, from `reach`
+//! in front of the chart to `reach` behind it, each from its own
+//! direction within 45 degrees of the chart's normal (a wall kept as it
+//! was takes the window bands the reduction dropped in front of it, and
+//! a lattice before it as the eye sees it at a slant), else the nearest
+//! point of the source. The source is the original objects where
 //! the builder keeps them, else the children's geometry with their own
 //! baked colour. A chart of one colour, that of its vertices, keeps its
 //! vertex colours; one of another colour shrinks to one texel. Plain areas
@@ -619,12 +621,21 @@ fn sample_offset(a: u32, b: u32) -> (f32, f32) {
 /// ink the eye sees. The points are the texel's multi-jittered pattern
 /// ([`sample_offset`]) with its cells permuted, `(a, b)` to
 /// `(a + b, a + 2 b)` modulo 3 (a bijection of the 3 x 3 cells), so that a
-/// sample's place and its direction are not tied to each other.
-fn seen_from(a: u32, b: u32, u: Vec3, v: Vec3, n: Vec3) -> Vec3 {
+/// sample's place and its direction are not tied to each other. The disk
+/// is scaled by `widest`, the sine of the widest angle to the normal
+/// (1: the whole hemisphere).
+fn seen_from(a: u32, b: u32, u: Vec3, v: Vec3, n: Vec3, widest: f32) -> Vec3 {
     let (x, y) = sample_offset((a + b) % SUBSAMPLES, (a + 2 * b) % SUBSAMPLES);
-    let (r, phi) = (x.sqrt(), std::f32::consts::TAU * y);
-    u * (r * phi.cos()) + v * (r * phi.sin()) + n * (1.0 - x).sqrt()
+    let (r, phi) = (widest * x.sqrt(), std::f32::consts::TAU * y);
+    u * (r * phi.cos()) + v * (r * phi.sin()) + n * (1.0 - r * r).sqrt()
 }
+
+/// The widest slant of a covered chart's colour samples: 45 degrees, so
+/// that a ray spanning `reach` across the chart strays at most `reach`
+/// along it. Over the whole hemisphere the grazing rays (up to four times
+/// as long) took the colour of what stands before the wall metres away,
+/// a crane's mast speckling a facade it is far from.
+const COLOUR_SLANT: f32 = std::f32::consts::FRAC_1_SQRT_2;
 
 impl<'a> Surface<'a> {
     fn new(sources: &'a [Source<'a>]) -> Option<Self> {
@@ -744,7 +755,7 @@ impl<'a> Surface<'a> {
             for a in 0..SUBSAMPLES {
                 let (x, y) = sample_offset(a, b);
                 let p = at.chart.point(i as f32 + x, j as f32 + y, at.texel);
-                let d = seen_from(a, b, at.chart.u, at.chart.v, n);
+                let d = seen_from(a, b, at.chart.u, at.chart.v, n, 1.0);
                 let behind = at
                     .proxy
                     .depth(p, d, at.reach)
@@ -782,7 +793,12 @@ impl<'a> Surface<'a> {
     /// its square ([`sample_offset`]). One sample at its centre would give
     /// a band border as a staircase of whole texels, where the eye (and a
     /// multisampled render of full detail) sees the share of the texel
-    /// each colour covers.
+    /// each colour covers. Each sample looks from its own direction
+    /// ([`seen_from`] within [`COLOUR_SLANT`]), as the cover of a chart the
+    /// source does not cover does over the whole hemisphere: a lattice
+    /// standing in front of a wall (a crane's mast on the tower's face)
+    /// shows more of itself against the wall seen at a slant than straight
+    /// on, its members apart in depth.
     fn texel_average(
         &self,
         at: &Sampling,
@@ -796,7 +812,16 @@ impl<'a> Surface<'a> {
             for a in 0..SUBSAMPLES {
                 let (x, y) = sample_offset(a, b);
                 let p = at.chart.point(i as f32 + x, j as f32 + y, at.texel);
-                if let Some(c) = self.colour_seen(p, at.chart.normal, at.reach, hint) {
+                // The ray spans `reach` either side of the chart across
+                // it, as straight on: a slanted one is longer.
+                let (d, reach) = match at.chart.normal {
+                    Some(n) => {
+                        let d = seen_from(a, b, at.chart.u, at.chart.v, n, COLOUR_SLANT);
+                        (Some(d), at.reach / d.dot(n))
+                    }
+                    None => (None, at.reach),
+                };
+                if let Some(c) = self.colour_seen(p, d, reach, hint) {
                     for (s, c) in sum.iter_mut().zip(c) {
                         *s += c;
                     }
@@ -808,16 +833,17 @@ impl<'a> Surface<'a> {
     }
 
     /// The linear colour the source shows at `p` of a chart seen along
-    /// `normal`: the first surface met from `reach` in front of `p` to
-    /// `reach` behind it, else the nearest.
+    /// `direction` (a unit vector out of the chart's front): the first
+    /// surface met from `reach` in front of `p` to `reach` behind it, else
+    /// the nearest.
     fn colour_seen(
         &self,
         p: Vec3,
-        normal: Option<Vec3>,
+        direction: Option<Vec3>,
         reach: f32,
         hint: &mut Option<u32>,
     ) -> Option<[f32; 4]> {
-        if let Some(n) = normal.filter(|_| reach > 0.0)
+        if let Some(n) = direction.filter(|_| reach > 0.0)
             && let Some((t, along)) = self.set.first_hit(p + n * reach, -n, 2.0 * reach)
         {
             return Some(self.colour_at(p + n * (reach - along), t));
@@ -1261,6 +1287,46 @@ mod tests {
     }
 
     #[test]
+    fn a_wall_behind_a_lattice_takes_the_lattice_seen_at_a_slant() {
+        // The two layers of bars 0.1 m and 0.9 m in front of a plain wall
+        // (a crane's mast before the tower's face), the wall kept as its
+        // quad: straight on the bars take 30% of it, at a slant they stand
+        // apart. The wall's texels take the mean seen within 45 degrees
+        // of its normal.
+        let mut wall = Mesh::default();
+        push_rectangle(&mut wall, [0.0, 0.0], [10.0, 3.0], 0.0, WALL);
+        let mut source = wall.clone();
+        let layers = bars(&[0.1, 0.9]);
+        let base = source.positions.len() as u32;
+        source.positions.extend(&layers.positions);
+        source.colors.extend(&layers.colors);
+        source.normals.extend(&layers.normals);
+        source.features.extend(&layers.features);
+        source
+            .indices
+            .extend(layers.indices.iter().map(|i| base + i));
+        let sources = [Source {
+            mesh: &source,
+            baked: None,
+        }];
+        let options = BakeOptions {
+            reach: 1.0,
+            ..options(0.1, 1024)
+        };
+        let baked = bake(&wall, &sources, &options).unwrap();
+        let mut share = 0.0;
+        for j in 0..30 {
+            for i in 0..100 {
+                let p = Vec3::new(0.05 + 0.1 * i as f32, 0.05 + 0.1 * j as f32, 0.0);
+                let c = colour_on_quad(&wall, &baked, p);
+                share += (WALL[0] - c[0]) / (WALL[0] - BAND[0]);
+            }
+        }
+        let share = share / 3000.0;
+        assert!(share > 0.38 && share < 0.6, "the bars' share {share}");
+    }
+
+    #[test]
     fn a_plate_behind_half_a_quad_keeps_its_cover_to_the_quads_edges() {
         // A plate behind the left half of the quad (3 m high), baked at
         // texels of 2.5 m: the quad's two rows of texels are 1.5 m each,
@@ -1460,7 +1526,8 @@ mod tests {
 
     /// A 3 m square wall at z = 0 with a strip `[lo, hi]` across it (along
     /// y when `vertical`, else along x) 1 cm in front, and the wall's quad
-    /// proxy 2 cm in front.
+    /// proxy in the strip's plane (so that the rays from all round meet
+    /// the strip where they cross the proxy).
     fn wall_with_strip(vertical: bool, lo: f32, hi: f32) -> (Mesh, Mesh) {
         let mut source = Mesh::default();
         let quad = |mesh: &mut Mesh, corners: [(f32, f32); 4], z: f32, colour| {
@@ -1489,7 +1556,7 @@ mod tests {
             BAND,
         );
         let mut proxy = Mesh::default();
-        quad(&mut proxy, square, 0.02, WALL);
+        quad(&mut proxy, square, 0.01, WALL);
         (source, proxy)
     }
 
