@@ -1295,16 +1295,8 @@ mod tests {
         // of its normal.
         let mut wall = Mesh::default();
         push_rectangle(&mut wall, [0.0, 0.0], [10.0, 3.0], 0.0, WALL);
-        let mut source = wall.clone();
-        let layers = bars(&[0.1, 0.9]);
-        let base = source.positions.len() as u32;
-        source.positions.extend(&layers.positions);
-        source.colors.extend(&layers.colors);
-        source.normals.extend(&layers.normals);
-        source.features.extend(&layers.features);
-        source
-            .indices
-            .extend(layers.indices.iter().map(|i| base + i));
+        let mut source = bars(&[0.1, 0.9]);
+        push_rectangle(&mut source, [0.0, 0.0], [10.0, 3.0], 0.0, WALL);
         let sources = [Source {
             mesh: &source,
             baked: None,
