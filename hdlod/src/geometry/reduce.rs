@@ -46,16 +46,6 @@ pub struct Reduced {
     pub bound: f32,
 }
 
-/// One part of the input and what stands for it.
-struct Piece<'p> {
-    input: &'p Mesh,
-    output: Mesh,
-    /// Measured `D_H(output, input)`.
-    error: f32,
-    /// Box diagonal of the input: the cover keeps large parts first.
-    size: f32,
-}
-
 /// Reduces `mesh` part by part within `budget` (scene units) of `metric`;
 /// `tolerance` is the gap allowed between the measured bounds and the
 /// true distances. Never returns more triangles than it was given.
@@ -319,49 +309,40 @@ impl<M: Borrow<Mesh>> Parts<M> {
     /// bounds and the true distances. Never returns more triangles than it
     /// was given.
     pub fn reduce(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
-        let mesh: &Mesh = self.mesh.borrow();
-        let stand_ins: Vec<(Mesh, f32)> = self
-            .parts
-            .iter_mut()
-            .map(|part| part.stand_in(budget, tolerance, metric))
-            .collect();
-        let mut pieces: Vec<Piece> = self
-            .parts
-            .iter()
-            .zip(stand_ins)
-            .map(|(part, (output, error))| Piece {
-                input: &part.input,
-                output,
-                error,
-                size: (part.hi - part.lo).length(),
-            })
-            .collect();
-        pieces.sort_by(|a, b| b.size.total_cmp(&a.size));
+        // Largest first: the cover keeps large parts and drops what they
+        // cover. A part's stand-in is made only once the part is found not
+        // covered: the cover tests the part's input against the outputs
+        // kept before it, so the stand-ins of dropped parts would be
+        // measured for nothing.
+        let mut order: Vec<usize> = (0..self.parts.len()).collect();
+        let size = |p: &PartState| (p.hi - p.lo).length();
+        order.sort_by(|&a, &b| size(&self.parts[b]).total_cmp(&size(&self.parts[a])));
 
-        // The greedy cover. Kept outputs are searched through a set rebuilt
-        // whenever the outputs kept since outnumber it (so O(n log n) in all);
-        // a part tested against the older set alone is only kept more often.
-        let mut kept: Vec<usize> = Vec::new();
+        // Kept outputs are searched through a set rebuilt whenever the
+        // outputs kept since outnumber it (so O(n log n) in all); a part
+        // tested against the older set alone is only kept more often.
+        let mut kept: Vec<Mesh> = Vec::new();
         let mut indexed = 0usize;
         let mut set = ColoredSet::new([], metric);
         let mut set_triangles = 0usize;
         let mut pending_triangles = 0usize;
         let mut bound = 0.0f32;
-        for (i, piece) in pieces.iter().enumerate() {
+        for &i in &order {
             if pending_triangles > 0 && pending_triangles >= set_triangles {
-                set = ColoredSet::new(kept.iter().map(|&k| &pieces[k].output), metric);
+                set = ColoredSet::new(&kept, metric);
                 indexed = kept.len();
                 set_triangles += pending_triangles;
                 pending_triangles = 0;
             }
+            let input = &self.parts[i].input;
             // Any surface near every vertex first: a cheap test that most
             // parts which are not covered fail.
             let covered = indexed > 0
-                && piece.input.positions.iter().all(|p| {
+                && input.positions.iter().all(|p| {
                     set.nearest_squared(*p)
                         .is_some_and(|d| d <= budget * budget)
                 })
-                && match set.one_sided_within(piece.input, tolerance, budget) {
+                && match set.one_sided_within(input, tolerance, budget) {
                     Some(d) => {
                         bound = bound.max(d);
                         true
@@ -369,15 +350,16 @@ impl<M: Borrow<Mesh>> Parts<M> {
                     None => false,
                 };
             if !covered {
-                bound = bound.max(piece.error);
-                pending_triangles += piece.output.triangle_count();
-                kept.push(i);
+                let (output, error) = self.parts[i].stand_in(budget, tolerance, metric);
+                bound = bound.max(error);
+                pending_triangles += output.triangle_count();
+                kept.push(output);
             }
         }
 
+        let mesh: &Mesh = self.mesh.borrow();
         let mut out = Mesh::default();
-        for &k in &kept {
-            let o = &pieces[k].output;
+        for o in &kept {
             let all: Vec<usize> = (0..o.triangle_count()).collect();
             push_triangles(&mut out, o, &all);
         }
