@@ -278,7 +278,7 @@ impl PartState {
 impl<M: Borrow<Mesh>> Parts<M> {
     pub fn new(mesh: M) -> Self {
         let whole: &Mesh = mesh.borrow();
-        let parts = parts(whole)
+        let mut parts: Vec<PartState> = parts(whole)
             .into_iter()
             .map(|triangles| {
                 let mut input = Mesh::default();
@@ -296,6 +296,9 @@ impl<M: Borrow<Mesh>> Parts<M> {
                 }
             })
             .collect();
+        // Largest first, the order the cover takes them in at every budget.
+        let size = |p: &PartState| (p.hi - p.lo).length();
+        parts.sort_by(|a, b| size(b).total_cmp(&size(a)));
         Parts { mesh, parts }
     }
 
@@ -309,14 +312,11 @@ impl<M: Borrow<Mesh>> Parts<M> {
     /// bounds and the true distances. Never returns more triangles than it
     /// was given.
     pub fn reduce(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
-        // Largest first: the cover keeps large parts and drops what they
-        // cover. A part's stand-in is made only once the part is found not
-        // covered: the cover tests the part's input against the outputs
-        // kept before it, so the stand-ins of dropped parts would be
-        // measured for nothing.
-        let mut order: Vec<usize> = (0..self.parts.len()).collect();
-        let size = |p: &PartState| (p.hi - p.lo).length();
-        order.sort_by(|&a, &b| size(&self.parts[b]).total_cmp(&size(&self.parts[a])));
+        // The parts come largest first (`Parts::new`): the cover keeps large
+        // parts and drops what they cover. A part's stand-in is made only
+        // once the part is found not covered: the cover tests the part's
+        // input against the outputs kept before it, so the stand-ins of
+        // dropped parts would be measured for nothing.
 
         // Kept outputs are searched through a set rebuilt whenever the
         // outputs kept since outnumber it (so O(n log n) in all); a part
@@ -327,7 +327,7 @@ impl<M: Borrow<Mesh>> Parts<M> {
         let mut set_triangles = 0usize;
         let mut pending_triangles = 0usize;
         let mut bound = 0.0f32;
-        for &i in &order {
+        for i in 0..self.parts.len() {
             if pending_triangles > 0 && pending_triangles >= set_triangles {
                 set = ColoredSet::new(&kept, metric);
                 indexed = kept.len();
@@ -467,14 +467,17 @@ mod tests {
         let m = joined(&[tube(16, 0.02, 4.0, 0.0, 0.0), tube(16, 0.3, 4.0, 3.0, 0.0)]);
         let mut parts = Parts::new(&m);
         let half = parts.reduce(0.25, 5e-4, ErrorMetric::Geometry);
+        // The parts are held largest first.
+        let (thick, thin) = (0, 1);
+        assert!(parts.parts[thin].hi.x - parts.parts[thin].lo.x < 0.1);
         let tried: Vec<usize> = parts.parts.iter().map(|p| p.tried.len()).collect();
         // The thin tube's quad fits a quarter: nothing of it is measured
         // again at a half. The thick one (0.6 across) has no quad within a
         // quarter: its quad is measured at a half.
         let whole = parts.reduce(0.5, 1e-3, ErrorMetric::Geometry);
         let again: Vec<usize> = parts.parts.iter().map(|p| p.tried.len()).collect();
-        assert_eq!(again[0], tried[0], "{tried:?} then {again:?}");
-        assert!(again[1] > tried[1], "{tried:?} then {again:?}");
+        assert_eq!(again[thin], tried[thin], "{tried:?} then {again:?}");
+        assert!(again[thick] > tried[thick], "{tried:?} then {again:?}");
         assert!(whole.mesh.triangle_count() <= half.mesh.triangle_count());
         assert_eq!(
             whole.mesh.triangle_count(),
