@@ -317,7 +317,7 @@ impl<M: Borrow<Mesh>> Parts<M> {
         // once the part is found not covered: the cover tests the part's
         // input against the outputs kept before it, so the stand-ins of
         // dropped parts would be measured for nothing.
-
+        //
         // Kept outputs are searched through a set rebuilt whenever the
         // outputs kept since outnumber it (so O(n log n) in all); a part
         // tested against the older set alone is only kept more often.
