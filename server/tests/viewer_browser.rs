@@ -219,6 +219,24 @@ fn the_viewer_draws_the_schedule_in_chromium() {
         "{pixels}"
     );
 
+    // Batching: the end of the period in a few draw calls, the same
+    // picture and the same feature ids under each pixel as with a draw
+    // call per cluster.
+    let b = &out["batching"];
+    eprintln!("batching: {b}");
+    assert_eq!(b["clusters"], b["aloneClusters"], "{b}");
+    assert_eq!(b["aloneDrawCalls"], b["clusters"], "{b}");
+    assert!(f(&b["drawCalls"]) >= 1.0, "{b}");
+    assert!(f(&b["drawCalls"]) * 4.0 <= f(&b["clusters"]), "{b}");
+    let pixels = &b["pixels"];
+    assert!(f(&pixels["offA"]) > 10_000.0, "{pixels}");
+    assert!(
+        f(&pixels["differ"]) <= 0.001 * f(&pixels["pixels"]),
+        "{pixels}"
+    );
+    assert!(f(&b["idsPixels"]) > 10_000.0, "{b}");
+    assert!(f(&b["idsDiffer"]) <= 0.001 * f(&b["idsPixels"]), "{b}");
+
     // The address follows the view, so a view can be shared.
     let address = out["address"].as_str().unwrap();
     assert!(
@@ -1032,5 +1050,11 @@ fn hdlod_bench_viewer_times_first_frames_and_frames_without_lod() {
         assert!(f(&none["triangles"]) > f(&cut["triangles"]), "{c}");
         assert_eq!(none["all"].as_array().unwrap().len(), 3);
         assert!(f(&none["ms"]) > 0.0 && f(&cut["ms"]) > 0.0, "{c}");
+        // Batched, a frame is a few draw calls; one per cluster otherwise.
+        for frames in [cut, none] {
+            assert_eq!(frames["aloneDrawCalls"], frames["clusters"], "{c}");
+            assert!(f(&frames["drawCalls"]) >= 1.0, "{c}");
+            assert!(f(&frames["drawCalls"]) < f(&frames["clusters"]), "{c}");
+        }
     }
 }

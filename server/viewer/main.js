@@ -434,7 +434,7 @@ function updateStats() {
     `saving           ${ratio}`,
     `GLB loaded       ${(cache.bytes / 1048576).toFixed(2)} MB, ${cache.files} files`,
     `cut latency      ${viewer.latency.toFixed(1)} ms (server ${(s.micros / 1000).toFixed(2)} ms)`,
-    `frame (CPU)      ${viewer.frameMs.toFixed(1)} ms`,
+    `frame (CPU)      ${viewer.frameMs.toFixed(1)} ms, ${number(renderer.drawCalls)} draw calls`,
   ];
   ui.stats.textContent = lines.join("\n");
 }
@@ -732,6 +732,9 @@ function testHook() {
         glbRequests: cache ? cache.requests : 0,
         latencyMs: viewer.latency,
         frameMs: viewer.frameMs,
+        // Draw calls of the last frame (a page of batched clusters is one).
+        drawCalls: renderer ? renderer.drawCalls : 0,
+        batching: renderer ? renderer.batching : true,
         seq: viewer.seq,
         answers: viewer.answers,
         settled: this.settled(),
@@ -782,6 +785,12 @@ function testHook() {
     // Off draws every feature of the drawn clusters (no presence, no flags):
     // what the cut alone shows, for the tests' pixel comparisons.
     setFeatureState: (on) => viewer.features.setEnabled(on),
+    // Test only: off draws every cluster with a call of its own, as before
+    // batching, for the tests' pixel comparisons.
+    setBatching: (on) => {
+      renderer.batching = !!on;
+      viewer.needsDraw = true;
+    },
     // Test only: the feature id of every device pixel of the canvas (-1 none),
     // as counts by id; a click reads one pixel of the same pass.
     featureCoverage: () => {

@@ -1,13 +1,16 @@
-// WebGL2 drawing: one vertex array and one draw call per cluster, a
-// headlight Lambert over vertex colours times the cluster's baked colour
-// texture when it has one (or a colour per class or level). The texture's
+// WebGL2 drawing: a headlight Lambert over vertex colours times the
+// cluster's baked colour texture when it has one (or a colour per class or
+// level). The texture's
 // texels are sRGB, as glTF's base colour: an SRGB8_ALPHA8 texture gives
 // them back linear, as the vertex colours are.
 // Dynamic clusters get their cut transform as the model matrix; a skinned
 // cluster's vertices are placed by its joint matrices at the cut's time
 // instead (linear blend skinning, glTF 2.0 section 3.7.3), at most
 // MAX_JOINTS of them: uniforms, which every WebGL2 device has room for
-// (256 vertex vectors at the least). Picking is
+// (256 vertex vectors at the least). The clusters that need nothing of
+// their own (no transform, joints, tint or texture) share vertex buffers
+// and are drawn a page at a time, one call each (pages.js); the others
+// have a vertex array each and are drawn one by one. Picking is
 // one more pass of the same clusters into an offscreen framebuffer with
 // feature ids as colours, scissored to the pixel under the cursor, read
 // back as that one pixel.
@@ -20,6 +23,9 @@
 // per-feature texture, the looks (colours.js), gives a colour mode's
 // colour and opacity per feature, or hides it: opaque looks are drawn in
 // the first pass, translucent ones blended in the second with the ghosts.
+
+import { Pages, PAGE_VERTEX_BYTES } from "./pages.js";
+
 // The most joints a skinned cluster is drawn posed with; one with more is
 // drawn in its bind pose.
 const MAX_JOINTS = 32;
@@ -115,8 +121,11 @@ void main() {
     return;
   }
   // Polygon soup may lack or flip normals: the face normal from screen
-  // derivatives stands in, and both sides are lit.
-  vec3 n = uHasNormals ? normalize(vNormal) : normalize(cross(dFdx(vWorld), dFdy(vWorld)));
+  // derivatives stands in (a zero normal in a shared page is a mesh
+  // without normals), and both sides are lit. The derivatives are taken
+  // outside the choice: they are undefined in non-uniform control flow.
+  vec3 face = normalize(cross(dFdx(vWorld), dFdy(vWorld)));
+  vec3 n = uHasNormals && dot(vNormal, vNormal) > 0.0 ? normalize(vNormal) : face;
   vec3 l = normalize(uEye - vWorld);
   float lambert = abs(dot(n, l));
   // A look (task colour) or a tint stands for the whole feature, texture
@@ -208,6 +217,11 @@ export class Renderer {
     this.lookCount = 0;
     this.lookUploads = 0;
     this.pickTarget = null;
+    this.pages = new Pages(gl);
+    // Off draws every cluster alone, as the tests compare.
+    this.batching = true;
+    // Draw calls of the last draw(), both passes.
+    this.drawCalls = 0;
   }
 
   // The per-feature state, RGBA bytes of feature i at 4 * i (the length a
@@ -253,6 +267,13 @@ export class Renderer {
   // GPU), hasNormals, ...}.
   upload(mesh, image) {
     const gl = this.gl;
+    if (mesh.features && !mesh.joints && !(mesh.uvs && image)) {
+      const slot = this.pages.place(mesh);
+      return {
+        slot, texture: null, count: mesh.indices.length, bytes: slot.count * PAGE_VERTEX_BYTES + mesh.indices.byteLength,
+        hasNormals: true, hasColors: true, hasFeatures: true, hasSkin: false,
+      };
+    }
     const vao = gl.createVertexArray();
     gl.bindVertexArray(vao);
     const buffers = [];
@@ -305,6 +326,10 @@ export class Renderer {
   // Frees what upload() made.
   free(gpu) {
     const gl = this.gl;
+    if (gpu.slot) {
+      this.pages.release(gpu.slot);
+      return;
+    }
     gl.deleteVertexArray(gpu.vao);
     for (const b of gpu.buffers) gl.deleteBuffer(b);
     if (gpu.texture) gl.deleteTexture(gpu.texture);
@@ -325,6 +350,7 @@ export class Renderer {
     // pixel's samples it takes; the canvas's own alpha stays 1.
     gl.enable(gl.SAMPLE_ALPHA_TO_COVERAGE);
     gl.colorMask(true, true, true, false);
+    this.drawCalls = 0;
     this.pass(items, camera, 0, isolating);
     gl.colorMask(true, true, true, true);
     gl.disable(gl.SAMPLE_ALPHA_TO_COVERAGE);
@@ -360,7 +386,36 @@ export class Renderer {
     gl.uniform1i(this.u.uLookCount, this.lookCount);
     gl.uniform1i(this.u.uColour, 2);
     gl.activeTexture(gl.TEXTURE2);
+    const alone = [];
+    const byPage = new Map();
+    const batched = new Set();
     for (const item of items) {
+      const g = item.gpu;
+      if (this.batching && g.slot && !item.transform && !item.tint) {
+        // An instance drawn twice in place would only draw it again.
+        if (batched.has(g)) continue;
+        batched.add(g);
+        const list = byPage.get(g.slot.page);
+        if (list) list.push(g.slot);
+        else byPage.set(g.slot.page, [g.slot]);
+      } else {
+        alone.push(item);
+      }
+    }
+    if (byPage.size > 0) {
+      gl.uniformMatrix4fv(this.u.uModel, false, IDENTITY);
+      gl.uniform1i(this.u.uSkinned, 0);
+      gl.uniform4f(this.u.uTint, 0, 0, 0, 0);
+      gl.uniform1i(this.u.uHasNormals, 1);
+      gl.uniform1i(this.u.uHasTexture, 0);
+      gl.bindTexture(gl.TEXTURE_2D, this.looksTexture);
+      for (const [page, slots] of byPage) {
+        const count = this.pages.bindDrawn(page, slots);
+        gl.drawElements(gl.TRIANGLES, count, gl.UNSIGNED_INT, 0);
+        if (which !== 2) this.drawCalls++;
+      }
+    }
+    for (const item of alone) {
       const g = item.gpu;
       if (which === 2 && !g.hasFeatures && item.feature == null) continue;
       gl.uniformMatrix4fv(this.u.uModel, false, item.transform || IDENTITY);
@@ -373,11 +428,13 @@ export class Renderer {
       // Unit 2 always holds a complete texture: the looks' when the item
       // has none (never read then).
       gl.bindTexture(gl.TEXTURE_2D, g.texture || this.looksTexture);
-      gl.bindVertexArray(g.vao);
+      if (g.slot) this.pages.bindOne(g.slot);
+      else gl.bindVertexArray(g.vao);
       // Constant attributes are context state, not the vertex array's.
       if (!g.hasColors) gl.vertexAttrib4f(2, 0.75, 0.75, 0.75, 1);
       if (!g.hasFeatures) gl.vertexAttrib1f(3, item.feature ?? -1);
       gl.drawElements(gl.TRIANGLES, g.count, gl.UNSIGNED_INT, 0);
+      if (which !== 2) this.drawCalls++;
     }
     gl.bindVertexArray(null);
     gl.bindTexture(gl.TEXTURE_2D, null);

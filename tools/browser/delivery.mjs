@@ -12,7 +12,8 @@
 //   cut is complete, and what it fetched;
 // - frame time: each cell of table 2 drawn FRAMES times with the cut and
 //   without levels of detail (`lod=none`: every present leaf), the median
-//   milliseconds of a frame (drawn and read back).
+//   milliseconds of a frame (drawn and read back) and its draw calls, with
+//   the clusters batched (as the viewer draws) and with a call each.
 // Prints one JSON object.
 import { launch } from "./launch.mjs";
 import { hook } from "./page.mjs";
@@ -119,7 +120,15 @@ try {
     await settledAt(page);
     const s = await hook(page, (v) => v.state());
     const ms = await hook(page, (v, k) => v.timeFrames(k), FRAMES);
-    return { clusters: s.clusters, triangles: s.triangles, baseline: s.baseline, ms: median(ms), all: ms };
+    const drawCalls = await hook(page, (v) => v.state().drawCalls);
+    await hook(page, (v) => v.setBatching(false));
+    const alone = await hook(page, (v, k) => v.timeFrames(k), FRAMES);
+    const aloneDrawCalls = await hook(page, (v) => v.state().drawCalls);
+    await hook(page, (v) => v.setBatching(true));
+    return {
+      clusters: s.clusters, triangles: s.triangles, baseline: s.baseline, ms: median(ms), all: ms, drawCalls,
+      aloneMs: median(alone), aloneDrawCalls,
+    };
   };
   for (const [screen, factor] of SCREENS) {
     for (const [time, fraction] of TIMES) {

@@ -286,6 +286,32 @@ try {
     await second.close();
   }
 
+  // The same view drawn with the clusters batched a page at a time and
+  // with a draw call each: the draw calls, the pictures and the pick
+  // pass's feature ids compared.
+  async function batching() {
+    const on = await settle();
+    const shotOn = await canvasShot();
+    const idsOn = await coverage();
+    await hook((v) => v.setBatching(false));
+    const off = await settle();
+    const shotOff = await canvasShot();
+    const idsOff = await coverage();
+    await hook((v) => v.setBatching(true));
+    await settle();
+    let idsDiffer = 0;
+    for (const id of new Set([...Object.keys(idsOn), ...Object.keys(idsOff)])) idsDiffer += Math.abs((idsOn[id] || 0) - (idsOff[id] || 0));
+    return {
+      clusters: on.clusters,
+      drawCalls: on.drawCalls,
+      aloneDrawCalls: off.drawCalls,
+      aloneClusters: off.clusters,
+      pixels: await compare("batching", shotOn, shotOff),
+      idsDiffer,
+      idsPixels: Object.values(idsOn).reduce((a, b) => a + b, 0),
+    };
+  }
+
   const summary = (s) => ({ time: s.time, clusters: s.clusters, triangles: s.triangles, baseline: s.baseline, ids: s.ids });
 
   const started = Date.now();
@@ -306,6 +332,7 @@ try {
   out.end.serverIds = endCut.clusters.map((c) => c.id).sort((a, b) => a - b);
   out.end.serverTriangles = endCut.stats.triangles;
   out.end.pixels = await shoot("end");
+  out.batching = await batching();
   out.glbBytes = s.glbBytes;
   out.glbFiles = s.glbFiles;
   out.latencyMs = s.latencyMs;

@@ -13,7 +13,7 @@ const JS: &str = "text/javascript; charset=utf-8";
 const CSS: &str = "text/css; charset=utf-8";
 
 /// Name, content type, bytes of every file under `/viewer/`.
-const FILES: [(&str, &str, &str); 14] = [
+const FILES: [(&str, &str, &str); 15] = [
     ("index.html", HTML, include_str!("../../viewer/index.html")),
     ("viewer.css", CSS, include_str!("../../viewer/viewer.css")),
     ("main.js", JS, include_str!("../../viewer/main.js")),
@@ -22,6 +22,7 @@ const FILES: [(&str, &str, &str); 14] = [
     ("camera.js", JS, include_str!("../../viewer/camera.js")),
     ("renderer.js", JS, include_str!("../../viewer/renderer.js")),
     ("stream.js", JS, include_str!("../../viewer/stream.js")),
+    ("pages.js", JS, include_str!("../../viewer/pages.js")),
     (
         "featurestate.js",
         JS,

@@ -105,6 +105,14 @@ struct Frames {
     /// The median frame, in milliseconds.
     ms: f64,
     all: Vec<f64>,
+    /// Draw calls of a frame, the clusters batched as the viewer draws them.
+    #[serde(rename = "drawCalls")]
+    draw_calls: u64,
+    /// The median frame with a draw call per cluster.
+    #[serde(rename = "aloneMs")]
+    alone_ms: f64,
+    #[serde(rename = "aloneDrawCalls")]
+    alone_draw_calls: u64,
 }
 
 pub fn run(args: Args) -> anyhow::Result<()> {
@@ -178,21 +186,24 @@ fn markdown(scene: &str, r: &Report) -> String {
     }
     out += &format!(
         "\nFrame time, the median of {} frames each drawn and read back (ms):\n\n\
-         | time | screen | HDLOD triangles | HDLOD clusters | HDLOD ms | none triangles | none clusters | none ms | none / HDLOD |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+         | time | screen | HDLOD triangles | HDLOD clusters | HDLOD draw calls | HDLOD ms | a call per cluster | none triangles | none draw calls | none ms | a call per cluster | none / HDLOD |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
         r.frames
     );
     for c in &r.cells {
         out += &format!(
-            "| {} | {} | {} | {} | {:.1} | {} | {} | {:.1} | {:.1}x |\n",
+            "| {} | {} | {} | {} | {} | {:.1} | {:.1} | {} | {} | {:.1} | {:.1} | {:.1}x |\n",
             c.time,
             c.screen,
             c.hdlod.triangles,
             c.hdlod.clusters,
+            c.hdlod.draw_calls,
             c.hdlod.ms,
+            c.hdlod.alone_ms,
             c.none.triangles,
-            c.none.clusters,
+            c.none.draw_calls,
             c.none.ms,
+            c.none.alone_ms,
             c.none.ms / c.hdlod.ms.max(1e-9)
         );
     }
