@@ -1,8 +1,7 @@
 // WebGL2 drawing: a headlight Lambert over vertex colours times the
 // cluster's baked colour texture when it has one (or a colour per class or
-// level). The texture's
-// texels are sRGB, as glTF's base colour: an SRGB8_ALPHA8 texture gives
-// them back linear, as the vertex colours are.
+// level). The texture's texels are sRGB, as glTF's base colour: an
+// SRGB8_ALPHA8 texture gives them back linear, as the vertex colours are.
 // Dynamic clusters get their cut transform as the model matrix; a skinned
 // cluster's vertices are placed by its joint matrices at the cut's time
 // instead (linear blend skinning, glTF 2.0 section 3.7.3), at most
@@ -263,8 +262,9 @@ export class Renderer {
   }
 
   // GPU buffers of a parsed GLB and its decoded colour texture (an
-  // ImageBitmap, or null): {vao, buffers, texture, count, bytes (on the
-  // GPU), hasNormals, ...}.
+  // ImageBitmap, or null): {slot (its range in a shared page) or vao and
+  // buffers (its own), texture, count, bytes (on the GPU), hasNormals, ...}.
+  // A mesh with feature ids and no joints or texture goes to a page.
   upload(mesh, image) {
     const gl = this.gl;
     if (mesh.features && !mesh.joints && !(mesh.uvs && image)) {
