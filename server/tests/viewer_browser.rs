@@ -17,7 +17,7 @@ use common::{
     SCENE, Server, assert_content_type, assert_success, assert_valid, browser_driver,
     browser_ready, build_tree, hdlod, repo, schema,
 };
-use serde_json::Value;
+use serde_json::{Value, json};
 
 fn f(v: &Value) -> f64 {
     v.as_f64().unwrap_or_else(|| panic!("{v} is not a number"))
@@ -236,6 +236,24 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     );
     assert!(f(&b["idsPixels"]) > 10_000.0, "{b}");
     assert!(f(&b["idsDiffer"]) <= 0.001 * f(&b["idsPixels"]), "{b}");
+
+    // The shared vertex pages: first-fit ranges, given back and joined, a
+    // mesh over a page's size on a page of its own, emptied pages deleted,
+    // and one call drawing exactly the clusters asked for.
+    let p = &out["pages"];
+    assert_eq!(p["firsts"], json!([0, 1000, 3000]), "{p}");
+    assert_eq!(p["refill"], json!([1000, 6000]), "{p}");
+    assert_eq!(p["rebased"], json!([1000, 1001, 6002]), "{p}");
+    assert_eq!(
+        p["joined"],
+        json!([[0, 3000], [6600, (1 << 19) - 6600]]),
+        "{p}"
+    );
+    assert_eq!(p["bigOwnPage"], true, "{p}");
+    assert_eq!(p["pagesAfterBig"], 1, "{p}");
+    assert_eq!(p["drawnFirst"], json!([1, 0, 3, 0]), "{p}");
+    assert_eq!(p["drawnThen"], json!([0, 2, 0, 4]), "{p}");
+    assert_eq!(p["pagesAtEnd"], 0, "{p}");
 
     // The address follows the view, so a view can be shared.
     let address = out["address"].as_str().unwrap();

@@ -312,6 +312,81 @@ try {
     };
   }
 
+  // The page allocator on a WebGL2 context of its own: ranges placed
+  // first-fit, given back and joined, a mesh larger than a page on one of
+  // its own, an emptied page deleted; then a page's clusters drawn with
+  // one call, read back pixel by pixel.
+  async function pageAllocator() {
+    return page.evaluate(async () => {
+      const { Pages, PAGE_VERTICES } = await import("/viewer/pages.js");
+      const canvas = new OffscreenCanvas(4, 1);
+      const gl = canvas.getContext("webgl2", { antialias: false });
+      const pages = new Pages(gl);
+      // n vertices, the first three a triangle covering pixel `px` of the 4 x 1 canvas.
+      const mesh = (n, px = 0) => {
+        const positions = new Float32Array(3 * n);
+        const x0 = -1 + px / 2;
+        positions.set([x0, -1, 0, x0 + 0.5, -1, 0, x0 + 0.25, 3, 0]);
+        return { positions, normals: null, colors: null, features: new Float32Array(n).fill(px), indices: new Uint32Array([0, 1, 2, 1, 2, 2]) };
+      };
+      const log = {};
+      const a = pages.place(mesh(1000));
+      const b = pages.place(mesh(2000));
+      const c = pages.place(mesh(3000));
+      log.firsts = [a.first, b.first, c.first];
+      pages.release(b);
+      const d = pages.place(mesh(1500));
+      const e = pages.place(mesh(600));
+      log.refill = [d.first, e.first];
+      log.rebased = [d.indices[0], d.indices[1], e.indices[2]];
+      pages.release(a);
+      pages.release(d);
+      log.joined = c.page.free.map((r) => [...r]);
+      const big = pages.place(mesh(PAGE_VERTICES + 1));
+      log.bigOwnPage = big.page !== c.page && big.page.capacity === PAGE_VERTICES + 1;
+      pages.release(big);
+      log.pagesAfterBig = pages.pages.length;
+
+      // Four one-pixel triangles in the shared page, their feature ids as
+      // colours; two drawn with one call, then the other two.
+      const vs = `#version 300 es
+        layout(location = 0) in vec3 p;
+        layout(location = 3) in float f;
+        flat out float vf;
+        void main() { vf = f; gl_Position = vec4(p, 1.0); }`;
+      const fs = `#version 300 es
+        precision highp float;
+        flat in float vf;
+        out vec4 o;
+        void main() { o = vec4((vf + 1.0) * 40.0 / 255.0, 0.0, 0.0, 1.0); }`;
+      const program = gl.createProgram();
+      for (const [type, src] of [[gl.VERTEX_SHADER, vs], [gl.FRAGMENT_SHADER, fs]]) {
+        const sh = gl.createShader(type);
+        gl.shaderSource(sh, src);
+        gl.compileShader(sh);
+        gl.attachShader(program, sh);
+      }
+      gl.linkProgram(program);
+      gl.useProgram(program);
+      const tris = [0, 1, 2, 3].map((px) => pages.place(mesh(3, px)));
+      const drawn = (slots) => {
+        gl.clearColor(0, 0, 0, 1);
+        gl.clear(gl.COLOR_BUFFER_BIT);
+        const count = pages.bindDrawn(slots[0].page, slots);
+        gl.drawElements(gl.TRIANGLES, count, gl.UNSIGNED_INT, 0);
+        const px = new Uint8Array(16);
+        gl.readPixels(0, 0, 4, 1, gl.RGBA, gl.UNSIGNED_BYTE, px);
+        // Feature id + 1 in steps of 40: a byte off in the rounding reads the same.
+        return [0, 1, 2, 3].map((i) => Math.round(px[4 * i] / 40));
+      };
+      log.drawnFirst = drawn([tris[0], tris[2]]);
+      log.drawnThen = drawn([tris[1], tris[3]]);
+      for (const s of [c, e, ...tris]) pages.release(s);
+      log.pagesAtEnd = pages.pages.length;
+      return log;
+    });
+  }
+
   const summary = (s) => ({ time: s.time, clusters: s.clusters, triangles: s.triangles, baseline: s.baseline, ids: s.ids });
 
   const started = Date.now();
@@ -333,6 +408,7 @@ try {
   out.end.serverTriangles = endCut.stats.triangles;
   out.end.pixels = await shoot("end");
   out.batching = await batching();
+  out.pages = await pageAllocator();
   out.glbBytes = s.glbBytes;
   out.glbFiles = s.glbFiles;
   out.latencyMs = s.latencyMs;
