@@ -255,6 +255,18 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     assert_eq!(p["drawnThen"], json!([0, 2, 0, 4]), "{p}");
     assert_eq!(p["pagesAtEnd"], 0, "{p}");
 
+    // A baked cover takes its share of a pixel's samples, on average over
+    // the pixels, whatever the device's alpha to coverage (calibrated).
+    let cover = &out["cover"];
+    eprintln!("cover: {cover}");
+    assert!(
+        (f(&cover["full"]) - f(&cover["bare"])).abs() > 30.0,
+        "{cover}"
+    );
+    for c in cover["covers"].as_array().unwrap() {
+        assert!((f(&c["cover"]) - f(&c["alpha"])).abs() <= 0.03, "{cover}");
+    }
+
     // The address follows the view, so a view can be shared.
     let address = out["address"].as_str().unwrap();
     assert!(

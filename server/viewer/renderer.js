@@ -28,6 +28,9 @@ import { Pages, PAGE_VERTEX_BYTES } from "./pages.js";
 // The most joints a skinned cluster is drawn posed with; one with more is
 // drawn in its bind pose.
 const MAX_JOINTS = 32;
+// The most samples a pixel whose alpha to coverage is calibrated; a
+// canvas with more draws baked covers with the device's own mapping.
+const MAX_SAMPLES = 8;
 
 const VERTEX = `#version 300 es
 layout(location = 0) in vec3 aPosition;
@@ -111,6 +114,11 @@ uniform bool uHasTexture;
 uniform vec4 uTint;
 uniform bool uHasNormals;
 uniform int uPass;
+// Alpha to coverage as measured on this device (calibrateCover): an alpha
+// that writes exactly k of the uCoverSamples samples is uCoverLevels[k];
+// no samples (0) when it was not a step function of alpha.
+uniform int uCoverSamples;
+uniform float uCoverLevels[${MAX_SAMPLES + 1}];
 out vec4 outColor;
 void main() {
   if (uPass == 2) {
@@ -143,15 +151,25 @@ void main() {
   } else {
     // A baked texel's alpha is how much of it the part covers (a crane's
     // lattice drawn as a box): it becomes the share of the pixel's samples
-    // written (alpha to coverage). With 4 samples that share is rounded to
-    // quarters, so a texel an eighth covered or less would vanish; a
-    // threshold moved by up to an eighth from pixel to pixel (interleaved
-    // gradient noise: Jimenez, "Next Generation Post Processing in Call of
-    // Duty: Advanced Warfare", SIGGRAPH 2014) keeps the mean over pixels.
+    // written (alpha to coverage). A pixel can only take whole samples, so
+    // the share a * n is rounded down or up to k samples by a threshold
+    // that moves from pixel to pixel (interleaved gradient noise: Jimenez,
+    // "Next Generation Post Processing in Call of Duty: Advanced Warfare",
+    // SIGGRAPH 2014), which keeps the mean over pixels; then written with
+    // the alpha that this device turns into k samples. How a device maps
+    // alpha to samples is its own (SwiftShader writes floor(5 a) of 4, so
+    // a cover under a fifth vanished); where it is not a step function
+    // the alpha goes as it is, moved by up to an eighth.
     float a = texel.a;
     if (a < 1.0) {
       float noise = fract(52.9829189 * fract(dot(gl_FragCoord.xy, vec2(0.06711056, 0.00583715))));
-      a = clamp(a + (noise - 0.5) * 0.25, 0.0, 1.0);
+      if (uCoverSamples > 0) {
+        int k = min(int(floor(a * float(uCoverSamples) + noise)), uCoverSamples);
+        if (k == 0) discard;
+        a = uCoverLevels[k];
+      } else {
+        a = clamp(a + (noise - 0.5) * 0.25, 0.0, 1.0);
+      }
     }
     outColor = vec4(lit, a);
   }
@@ -186,6 +204,68 @@ function compile(gl, type, source) {
   return s;
 }
 
+// How this device's alpha to coverage turns alpha into samples of the
+// canvas's pixels, measured once: a triangle over a few pixels drawn at
+// each of 64 alphas and read back. {samples, levels}: for k samples the
+// middle of the alphas that write exactly k (levels[k]), or samples 0
+// when some share of samples is written by no alpha (a device that
+// dithers of its own) or the canvas has no samples to share.
+function calibrateCover(gl) {
+  const none = { samples: 0, levels: new Float32Array(MAX_SAMPLES + 1) };
+  const samples = gl.getParameter(gl.SAMPLES);
+  if (samples < 2 || samples > MAX_SAMPLES) return none;
+  const program = gl.createProgram();
+  const vs = "#version 300 es\nlayout(location = 0) in vec2 p;\nvoid main() { gl_Position = vec4(p, 0.0, 1.0); }";
+  const fs = "#version 300 es\nprecision highp float;\nuniform float a;\nout vec4 o;\nvoid main() { o = vec4(1.0, 1.0, 1.0, a); }";
+  gl.attachShader(program, compile(gl, gl.VERTEX_SHADER, vs));
+  gl.attachShader(program, compile(gl, gl.FRAGMENT_SHADER, fs));
+  gl.linkProgram(program);
+  gl.useProgram(program);
+  const vao = gl.createVertexArray();
+  gl.bindVertexArray(vao);
+  const buffer = gl.createBuffer();
+  gl.bindBuffer(gl.ARRAY_BUFFER, buffer);
+  gl.bufferData(gl.ARRAY_BUFFER, new Float32Array([-1, -1, 3, -1, -1, 3]), gl.STATIC_DRAW);
+  gl.enableVertexAttribArray(0);
+  gl.vertexAttribPointer(0, 2, gl.FLOAT, false, 0, 0);
+  const side = 4;
+  gl.viewport(0, 0, side, side);
+  gl.enable(gl.SAMPLE_ALPHA_TO_COVERAGE);
+  const px = new Uint8Array(4 * side * side);
+  const runs = new Map();
+  const STEPS = 64;
+  for (let i = 0; i < STEPS; i++) {
+    const a = (i + 0.5) / STEPS;
+    gl.clearColor(0, 0, 0, 1);
+    gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
+    gl.uniform1f(gl.getUniformLocation(program, "a"), a);
+    gl.drawArrays(gl.TRIANGLES, 0, 3);
+    gl.readPixels(0, 0, side, side, gl.RGBA, gl.UNSIGNED_BYTE, px);
+    let sum = 0;
+    for (let k = 0; k < px.length; k += 4) sum += px[k];
+    const k = Math.round((sum / (255 * side * side)) * samples);
+    if (Math.abs((sum / (255 * side * side)) * samples - k) > 0.1) {
+      runs.clear();
+      break;
+    }
+    const run = runs.get(k);
+    if (run) run[1] = a;
+    else runs.set(k, [a, a]);
+  }
+  gl.disable(gl.SAMPLE_ALPHA_TO_COVERAGE);
+  gl.bindVertexArray(null);
+  gl.deleteVertexArray(vao);
+  gl.deleteBuffer(buffer);
+  gl.deleteProgram(program);
+  const levels = new Float32Array(MAX_SAMPLES + 1);
+  for (let k = 1; k <= samples; k++) {
+    const run = runs.get(k);
+    if (!run) return none;
+    levels[k] = (run[0] + run[1]) / 2;
+  }
+  return { samples, levels };
+}
+
 const IDENTITY = new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]);
 
 export class Renderer {
@@ -200,7 +280,7 @@ export class Renderer {
     if (!gl.getProgramParameter(program, gl.LINK_STATUS)) throw new Error(gl.getProgramInfoLog(program));
     this.program = program;
     this.u = {};
-    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass", "uColour", "uHasTexture", "uSkinned", "uJoints"]) {
+    for (const name of ["uViewProj", "uModel", "uEye", "uTint", "uHasNormals", "uState", "uHasState", "uStateWidth", "uStateCount", "uIsolating", "uLooks", "uLookCount", "uPass", "uColour", "uHasTexture", "uSkinned", "uJoints", "uCoverSamples", "uCoverLevels"]) {
       this.u[name] = gl.getUniformLocation(program, name);
     }
     gl.enable(gl.DEPTH_TEST);
@@ -217,6 +297,7 @@ export class Renderer {
     this.lookUploads = 0;
     this.pickTarget = null;
     this.pages = new Pages(gl);
+    this.cover = calibrateCover(gl);
     // Off draws every cluster alone, as the tests compare.
     this.batching = true;
     // Draw calls of the last draw(), both passes.
@@ -373,6 +454,8 @@ export class Renderer {
     gl.uniformMatrix4fv(this.u.uViewProj, false, camera.viewProj);
     gl.uniform3fv(this.u.uEye, camera.eye);
     gl.uniform1i(this.u.uPass, which);
+    gl.uniform1i(this.u.uCoverSamples, this.cover.samples);
+    gl.uniform1fv(this.u.uCoverLevels, this.cover.levels);
     gl.uniform1i(this.u.uIsolating, isolating ? 1 : 0);
     gl.uniform1i(this.u.uHasState, this.stateCount > 0 ? 1 : 0);
     gl.uniform1i(this.u.uStateWidth, this.stateWidth);

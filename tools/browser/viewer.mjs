@@ -387,6 +387,41 @@ try {
     });
   }
 
+  // A baked cover (a texture's alpha) drawn over a whole canvas by the
+  // viewer's renderer: the share of the pixels' samples it takes, from
+  // the picture against the same quad uncovered and fully covered.
+  async function bakedCover() {
+    return page.evaluate(async () => {
+      const { Renderer } = await import("/viewer/renderer.js");
+      const side = 64;
+      const r = new Renderer(new OffscreenCanvas(side, side));
+      const quad = {
+        positions: new Float32Array([-1, -1, 0, 1, -1, 0, 1, 1, 0, -1, 1, 0]),
+        normals: null, colors: null, features: null,
+        uvs: new Float32Array([0, 0, 1, 0, 1, 1, 0, 1]),
+        indices: new Uint32Array([0, 1, 2, 0, 2, 3]),
+      };
+      const camera = { viewProj: new Float32Array([1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1, 0, 0, 0, 0, 1]), eye: new Float32Array([0, 0, 5]) };
+      const mean = async (byte) => {
+        const data = new Uint8ClampedArray(4 * 16).fill(255);
+        for (let i = 3; i < data.length; i += 4) data[i] = byte;
+        const image = await createImageBitmap(new ImageData(data, 4, 4), { premultiplyAlpha: "none", colorSpaceConversion: "none" });
+        const gpu = r.upload(quad, image);
+        r.draw([{ gpu, transform: null, joints: null, tint: null, feature: null }], camera, side, side, false, false);
+        const px = new Uint8Array(4 * side * side);
+        r.gl.readPixels(0, 0, side, side, r.gl.RGBA, r.gl.UNSIGNED_BYTE, px);
+        r.free(gpu);
+        let sum = 0;
+        for (let i = 0; i < px.length; i += 4) sum += px[i + 2];
+        return sum / (side * side);
+      };
+      const [bare, full] = [await mean(0), await mean(255)];
+      const covers = [];
+      for (const byte of [13, 26, 51, 77, 128, 179, 230]) covers.push({ alpha: byte / 255, cover: ((await mean(byte)) - bare) / (full - bare) });
+      return { samples: r.cover.samples, levels: [...r.cover.levels], bare, full, covers };
+    });
+  }
+
   const summary = (s) => ({ time: s.time, clusters: s.clusters, triangles: s.triangles, baseline: s.baseline, ids: s.ids });
 
   const started = Date.now();
@@ -409,6 +444,7 @@ try {
   out.end.pixels = await shoot("end");
   out.batching = await batching();
   out.pages = await pageAllocator();
+  out.cover = await bakedCover();
   out.glbBytes = s.glbBytes;
   out.glbFiles = s.glbFiles;
   out.latencyMs = s.latencyMs;
