@@ -20,7 +20,8 @@ export const PAGE_VERTICES = 1 << 19;
 const FLOATS = [3, 3, 4, 1];
 export const PAGE_VERTEX_BYTES = 4 * FLOATS.reduce((a, b) => a + b, 0);
 
-const DEFAULT_COLOUR = [0.75, 0.75, 0.75, 1];
+// The colour of a mesh without vertex colours, in a page or not.
+export const DEFAULT_COLOUR = [0.75, 0.75, 0.75, 1];
 
 class Page {
   constructor(gl, capacity) {
@@ -98,7 +99,8 @@ export class Pages {
   release(slot) {
     const gl = this.gl;
     const { page, first, count } = slot;
-    this.forget(slot);
+    if (slot.own) gl.deleteBuffer(slot.own);
+    slot.own = null;
     page.used -= count;
     if (page.used === 0) {
       gl.deleteVertexArray(page.vao);
@@ -161,11 +163,5 @@ export class Pages {
     } else {
       gl.bindBuffer(gl.ELEMENT_ARRAY_BUFFER, slot.own);
     }
-  }
-
-  // Frees a slot's own index buffer, if bindOne made one.
-  forget(slot) {
-    if (slot.own) this.gl.deleteBuffer(slot.own);
-    slot.own = null;
   }
 }

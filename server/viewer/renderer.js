@@ -23,7 +23,7 @@
 // colour and opacity per feature, or hides it: opaque looks are drawn in
 // the first pass, translucent ones blended in the second with the ghosts.
 
-import { Pages, PAGE_VERTEX_BYTES } from "./pages.js";
+import { DEFAULT_COLOUR, Pages, PAGE_VERTEX_BYTES } from "./pages.js";
 
 // The most joints a skinned cluster is drawn posed with; one with more is
 // drawn in its bind pose.
@@ -232,19 +232,21 @@ function calibrateCover(gl) {
   gl.viewport(0, 0, side, side);
   gl.enable(gl.SAMPLE_ALPHA_TO_COVERAGE);
   const px = new Uint8Array(4 * side * side);
+  const alpha = gl.getUniformLocation(program, "a");
   const runs = new Map();
   const STEPS = 64;
   for (let i = 0; i < STEPS; i++) {
     const a = (i + 0.5) / STEPS;
     gl.clearColor(0, 0, 0, 1);
     gl.clear(gl.COLOR_BUFFER_BIT | gl.DEPTH_BUFFER_BIT);
-    gl.uniform1f(gl.getUniformLocation(program, "a"), a);
+    gl.uniform1f(alpha, a);
     gl.drawArrays(gl.TRIANGLES, 0, 3);
     gl.readPixels(0, 0, side, side, gl.RGBA, gl.UNSIGNED_BYTE, px);
     let sum = 0;
     for (let k = 0; k < px.length; k += 4) sum += px[k];
-    const k = Math.round((sum / (255 * side * side)) * samples);
-    if (Math.abs((sum / (255 * side * side)) * samples - k) > 0.1) {
+    const written = (sum / (255 * side * side)) * samples;
+    const k = Math.round(written);
+    if (Math.abs(written - k) > 0.1) {
       runs.clear();
       break;
     }
@@ -514,7 +516,7 @@ export class Renderer {
       if (g.slot) this.pages.bindOne(g.slot);
       else gl.bindVertexArray(g.vao);
       // Constant attributes are context state, not the vertex array's.
-      if (!g.hasColors) gl.vertexAttrib4f(2, 0.75, 0.75, 0.75, 1);
+      if (!g.hasColors) gl.vertexAttrib4fv(2, DEFAULT_COLOUR);
       if (!g.hasFeatures) gl.vertexAttrib1f(3, item.feature ?? -1);
       gl.drawElements(gl.TRIANGLES, g.count, gl.UNSIGNED_INT, 0);
       if (which !== 2) this.drawCalls++;
