@@ -165,6 +165,22 @@ fn the_viewer_draws_the_schedule_in_chromium() {
     );
     assert!(triangles.windows(2).all(|w| w[1] <= w[0]), "{triangles:?}");
     assert!(triangles[2] < triangles[0], "{triangles:?}");
+    // A wheel step draws at once, with the geometry the viewer holds.
+    for z in &zoom[1..] {
+        assert!(f(&z["staleFrames"]) >= 1.0, "{z}");
+    }
+
+    // The jump from the start to the end of the period waits for its own
+    // cut rather than drawing the old one at the new time first; only if
+    // that cut took longer than the hold is the old one drawn meanwhile.
+    let hold = &out["hold"];
+    eprintln!("hold: {hold}");
+    assert!(f(&hold["frames"]) >= 1.0, "{hold}");
+    if f(&hold["readyMs"]) < f(&hold["holdMs"]) {
+        assert_eq!(f(&hold["staleFrames"]), 0.0, "{hold}");
+    } else {
+        assert!(f(&hold["staleFrames"]) >= 1.0, "{hold}");
+    }
 
     // Fly mode: holding W moves the eye.
     let fly = &out["fly"];

@@ -59,6 +59,12 @@ const viewer = {
   seq: 0,
   answers: 0, // cut answers drawn, over every connection
   viewKey: "",
+  viewRequest: null, // the request of the current view, as sent
+  viewSince: 0, // when the view last changed (performance.now())
+  holdUntil: 0, // a time jump's frame waits for its cut until then (HOLD_MS)
+  readyMs: null, // from the last view change until its cut was drawable
+  frames: 0,
+  staleFrames: 0, // frames drawn before the view's own cut was drawable
   needsDraw: true,
   matrices: null,
   error: null,
@@ -327,6 +333,7 @@ async function onMessage(msg, request, millis) {
   viewer.seq = msg.seq;
   viewer.answers += 1;
   viewer.lastRequest = request;
+  if (request === viewer.viewRequest) viewer.readyMs = performance.now() - viewer.viewSince;
   viewer.needsDraw = true;
   updateStats();
   if (failed.length) showMessage(`Could not load ${failed.length} cluster(s): ${failed[0]}; trying again.`);
@@ -403,6 +410,8 @@ function uploadFeatureState() {
 
 function draw(width, height, matrices = viewer.matrices) {
   const start = performance.now();
+  viewer.frames += 1;
+  if (viewer.lastRequest !== viewer.viewRequest) viewer.staleFrames += 1;
   uploadFeatureState();
   renderer.draw(drawItems(), matrices, width, height, viewer.features.isolating(), viewer.colours.translucent > 0);
   const ms = performance.now() - start;
@@ -465,6 +474,17 @@ function updateUrl(now) {
   history.replaceState(null, "", `?${params}`);
 }
 
+// A jump in time (a step, the slider let go, a task's start) holds its
+// frame until its own cut is drawable, for at most HOLD_MS: the old cut
+// at the new time would show the objects that just appeared as holes, and
+// in a software rasteriser that frame costs as much as the right one and
+// delays it. Moving the camera and playing draw at once, as ever.
+const HOLD_MS = 150;
+
+function sameButTime(a, b) {
+  return JSON.stringify({ ...a, time: 0 }) === JSON.stringify({ ...b, time: 0 });
+}
+
 let lastFrame = performance.now();
 let lastStats = 0;
 const keys = new Set();
@@ -485,14 +505,19 @@ function frame(now) {
   const request = cutRequest(width, height);
   const key = JSON.stringify(request);
   if (key !== viewer.viewKey) {
+    const jump = !viewer.playing && viewer.viewRequest && sameButTime(request, viewer.viewRequest);
     viewer.viewKey = key;
+    viewer.viewRequest = request;
+    viewer.viewSince = performance.now();
+    viewer.holdUntil = jump ? viewer.viewSince + HOLD_MS : 0;
+    viewer.readyMs = null;
     connection.request(request);
     viewer.needsDraw = true;
     urlDirty = true;
   }
   updateUrl(now);
   if (viewer.features.dirty || viewer.colours.dirty) viewer.needsDraw = true;
-  if (viewer.needsDraw) {
+  if (viewer.needsDraw && (viewer.lastRequest === viewer.viewRequest || performance.now() >= viewer.holdUntil)) {
     viewer.needsDraw = false;
     draw(width, height);
   }
@@ -734,6 +759,12 @@ function testHook() {
         frameMs: viewer.frameMs,
         // Draw calls of the last frame (a page of batched clusters is one).
         drawCalls: renderer ? renderer.drawCalls : 0,
+        // Frames drawn, and of them those drawn before the view's own cut
+        // could be (a time jump waits for it up to holdMs).
+        frames: viewer.frames,
+        staleFrames: viewer.staleFrames,
+        readyMs: viewer.readyMs,
+        holdMs: HOLD_MS,
         batching: renderer ? renderer.batching : true,
         seq: viewer.seq,
         answers: viewer.answers,

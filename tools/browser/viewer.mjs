@@ -435,8 +435,17 @@ try {
   out.start = summary(s);
   out.start.serverIds = (await serverCut(await page.evaluate(() => window.hdlodViewer.lastRequest()))).clusters.map((c) => c.id).sort((a, b) => a - b);
   out.start.pixels = await shoot("start");
+  // A jump in time waits for its own cut (up to holdMs) instead of first
+  // drawing the old one at the new time; moving the camera draws at once.
+  const before = s;
   await page.evaluate((t) => window.hdlodViewer.setTime(t), s.span);
   s = await settle();
+  out.hold = {
+    holdMs: s.holdMs,
+    readyMs: s.readyMs,
+    frames: s.frames - before.frames,
+    staleFrames: s.staleFrames - before.staleFrames,
+  };
   out.end = summary(s);
   const endCut = await serverCut(await page.evaluate(() => window.hdlodViewer.lastRequest()));
   out.end.serverIds = endCut.clusters.map((c) => c.id).sort((a, b) => a - b);
@@ -462,9 +471,10 @@ try {
   await page.evaluate(() => window.hdlodViewer.setDistanceFactor(1));
   await page.mouse.move(WIDTH / 2, HEIGHT / 2);
   for (let step = 0; step < 3; step++) {
+    const stale = s.staleFrames;
     if (step > 0) await page.mouse.wheel(0, Math.log(2) / 0.0015);
     s = await settle();
-    out.zoom.push({ distance: s.distance, triangles: s.triangles, clusters: s.clusters });
+    out.zoom.push({ distance: s.distance, triangles: s.triangles, clusters: s.clusters, staleFrames: s.staleFrames - stale });
   }
   await shoot("far");
   await page.evaluate(() => window.hdlodViewer.setDistanceFactor(1));
