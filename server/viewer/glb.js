@@ -38,6 +38,8 @@ const TYPES = {
   5126: [Float32Array, 0],
 };
 
+const UTF8 = new TextDecoder();
+
 export class GlbError extends Error {}
 
 // The bytes of buffer view `index`: a slice of the binary chunk, or the
@@ -84,6 +86,16 @@ function readAccessor(gltf, bin, decoded, index, what) {
   let out;
   if (stride === n * size && offset % size === 0) {
     out = new Type(data.buffer, offset, count * n);
+  } else if (count > 0 && offset % size === 0 && stride % size === 0) {
+    // A strided view (quantized attributes are padded to 4 bytes a
+    // vertex) read through a typed array over it: a DataView call per
+    // component took most of a cut's parse time.
+    const step = stride / size;
+    const src = new Type(data.buffer, offset, (count - 1) * step + n);
+    out = new Type(count * n);
+    for (let i = 0, o = 0; i < count; i++) {
+      for (let k = 0; k < n; k++) out[o++] = src[i * step + k];
+    }
   } else {
     out = new Type(count * n);
     const dv = new DataView(data.buffer);
@@ -96,8 +108,12 @@ function readAccessor(gltf, bin, decoded, index, what) {
       for (let k = 0; k < n; k++) out[i * n + k] = get(offset + i * stride + k * size);
     }
   }
-  // Normalised integer colours become floats in [0, 1].
-  if (accessor.normalized && max) out = Float32Array.from(out, (v) => Math.max(v / max, -1));
+  // Normalised integers become floats in [0, 1] (signed: [-1, 1]).
+  if (accessor.normalized && max) {
+    const floats = new Float32Array(out.length);
+    for (let i = 0; i < out.length; i++) floats[i] = Math.max(out[i] / max, -1);
+    out = floats;
+  }
   return { data: out, components: n, count };
 }
 
@@ -151,7 +167,7 @@ export function parseGlb(buffer) {
     const length = dv.getUint32(at, true);
     const type = dv.getUint32(at + 4, true);
     const body = new Uint8Array(buffer, at + 8, Math.min(length, buffer.byteLength - at - 8));
-    if (type === JSON_CHUNK) gltf = JSON.parse(new TextDecoder().decode(body));
+    if (type === JSON_CHUNK) gltf = JSON.parse(UTF8.decode(body));
     else if (type === BIN_CHUNK) bin = body;
     at += 8 + length;
   }
@@ -218,8 +234,11 @@ export function parseGlb(buffer) {
     positions.set(p.pos.data, v * 3);
     if (p.origin) {
       const { t, s } = p.origin;
-      for (let k = v * 3; k < (v + p.pos.count) * 3; k += 3) {
-        for (let c = 0; c < 3; c++) positions[k + c] = positions[k + c] * s + t[c];
+      const [tx, ty, tz] = t;
+      for (let k = v * 3, end = (v + p.pos.count) * 3; k < end; k += 3) {
+        positions[k] = positions[k] * s + tx;
+        positions[k + 1] = positions[k + 1] * s + ty;
+        positions[k + 2] = positions[k + 2] * s + tz;
       }
     }
     if (normals) normals.set(p.nor.data, v * 3);
@@ -230,13 +249,19 @@ export function parseGlb(buffer) {
     }
     if (p === textured) uvs.set(p.uv.data, v * 2);
     if (colors && p.col) {
-      for (let k = 0; k < p.col.count; k++) {
-        for (let c = 0; c < p.col.components; c++) colors[(v + k) * 4 + c] = p.col.data[k * p.col.components + c];
+      const { data, components, count } = p.col;
+      if (components === 4) colors.set(data, v * 4);
+      else {
+        for (let k = 0; k < count; k++) {
+          for (let c = 0; c < components; c++) colors[(v + k) * 4 + c] = data[k * components + c];
+        }
       }
     }
-    for (let k = 0; k < p.idx.length; k++) {
-      if (p.idx[k] >= p.pos.count) throw new GlbError(`index ${p.idx[k]} past ${p.pos.count} vertices`);
-      indices[i + k] = p.idx[k] + v;
+    const { idx } = p;
+    const count = p.pos.count;
+    for (let k = 0; k < idx.length; k++) {
+      if (idx[k] >= count) throw new GlbError(`index ${idx[k]} past ${count} vertices`);
+      indices[i + k] = idx[k] + v;
     }
     v += p.pos.count;
     i += p.idx.length;
