@@ -474,12 +474,13 @@ function updateUrl(now) {
   history.replaceState(null, "", `?${params}`);
 }
 
-// A jump in time (a step, the slider let go, a task's start) holds its
-// frame until its own cut is drawable, for at most HOLD_MS: the old cut
-// at the new time would show the objects that just appeared as holes, and
-// in a software rasteriser that frame costs as much as the right one and
-// delays it. Moving the camera and playing draw at once, as ever.
-const HOLD_MS = 150;
+// A jump in time (a step, the slider, a task's start) holds its frame
+// until its own cut is drawable, for at most HOLD_MS: the old cut at the
+// new time would lack the objects that appeared in clusters it does not
+// hold, and in a software rasteriser that frame costs as much as the right
+// one and delays it (the page waits for a frame to be drawn before it
+// handles the cut's answer). Moving the camera and playing draw at once.
+const HOLD_MS = 200;
 
 function sameButTime(a, b) {
   return JSON.stringify({ ...a, time: 0 }) === JSON.stringify({ ...b, time: 0 });

@@ -81,7 +81,13 @@ struct Fetched {
 #[derive(Debug, Serialize, Deserialize)]
 struct Step {
     days: u32,
+    /// The median over the steps made in a row, and each.
     ms: f64,
+    all: Vec<f64>,
+    /// Frames drawn with the old cut while the steps' cuts loaded.
+    #[serde(rename = "staleFrames")]
+    stale_frames: u64,
+    /// Of the first step.
     clusters: u64,
     triangles: u64,
     #[serde(flatten)]
@@ -180,8 +186,20 @@ fn markdown(scene: &str, r: &Report) -> String {
     }
     if let Some(s) = &r.step {
         out += &format!(
-            "\nA {}-day step from the nearest view: {:.0} ms until the new cut is complete ({} clusters, {} triangles; {} geometry requests, {} bytes on the wire).\n",
-            s.days, s.ms, s.clusters, s.triangles, s.fetched.requests, s.fetched.wire_bytes
+            "\n{} {}-day steps in a row from the nearest view: {:.0} ms until the new cut is complete (median; each: {}), {} frames drawn with the old cut meanwhile. The first: {} clusters, {} triangles; {} geometry requests, {} bytes on the wire.\n",
+            s.all.len(),
+            s.days,
+            s.ms,
+            s.all
+                .iter()
+                .map(|ms| format!("{ms:.0}"))
+                .collect::<Vec<_>>()
+                .join(", "),
+            s.stale_frames,
+            s.clusters,
+            s.triangles,
+            s.fetched.requests,
+            s.fetched.wire_bytes
         );
     }
     out += &format!(
