@@ -258,13 +258,13 @@ export function parseGlb(buffer) {
       }
     }
     const { idx } = p;
-    const count = p.pos.count;
+    const n = p.pos.count;
     for (let k = 0; k < idx.length; k++) {
-      if (idx[k] >= count) throw new GlbError(`index ${idx[k]} past ${count} vertices`);
+      if (idx[k] >= n) throw new GlbError(`index ${idx[k]} past ${n} vertices`);
       indices[i + k] = idx[k] + v;
     }
-    v += p.pos.count;
-    i += p.idx.length;
+    v += n;
+    i += idx.length;
   }
   return { positions, normals, colors, features, joints, weights, uvs, image: textured ? textured.image : null, indices, triangles: indexCount / 3 };
 }
