@@ -1,10 +1,12 @@
 //! The Hausdorff bound: known distances, bad input, and (proptest) that it
 //! bounds every brute-force distance of random surface points; the same for
-//! the budgeted bound alone (`bound_within`).
+//! the budgeted bound alone (`bound_within`) and a cluster's direct bound
+//! against its objects (`direct_bound_within`).
 
 use glam::{Vec3, Vec3A};
 use hdlod::geometry::{
-    ErrorMetric, HausdorffOptions, Mesh, bound_within, closest_point_on_triangle, hausdorff,
+    ErrorMetric, HausdorffOptions, Mesh, bound_within, closest_point_on_triangle,
+    direct_bound_within, feature_bound_within, hausdorff,
 };
 use proptest::prelude::*;
 
@@ -338,6 +340,26 @@ fn fan(radii: &[f32], heights: &[f32]) -> Mesh {
     }
 }
 
+/// `m` as object `feature`: every vertex carries its id.
+fn object(m: &Mesh, feature: u32) -> Mesh {
+    Mesh {
+        features: vec![feature; m.positions.len()],
+        ..m.clone()
+    }
+}
+
+/// The meshes as one, each keeping its vertices' feature ids.
+fn joined(meshes: &[Mesh]) -> Mesh {
+    let mut out = Mesh::default();
+    for m in meshes {
+        let offset = out.positions.len() as u32;
+        out.positions.extend(&m.positions);
+        out.features.extend(&m.features);
+        out.indices.extend(m.indices.iter().map(|i| i + offset));
+    }
+    out
+}
+
 fn brute_distance(p: Vec3, m: &Mesh) -> f32 {
     m.triangles()
         .map(|[a, b, c]| {
@@ -433,6 +455,61 @@ proptest! {
                 points_within(&a, &b, &picks, bound, bound)?;
             }
             None => prop_assert!(full > budget - gap, "refused {budget} with a bound of {full}"),
+        }
+    }
+
+    #[test]
+    fn the_direct_bound_holds_object_by_object_and_matches_the_three_searches(
+        originals in prop::collection::vec(soup(16), 1..4),
+        reduced in prop::collection::vec(soup(12), 1..4),
+        near in 0.0f32..1.0,
+        picks in prop::collection::vec((0usize..1000, 0.0f32..1.0, 0.0f32..1.0), 32),
+        tolerance in 0.001f32..0.2,
+        budget in 0.0f32..10.0,
+    ) {
+        // Objects 0..n, each an original and a cluster's triangles of it:
+        // drawn near it (`near` of the way from a soup to the original) so
+        // that the bounds are neither all tiny nor all refused.
+        let n = originals.len().min(reduced.len()) as u32;
+        let originals: Vec<Mesh> = (0..n).map(|k| object(&originals[k as usize], k)).collect();
+        let mesh = joined(&(0..n).map(|k| {
+            let (o, r) = (&originals[k as usize], &reduced[k as usize]);
+            let positions = r.positions.iter().enumerate()
+                .map(|(i, p)| o.positions[i % o.positions.len()].lerp(*p, near))
+                .collect();
+            object(&Mesh { positions, ..r.clone() }, k)
+        }).collect::<Vec<_>>());
+        let refs: Vec<&Mesh> = originals.iter().collect();
+        let union = joined(&originals);
+        let geometry = ErrorMetric::Geometry;
+        // What the cluster's error stood for before: the whole distance
+        // and each object's apart, three searches.
+        let three = bound_within(&mesh, &union, tolerance, f32::INFINITY, geometry)
+            .zip(feature_bound_within(&mesh, &refs, tolerance, f32::INFINITY, geometry))
+            .map(|(whole, own)| whole.max(own))
+            .expect("an infinite budget fits");
+        let gap = tolerance + 1e-3;
+        match direct_bound_within(&mesh, &refs, tolerance, budget, geometry) {
+            Some(d) => {
+                prop_assert!(d <= budget && (d - three).abs() <= gap, "{d} against {three}");
+                points_within(&mesh, &union, &picks, d, d)?;
+                for (k, own) in originals.iter().enumerate() {
+                    let mine: Vec<Vec3> = points_on(&mesh, &picks)
+                        .into_iter()
+                        .zip(&picks)
+                        .filter(|&(_, &(t, _, _))| {
+                            let t = t % mesh.triangle_count();
+                            mesh.features[mesh.indices[t * 3] as usize] == k as u32
+                        })
+                        .map(|(p, _)| p)
+                        .collect();
+                    for p in mine {
+                        let e = brute_distance(p, own);
+                        prop_assert!(e <= d, "a point of object {k} is {e} from its own, bound {d}");
+                    }
+                }
+            }
+            None => prop_assert!(three > budget - gap, "refused {budget} with {three}"),
         }
     }
 

@@ -163,24 +163,12 @@ fn direct_eps(
     budget: f64,
     metric: ErrorMetric,
 ) -> Option<f64> {
-    let parts: Vec<Part> = originals
-        .iter()
-        .map(|m| Part {
-            mesh: m,
-            transform: Mat4::IDENTITY,
-            color: [1.0; 4],
-            feature: None,
-        })
-        .collect();
-    let union = geometry::merge(&parts, 0.0);
-    let whole = geometry::bound_within(mesh, &union, tolerance, budget as f32, metric)?;
     // The recursive bound holds object by object as well (each object's
     // triangles come from that object's below), and a viewer picks and
     // hides objects inside a cluster: the direct bound stands in for it
     // only where it does too (docs/method.md, "Object identity").
     let originals: Vec<&Mesh> = originals.iter().map(|m| m.as_ref()).collect();
-    let own = geometry::feature_bound_within(mesh, &originals, tolerance, budget as f32, metric)?;
-    Some(f64::from(whole.max(own)))
+    geometry::direct_bound_within(mesh, &originals, tolerance, budget as f32, metric).map(f64::from)
 }
 
 /// A parent of its own for a lone cluster: its geometry, error and baked

@@ -229,7 +229,7 @@ pub(super) fn search_scale(a: &[[Vec3; 3]], b: &[[Vec3; 3]], tolerance: f32) -> 
     )
 }
 
-fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
+pub(super) fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
     let n = m.positions.len();
     m.indices
         .chunks_exact(3)
@@ -736,14 +736,27 @@ pub(super) fn one_way_within(
     tolerance: f32,
     within: f32,
 ) -> Option<f32> {
+    one_way_above(a, b, tolerance, within, 0.0)
+}
+
+/// [`one_way_within`] for a second direction: a piece whose bound is
+/// within `floor` is settled, so only the larger of the result and `floor`
+/// bounds the distance.
+pub(super) fn one_way_above(
+    a: &[[Vec3; 3]],
+    b: &TriangleSet,
+    tolerance: f32,
+    within: f32,
+    floor: f32,
+) -> Option<f32> {
     if a.is_empty() {
-        return Some(0.0);
+        return Some(floor);
     }
     if b.is_empty() {
         return None;
     }
-    one_way(a, b, tolerance, None, within, 0.0)
-        .map(|w| w.upper)
+    one_way(a, b, tolerance, None, within, floor)
+        .map(|w| w.upper.max(floor))
         .filter(|&d| d <= within)
 }
 

@@ -20,7 +20,7 @@ mod union_find;
 mod vertex_removal;
 
 pub use closest::{Nearest, TriangleSet, closest_point_on_triangle};
-pub use color_bound::{ErrorMetric, bound_within, feature_bound_within};
+pub use color_bound::{ErrorMetric, bound_within, direct_bound_within, feature_bound_within};
 pub use distance::distance;
 pub use hausdorff::{Hausdorff, HausdorffOptions, hausdorff, one_sided_bound};
 pub use merge::{Part, merge};
