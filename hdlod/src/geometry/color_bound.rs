@@ -31,7 +31,9 @@ use serde::{Deserialize, Serialize};
 
 use super::Mesh;
 use super::closest::TriangleSet;
-use super::hausdorff::{self, finite_triangles, one_way_above, one_way_within, search_scale};
+use super::hausdorff::{
+    self, finite_triangle, finite_triangles, one_way_above, one_way_within, search_scale,
+};
 use super::merge::{Part, merge};
 use super::proxy::push_triangles;
 use super::union_find::UnionFind;
@@ -231,14 +233,26 @@ pub fn feature_bound_within(
     budget: f32,
     metric: ErrorMetric,
 ) -> Option<f32> {
-    let triangles = by_object(mesh);
-    if triangles.len() <= 1 {
+    objects_within(mesh, by_object(mesh), originals, tolerance, budget, metric)
+}
+
+/// [`feature_bound_within`] of `mesh`'s triangles as grouped by
+/// [`by_object`].
+fn objects_within(
+    mesh: &Mesh,
+    objects: FxHashMap<Option<u32>, Vec<usize>>,
+    originals: &[&Mesh],
+    tolerance: f32,
+    budget: f32,
+    metric: ErrorMetric,
+) -> Option<f32> {
+    if objects.len() <= 1 {
         // One object: the whole mesh's bound is its own.
         return Some(0.0);
     }
     let mut by_feature = originals_by_object(originals);
     let mut bound = 0.0f32;
-    for (feature, ks) in triangles {
+    for (feature, ks) in objects {
         let own = by_feature.remove(&feature)?;
         let mut part = Mesh::default();
         push_triangles(&mut part, mesh, &ks);
@@ -297,7 +311,7 @@ pub fn direct_bound_within(
         .collect();
     let union = merge(&parts, 0.0);
     let whole = bound_within(mesh, &union, tolerance, budget, metric)?;
-    let own = feature_bound_within(mesh, originals, tolerance, budget, metric)?;
+    let own = objects_within(mesh, objects, originals, tolerance, budget, metric)?;
     Some(whole.max(own))
 }
 
@@ -338,9 +352,10 @@ fn objects_and_back_within(
             .into_iter()
             .flat_map(finite_triangles)
             .collect();
-        let mut part = Mesh::default();
-        push_triangles(&mut part, mesh, &ks);
-        let tris = finite_triangles(&part);
+        let tris: Vec<[Vec3; 3]> = ks
+            .iter()
+            .filter_map(|&k| finite_triangle(mesh, k))
+            .collect();
         bound = one_way_above(
             &tris,
             &TriangleSet::new(set.into_iter()),

@@ -230,19 +230,17 @@ pub(super) fn search_scale(a: &[[Vec3; 3]], b: &[[Vec3; 3]], tolerance: f32) -> 
 }
 
 pub(super) fn finite_triangles(m: &Mesh) -> Vec<[Vec3; 3]> {
-    let n = m.positions.len();
-    m.indices
-        .chunks_exact(3)
-        .filter(|t| t.iter().all(|&i| (i as usize) < n))
-        .map(|t| {
-            [
-                m.positions[t[0] as usize],
-                m.positions[t[1] as usize],
-                m.positions[t[2] as usize],
-            ]
-        })
-        .filter(|t| t.iter().all(|p| p.is_finite()))
+    (0..m.triangle_count())
+        .filter_map(|k| finite_triangle(m, k))
         .collect()
+}
+
+/// The corners of `m`'s `k`-th triangle, unless an index is out of range
+/// or a corner is not finite.
+pub(super) fn finite_triangle(m: &Mesh, k: usize) -> Option<[Vec3; 3]> {
+    let corner = |c: usize| m.positions.get(m.indices[k * 3 + c] as usize).copied();
+    let t = [corner(0)?, corner(1)?, corner(2)?];
+    t.iter().all(|p| p.is_finite()).then_some(t)
 }
 
 /// The upper bound of `d(p, B)` over the piece `c`: `triangle_upper`,
