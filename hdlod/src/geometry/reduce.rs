@@ -312,6 +312,19 @@ impl<M: Borrow<Mesh>> Parts<M> {
     /// bounds and the true distances. Never returns more triangles than it
     /// was given.
     pub fn reduce(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
+        self.reduce_at_most(budget, tolerance, metric, usize::MAX)
+            .expect("no cap to exceed")
+    }
+
+    /// [`Parts::reduce`], or `None` as soon as the parts kept hold more
+    /// than `cap` triangles.
+    pub fn reduce_at_most(
+        &mut self,
+        budget: f32,
+        tolerance: f32,
+        metric: ErrorMetric,
+        cap: usize,
+    ) -> Option<Reduced> {
         // The parts come largest first (`Parts::new`): the cover keeps large
         // parts and drops what they cover. A part's stand-in is made only
         // once the part is found not covered: the cover tests the part's
@@ -354,6 +367,9 @@ impl<M: Borrow<Mesh>> Parts<M> {
                 bound = bound.max(error);
                 pending_triangles += output.triangle_count();
                 kept.push(output);
+                if set_triangles + pending_triangles > cap {
+                    return None;
+                }
             }
         }
 
@@ -367,12 +383,12 @@ impl<M: Borrow<Mesh>> Parts<M> {
             out.colors.clear();
         }
         if out.triangle_count() >= mesh.triangle_count() {
-            return Reduced {
+            return Some(Reduced {
                 mesh: mesh.clone(),
                 bound: 0.0,
-            };
+            });
         }
-        Reduced { mesh: out, bound }
+        Some(Reduced { mesh: out, bound })
     }
 }
 
@@ -493,6 +509,24 @@ mod tests {
             );
         }
         assert!(whole.bound <= 0.5 && half.bound <= 0.25);
+    }
+
+    #[test]
+    fn gives_up_once_the_parts_kept_exceed_the_cap() {
+        // Two thin tubes 3 apart within 0.05: each keeps a quad, 4
+        // triangles in all, and neither covers the other.
+        let m = joined(&[tube(16, 0.02, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 3.0, 0.0)]);
+        let mut parts = Parts::new(&m);
+        let capped = parts.reduce_at_most(0.05, 1e-3, ErrorMetric::Geometry, 4);
+        let r = capped.expect("4 triangles are within a cap of 4");
+        assert_eq!(r.mesh.triangle_count(), 4);
+        assert_eq!(
+            r.bound,
+            parts.reduce(0.05, 1e-3, ErrorMetric::Geometry).bound
+        );
+        // The second quad takes them past 3: no result, not a worse one.
+        let over = Parts::new(&m).reduce_at_most(0.05, 1e-3, ErrorMetric::Geometry, 3);
+        assert!(over.is_none(), "{over:?}");
     }
 
     #[test]
