@@ -277,21 +277,33 @@ fn reduce_parts_within<M: Borrow<Mesh>>(
     // whole, the most common outcome. Past `cap` the whole budget's parts
     // give up (a lone cluster would keep too many triangles for a parent),
     // and meshoptimizer on the whole mesh is all that is left to try.
-    let Some(whole) = parts.reduce_at_most(budget, tolerance, metric, cap) else {
-        return simplified_within(parts.mesh(), budget, tolerance, metric)
-            .filter(|(m, _)| m.triangle_count() <= cap);
+    let Some(whole) = parts.reduce_until(budget, tolerance, metric, |t, _| t > cap) else {
+        return simplified_within(parts.mesh(), budget, tolerance, metric, cap);
     };
-    if let Some((m, h)) = simplified_within(&whole.mesh, budget - whole.bound, tolerance, metric) {
+    if let Some((m, h)) = simplified_within(
+        &whole.mesh,
+        budget - whole.bound,
+        tolerance,
+        metric,
+        usize::MAX,
+    ) {
         candidates.push((m, h + whole.bound));
     }
     candidates.push((whole.mesh, whole.bound));
-    // The half budget's parts stop once they keep more than the winner
-    // may (`EPS_PREFERENCE` times the fewest so far): they could not win.
-    // That was a fifth of a steel model's build, spent on candidates the
-    // choice below throws away.
+    // The half budget's parts stop once they could not be chosen below,
+    // or once they could only be chosen to be thrown away: past
+    // `EPS_PREFERENCE` times the fewest triangles so far; past `cap` with
+    // an error no less than a candidate within it (the others are all
+    // within it). Reductions made only to be thrown away were a fifth of
+    // a steel model's build.
     let fewest = candidates.iter().map(|(m, _)| m.triangle_count()).min();
     let beatable = fewest.map_or(usize::MAX, |f| (EPS_PREFERENCE * f as f64) as usize);
-    if let Some(half) = parts.reduce_at_most(budget * 0.5, tolerance * 0.5, metric, beatable) {
+    let least_error = candidates
+        .iter()
+        .map(|(_, h)| *h)
+        .fold(f32::INFINITY, f32::min);
+    let give_up = |t: usize, h: f32| t > beatable || (t > cap && h >= least_error);
+    if let Some(half) = parts.reduce_until(budget * 0.5, tolerance * 0.5, metric, give_up) {
         candidates.push((half.mesh, half.bound));
     }
     let mesh = parts.mesh();
@@ -300,7 +312,10 @@ fn reduce_parts_within<M: Borrow<Mesh>>(
         .iter()
         .all(|(m, _)| m.triangle_count() * 2 > mesh.triangle_count())
     {
-        candidates.extend(simplified_within(mesh, budget, tolerance, metric));
+        // Past the reach of the choice it need not be measured.
+        let fewest = candidates.iter().map(|(m, _)| m.triangle_count()).min();
+        let beatable = fewest.map_or(usize::MAX, |f| (EPS_PREFERENCE * f as f64) as usize);
+        candidates.extend(simplified_within(mesh, budget, tolerance, metric, beatable));
     }
     let fewest = candidates
         .iter()
@@ -325,12 +340,14 @@ fn reduce_parts_within<M: Borrow<Mesh>>(
 const EPS_PREFERENCE: f64 = 1.5;
 
 /// meshoptimizer's simplification of `mesh` within `budget` and its
-/// measured Hausdorff bound, if it removed triangles and the bound fits.
+/// measured Hausdorff bound, if it removed triangles, keeps at most
+/// `max_triangles` (else it is not measured) and the bound fits.
 fn simplified_within(
     mesh: &Mesh,
     budget: f32,
     tolerance: f32,
     metric: ErrorMetric,
+    max_triangles: usize,
 ) -> Option<(Mesh, f32)> {
     if budget <= 0.0 {
         return None;
@@ -343,7 +360,10 @@ fn simplified_within(
             prune: true,
         },
     );
-    if s.strategy == Strategy::Unchanged || s.triangles >= mesh.triangle_count() {
+    if s.strategy == Strategy::Unchanged
+        || s.triangles >= mesh.triangle_count()
+        || s.mesh.triangle_count() > max_triangles
+    {
         return None;
     }
     geometry::bound_within(&s.mesh, mesh, tolerance, budget, metric).map(|h| (s.mesh, h))

@@ -396,6 +396,24 @@ pub fn bound_within(
     (bound <= budget).then_some(bound)
 }
 
+/// [`bound_within`] of `a` against `b`, a mesh that candidates are
+/// measured against one after another, with what `target` (made of `b`)
+/// kept from the candidates before: under the geometric metric, `b`'s
+/// search structure.
+pub(crate) fn bound_within_target(
+    a: &Mesh,
+    b: &Mesh,
+    target: &mut hausdorff::Target,
+    tolerance: f32,
+    budget: f32,
+    metric: ErrorMetric,
+) -> Option<f32> {
+    match metric {
+        ErrorMetric::Geometry => hausdorff::bound_within_target(a, target, tolerance, budget),
+        ErrorMetric::Appearance => bound_within(a, b, tolerance, budget, metric),
+    }
+}
+
 fn same_single(a: &Colored, b: &Colored) -> bool {
     a.single().is_some_and(|c| b.single() == Some(c))
 }

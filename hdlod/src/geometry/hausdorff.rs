@@ -176,8 +176,39 @@ pub fn one_sided_bound(a: &Mesh, b: &TriangleSet, tolerance: f32) -> f32 {
 /// bound only of those that fit, so most of a failing candidate's queries
 /// and every candidate's sample would be spent for nothing.
 pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f32> {
+    bound_within_target(a, &mut Target::new(b), tolerance, budget)
+}
+
+/// A mesh that candidates are measured against, one after another (a
+/// part against its stand-ins): its triangles, and their search structure
+/// once a candidate first needs it. Made again for each candidate, that
+/// structure was a few percent of a steel model's build.
+pub(crate) struct Target {
+    triangles: Vec<[Vec3; 3]>,
+    set: Option<TriangleSet>,
+}
+
+impl Target {
+    pub(crate) fn new(m: &Mesh) -> Target {
+        Target {
+            triangles: finite_triangles(m),
+            set: None,
+        }
+    }
+}
+
+/// [`bound_within`] of `a` against the mesh of `target`.
+pub(crate) fn bound_within_target(
+    a: &Mesh,
+    target: &mut Target,
+    tolerance: f32,
+    budget: f32,
+) -> Option<f32> {
     let tris_a = finite_triangles(a);
-    let tris_b = finite_triangles(b);
+    let Target {
+        triangles: tris_b,
+        set: set_b,
+    } = target;
     if tris_a.is_empty() || tris_b.is_empty() {
         let bound = if tris_a.is_empty() && tris_b.is_empty() {
             0.0
@@ -186,22 +217,21 @@ pub fn bound_within(a: &Mesh, b: &Mesh, tolerance: f32, budget: f32) -> Option<f
         };
         return (bound <= budget).then_some(bound);
     }
-    let (tolerance, slack) = search_scale(&tris_a, &tris_b, tolerance);
+    let (tolerance, slack) = search_scale(&tris_a, tris_b, tolerance);
     let within = budget - slack;
-    // The smaller mesh's search structure first: it is the cheaper to
-    // build, and a failing candidate may never need the other.
-    let (first, second) = if tris_a.len() <= tris_b.len() {
-        (&tris_a, &tris_b)
+    let a_set = || TriangleSet::new(tris_a.iter().copied());
+    // The smaller mesh's search structure first: a failing candidate may
+    // never need the other. The second direction need only be measured as
+    // far as it could raise the first's bound.
+    let bound = if tris_a.len() <= tris_b.len() {
+        let first = one_way(tris_b, &a_set(), tolerance, None, within, 0.0)?.upper;
+        let b_set = set_b.get_or_insert_with(|| TriangleSet::new(tris_b.iter().copied()));
+        first.max(one_way(&tris_a, b_set, tolerance, None, within, first)?.upper)
     } else {
-        (&tris_b, &tris_a)
+        let b_set = set_b.get_or_insert_with(|| TriangleSet::new(tris_b.iter().copied()));
+        let first = one_way(&tris_a, b_set, tolerance, None, within, 0.0)?.upper;
+        first.max(one_way(tris_b, &a_set(), tolerance, None, within, first)?.upper)
     };
-    let mut bound = 0.0f32;
-    for (from, to) in [(second, first), (first, second)] {
-        let set = TriangleSet::new(to.iter().copied());
-        // The second direction need only be measured as far as it could
-        // raise the first's bound.
-        bound = bound.max(one_way(from, &set, tolerance, None, within, bound)?.upper);
-    }
     let bound = bound + slack;
     (bound <= budget).then_some(bound)
 }

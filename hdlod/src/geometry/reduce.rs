@@ -28,8 +28,9 @@ use std::borrow::Borrow;
 use glam::Vec3;
 
 use super::Mesh;
-use super::color_bound::{ColoredSet, ErrorMetric, bound_within};
+use super::color_bound::{ColoredSet, ErrorMetric, bound_within_target};
 use super::ellipsoid::{Shape, off_ellipsoid, push_ellipsoid};
+use super::hausdorff::Target;
 use super::proxy::{Look, part_bounds, part_look, parts, push_box, push_quad, push_triangles};
 use super::simplify::{SimplifyOptions, Strategy, edge_collapse_placed, simplify};
 
@@ -69,6 +70,9 @@ pub struct Parts<M: Borrow<Mesh>> {
 
 struct PartState {
     input: Mesh,
+    /// `input` as its candidates are measured against it, made on first
+    /// use.
+    target: Option<Target>,
     welded: Option<Mesh>,
     lo: Vec3,
     hi: Vec3,
@@ -139,7 +143,14 @@ impl PartState {
             return found;
         }
         let outcome = match make(self) {
-            Some(m) => match bound_within(&m, &self.input, tolerance, budget, metric) {
+            Some(m) => match bound_within_target(
+                &m,
+                &self.input,
+                self.target.get_or_insert_with(|| Target::new(&self.input)),
+                tolerance,
+                budget,
+                metric,
+            ) {
                 Some(e) => Outcome::Fits(m, e),
                 None => Outcome::Over(budget),
             },
@@ -288,6 +299,7 @@ impl<M: Borrow<Mesh>> Parts<M> {
                 PartState {
                     off_ellipsoid: off_ellipsoid(input.positions.iter().copied(), lo, hi),
                     input,
+                    target: None,
                     welded: None,
                     lo,
                     hi,
@@ -312,18 +324,20 @@ impl<M: Borrow<Mesh>> Parts<M> {
     /// bounds and the true distances. Never returns more triangles than it
     /// was given.
     pub fn reduce(&mut self, budget: f32, tolerance: f32, metric: ErrorMetric) -> Reduced {
-        self.reduce_at_most(budget, tolerance, metric, usize::MAX)
-            .expect("no cap to exceed")
+        self.reduce_until(budget, tolerance, metric, |_, _| false)
+            .expect("never gives up")
     }
 
-    /// [`Parts::reduce`], or `None` as soon as the parts kept hold more
-    /// than `cap` triangles.
-    pub fn reduce_at_most(
+    /// [`Parts::reduce`], or `None` as soon as `give_up(triangles, bound)`
+    /// holds for the triangles of the parts kept so far and the bound so
+    /// far. Both only grow as the parts are taken in turn, so a caller
+    /// that gives up on a result at least that large loses nothing.
+    pub fn reduce_until(
         &mut self,
         budget: f32,
         tolerance: f32,
         metric: ErrorMetric,
-        cap: usize,
+        give_up: impl Fn(usize, f32) -> bool,
     ) -> Option<Reduced> {
         // The parts come largest first (`Parts::new`): the cover keeps large
         // parts and drops what they cover. A part's stand-in is made only
@@ -367,7 +381,7 @@ impl<M: Borrow<Mesh>> Parts<M> {
                 bound = bound.max(error);
                 pending_triangles += output.triangle_count();
                 kept.push(output);
-                if set_triangles + pending_triangles > cap {
+                if give_up(set_triangles + pending_triangles, bound) {
                     return None;
                 }
             }
@@ -517,7 +531,7 @@ mod tests {
         // triangles in all, and neither covers the other.
         let m = joined(&[tube(16, 0.02, 4.0, 0.0, 0.0), tube(16, 0.02, 4.0, 3.0, 0.0)]);
         let mut parts = Parts::new(&m);
-        let capped = parts.reduce_at_most(0.05, 1e-3, ErrorMetric::Geometry, 4);
+        let capped = parts.reduce_until(0.05, 1e-3, ErrorMetric::Geometry, |t, _| t > 4);
         let r = capped.expect("4 triangles are within a cap of 4");
         assert_eq!(r.mesh.triangle_count(), 4);
         assert_eq!(
@@ -525,7 +539,7 @@ mod tests {
             parts.reduce(0.05, 1e-3, ErrorMetric::Geometry).bound
         );
         // The second quad takes them past 3: no result, not a worse one.
-        let over = Parts::new(&m).reduce_at_most(0.05, 1e-3, ErrorMetric::Geometry, 3);
+        let over = Parts::new(&m).reduce_until(0.05, 1e-3, ErrorMetric::Geometry, |t, _| t > 3);
         assert!(over.is_none(), "{over:?}");
     }
 
