@@ -296,8 +296,7 @@ fn reduce_parts_within<M: Borrow<Mesh>>(
     // an error no less than a candidate within it (the others are all
     // within it). Reductions made only to be thrown away were a fifth of
     // a steel model's build.
-    let fewest = candidates.iter().map(|(m, _)| m.triangle_count()).min();
-    let beatable = fewest.map_or(usize::MAX, |f| (EPS_PREFERENCE * f as f64) as usize);
+    let beatable = reach(&candidates);
     let least_error = candidates
         .iter()
         .map(|(_, h)| *h)
@@ -313,21 +312,16 @@ fn reduce_parts_within<M: Borrow<Mesh>>(
         .all(|(m, _)| m.triangle_count() * 2 > mesh.triangle_count())
     {
         // Past the reach of the choice it need not be measured.
-        let fewest = candidates.iter().map(|(m, _)| m.triangle_count()).min();
-        let beatable = fewest.map_or(usize::MAX, |f| (EPS_PREFERENCE * f as f64) as usize);
+        let beatable = reach(&candidates);
         candidates.extend(simplified_within(mesh, budget, tolerance, metric, beatable));
     }
-    let fewest = candidates
-        .iter()
-        .map(|(m, _)| m.triangle_count())
-        .min()
-        .unwrap_or(usize::MAX);
+    let beatable = reach(&candidates);
     candidates
         .into_iter()
         .filter(|(m, h)| {
             *h <= budget
                 && m.triangle_count() < mesh.triangle_count()
-                && m.triangle_count() as f64 <= EPS_PREFERENCE * fewest as f64
+                && m.triangle_count() <= beatable
         })
         .min_by(|a, b| {
             a.1.total_cmp(&b.1)
@@ -338,6 +332,17 @@ fn reduce_parts_within<M: Borrow<Mesh>>(
 /// How many times the fewest triangles a candidate parent may keep and
 /// still win by a smaller error.
 const EPS_PREFERENCE: f64 = 1.5;
+
+/// The most triangles a candidate may keep and still be chosen among
+/// `candidates` (`EPS_PREFERENCE` times their fewest): a later candidate
+/// only lowers it.
+fn reach(candidates: &[(Mesh, f32)]) -> usize {
+    candidates
+        .iter()
+        .map(|(m, _)| m.triangle_count())
+        .min()
+        .map_or(usize::MAX, |f| (EPS_PREFERENCE * f as f64) as usize)
+}
 
 /// meshoptimizer's simplification of `mesh` within `budget` and its
 /// measured Hausdorff bound, if it removed triangles, keeps at most
@@ -362,7 +367,7 @@ fn simplified_within(
     );
     if s.strategy == Strategy::Unchanged
         || s.triangles >= mesh.triangle_count()
-        || s.mesh.triangle_count() > max_triangles
+        || s.triangles > max_triangles
     {
         return None;
     }
