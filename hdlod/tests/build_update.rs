@@ -159,6 +159,25 @@ fn groups_that_no_longer_fit_the_schedule_are_dissolved() {
     let leaves = |t: &Tree| records(t).iter().filter(|c| c.is_leaf()).count();
     assert_eq!(leaves(&tree), leaves(&built));
     let clusters = records(&tree);
+    // Groups dissolved before the moving objects' leaves renumber those;
+    // the object tables follow.
+    let leaf_ids = |t: &Tree| -> Vec<u32> {
+        records(t)
+            .iter()
+            .filter(|c| c.is_leaf())
+            .map(|c| c.id)
+            .collect()
+    };
+    assert_ne!(
+        leaf_ids(&tree),
+        leaf_ids(&built),
+        "some leaf was renumbered"
+    );
+    assert_eq!(
+        tree.objects.as_ref(),
+        Some(&hdlod::tree::ObjectTables::of(&later, &clusters)),
+        "the object tables name the leaves by their new ids"
+    );
     for c in &clusters {
         if c.class == hdlod::tree::ClusterClass::Root {
             continue;

@@ -48,7 +48,7 @@ use super::level::cluster_class;
 use super::outputs::{BuildStats, GeometrySink, Progress, QUANTIZATION_SHARE};
 use super::parent::{DIRECT_MAX_TRIANGLES, Single, make_parent};
 use super::steps::StepFunction;
-use super::update::{Carried, Update, object_sources, update_schedule_of};
+use super::update::{Carried, Split, Update, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
 use crate::geometry::{ErrorMetric, Mesh};
 use crate::scene::{Class, Scene, Visibility};
@@ -68,6 +68,9 @@ const MAX_JOINED: usize = 64;
 /// What a geometry update will do, decided before anything is written.
 pub struct Plan<'a> {
     scene: Cow<'a, Scene>,
+    /// The scene's objects' classes and their leaves' pieces, which the
+    /// schedule pass at the end takes over.
+    classes: Vec<Class>,
     pieces: Vec<Piece>,
     sources: Vec<Digest>,
     /// The static and pseudo-dynamic leaves are the clusters `0..leaves`;
@@ -358,6 +361,7 @@ pub fn plan<'a>(
     let grouped = added.iter().map(|&(p, _)| grouped(&pieces[p])).collect();
     Ok(Plan {
         scene,
+        classes,
         pieces,
         sources,
         leaves,
@@ -1031,7 +1035,11 @@ impl Plan<'_> {
         tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
         tree.sources = Some(self.sources);
         tree.skins = super::skinned::skeletons(scene, &tree);
-        match update_schedule_of(tree, carried, scene, config) {
+        let split = Split {
+            classes: self.classes,
+            pieces: self.pieces,
+        };
+        match update_schedule_of(tree, carried, scene, split, config) {
             Update::Updated {
                 tree,
                 stats,

@@ -40,6 +40,7 @@ pub use config::{BuildConfig, Thresholds, level_count, thresholds};
 pub use hilbert::hilbert_key;
 pub use outputs::{BuildStats, GeometrySink, LevelStats, Progress, Silent};
 pub use steps::StepFunction;
+use update::MeshesKey;
 pub use update::{Update, geometry_key, object_sources, update_schedule};
 
 /// Builds the HDLOD tree of `scene`. Geometry goes to `sink` as it is made.
@@ -335,17 +336,15 @@ pub fn build_or_update_to(
     } else {
         let clock = Instant::now();
         progress.phase("load tree", 1);
-        // The scene's key, made while the tree loads: it is the key of the
-        // scene as aligned to the tree's objects whenever their order stands.
-        let (loaded, key) = rayon::join(
+        let (loaded, beside) = rayon::join(
             || crate::tree::store::load_to_update(out),
-            || geometry_key(scene, config),
+            || Beside::of(scene, config, out),
         );
         match loaded {
             Err(e) => Some(format!("the tree there does not load: {e}")),
             Ok(old) => {
                 let load = clock.elapsed().as_secs_f64();
-                match update_in_place(&old, scene, config, out, (load, key), progress)? {
+                match update_in_place(&old, scene, config, out, (load, beside), progress)? {
                     Ok(done) => return Ok(done),
                     Err(why) => Some(why),
                 }
@@ -356,6 +355,28 @@ pub fn build_or_update_to(
     Ok((tree, stats, How::Full { why }))
 }
 
+/// What an update makes of the scene and reads beside the tree while the
+/// tree loads.
+struct Beside {
+    /// The scene's key, which is the key of the scene as aligned to the
+    /// tree's objects whenever their order stands, and its meshes' part.
+    meshes_key: MeshesKey,
+    key: String,
+    /// The tree's objects' ids, in their feature order.
+    ids: Result<Option<Vec<String>>>,
+}
+
+impl Beside {
+    fn of(scene: &Scene, config: &BuildConfig, out: &Path) -> Beside {
+        let meshes_key = MeshesKey::of(scene, config);
+        Beside {
+            key: meshes_key.key(scene),
+            meshes_key,
+            ids: crate::tree::store::object_ids(out),
+        }
+    }
+}
+
 /// The tree `old` at `out` brought to `scene` by a schedule update or a
 /// geometry update, or why neither can be done.
 fn update_in_place(
@@ -363,12 +384,17 @@ fn update_in_place(
     scene: &Scene,
     config: &BuildConfig,
     out: &Path,
-    (load, scene_key): (f64, String),
+    (load, beside): (f64, Beside),
     progress: &dyn Progress,
 ) -> Result<std::result::Result<(Tree, BuildStats, How), String>> {
     let clock = Instant::now();
+    let Beside {
+        meshes_key,
+        key: scene_key,
+        ids,
+    } = beside;
     // The scene in the old tree's feature order, when the tree keeps one.
-    let aligned = match (crate::tree::store::object_ids(out), &old.sources) {
+    let aligned = match (ids, &old.sources) {
         (Ok(Some(ids)), Some(sources)) => align::align(scene, &ids, sources),
         _ => Ok(align::Aligned {
             scene: Cow::Borrowed(scene),
@@ -383,7 +409,7 @@ fn update_in_place(
     let key = old.stats.get("geometry_key").and_then(|k| k.as_str());
     let new_key = match aligned.scene {
         Cow::Borrowed(_) => scene_key,
-        Cow::Owned(_) => geometry_key(scene, config),
+        Cow::Owned(_) => meshes_key.key(scene),
     };
     let same = key == Some(new_key.as_str());
     let key_seconds = clock.elapsed().as_secs_f64();

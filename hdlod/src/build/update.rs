@@ -50,22 +50,40 @@ pub enum Update {
 /// configuration. Two scenes with the same key differ at most in their
 /// tasks, their objects' visibility and properties.
 pub fn geometry_key(scene: &Scene, config: &BuildConfig) -> String {
-    let mut hash = Buffered::default();
-    hash.update(
-        serde_json::to_string(config)
-            .expect("the config serialises")
-            .as_bytes(),
-    );
-    hash.update(&(scene.meshes.len() as u64).to_le_bytes());
-    for mesh in &scene.meshes {
-        hash_mesh(&mut hash, mesh);
+    MeshesKey::of(scene, config).key(scene)
+}
+
+/// The [`geometry_key`] hashed up to the scene's objects: its configuration
+/// and meshes. The scene as aligned to a tree's objects has the same
+/// meshes, and its key then costs the objects alone.
+#[derive(Clone)]
+pub(super) struct MeshesKey(Buffered);
+
+impl MeshesKey {
+    pub(super) fn of(scene: &Scene, config: &BuildConfig) -> MeshesKey {
+        let mut hash = Buffered::default();
+        hash.update(
+            serde_json::to_string(config)
+                .expect("the config serialises")
+                .as_bytes(),
+        );
+        hash.update(&(scene.meshes.len() as u64).to_le_bytes());
+        for mesh in &scene.meshes {
+            hash_mesh(&mut hash, mesh);
+        }
+        MeshesKey(hash)
     }
-    hash.update(&(scene.objects.len() as u64).to_le_bytes());
-    for o in &scene.objects {
-        hash_object(&mut hash, o);
+
+    /// The key of `scene`, whose meshes are those this was made of.
+    pub(super) fn key(&self, scene: &Scene) -> String {
+        let mut hash = self.0.clone();
+        hash.update(&(scene.objects.len() as u64).to_le_bytes());
+        for o in &scene.objects {
+            hash_object(&mut hash, o);
+        }
+        hash.update(&[scene.up as u8]);
+        hash.finish()
     }
-    hash.update(&[scene.up as u8]);
-    hash.finish()
 }
 
 /// Per object of `scene`, in order, a digest of what its leaves are made
@@ -153,7 +171,7 @@ fn hash_object(hash: &mut Buffered, o: &crate::scene::Object) {
 /// A blake3 hasher fed through a buffer: the key is made of millions of
 /// four-byte values, and one `update` each costs more than the hashing.
 /// The digest is the same as unbuffered (blake3 hashes the byte stream).
-#[derive(Default)]
+#[derive(Clone, Default)]
 struct Buffered {
     hasher: blake3::Hasher,
     buffer: Vec<u8>,
@@ -195,18 +213,38 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
         span: old.time.seconds,
         clusters: None,
     };
-    schedule_pass(Cow::Borrowed(old), carried, scene, config)
+    let scene = scheduled(scene, config);
+    let split = Split::of(&scene);
+    schedule_pass(Cow::Borrowed(old), carried, &scene, split, config)
 }
 
 /// [`update_schedule`] of a tree made in memory, whose clusters it takes
 /// rather than copies (a geometry update's, `super::local`).
+/// `scene` is scheduled as `config` says and `split` is of it: the
+/// geometry update has made both already.
 pub(super) fn update_schedule_of(
     tree: Tree,
     carried: Carried,
     scene: &Scene,
+    split: Split,
     config: &BuildConfig,
 ) -> Update {
-    schedule_pass(Cow::Owned(tree), carried, scene, config)
+    schedule_pass(Cow::Owned(tree), carried, scene, split, config)
+}
+
+/// A scene's objects' classes and the pieces of its leaves
+/// ([`split_at_rest`]).
+pub(super) struct Split {
+    pub classes: Vec<Class>,
+    pub pieces: Vec<Piece>,
+}
+
+impl Split {
+    pub(super) fn of(scene: &Scene) -> Split {
+        let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
+        let pieces = split_at_rest(scene, &classes);
+        Split { classes, pieces }
+    }
 }
 
 /// Which records of the tree a schedule pass is given still hold the
@@ -219,11 +257,15 @@ pub(super) struct Carried {
     pub clusters: Option<Vec<bool>>,
 }
 
-fn schedule_pass(old: Cow<Tree>, carried: Carried, scene: &Scene, config: &BuildConfig) -> Update {
-    let scene = &*scheduled(scene, config);
+/// The pass over `scene`, scheduled as the build's configuration says.
+fn schedule_pass(
+    old: Cow<Tree>,
+    carried: Carried,
+    scene: &Scene,
+    Split { classes, pieces }: Split,
+    config: &BuildConfig,
+) -> Update {
     let span = scene.time.seconds;
-    let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
-    let pieces = split_at_rest(scene, &classes);
     let Some(leaf_pieces) = match_leaves(&old, scene, &pieces) else {
         return Update::Rebuild(
             "an object changed class (static, pseudo-dynamic, dynamic or absent), \
@@ -281,16 +323,18 @@ fn schedule_pass(old: Cow<Tree>, carried: Carried, scene: &Scene, config: &Build
     let origin = (0..n as u32)
         .filter(|&c| dissolved[c as usize].is_none())
         .collect();
-    let clusters = renumbered(clusters, &dissolved);
+    let new_ids = kept_ids(&dissolved);
+    let clusters = renumbered(clusters, &new_ids);
     let root = clusters
         .iter()
         .position(|c| c.class == ClusterClass::Root)
         .expect("a built tree has its virtual root") as u32;
-    // A dissolved group may come before a leaf, whose id then changed.
+    // A dissolved group may come before a leaf, whose id then changed; no
+    // leaf is dissolved.
     let objects = if gone == 0 {
         objects
     } else {
-        ObjectTables::of(scene, &clusters)
+        objects.renumbered(|c| new_ids[c as usize])
     };
     level_stats(&clusters, &mut stats);
     // A removed object's tombstone (`super::align`) is no object of the
@@ -538,8 +582,10 @@ fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap
 /// The clusters without the dissolved ones, ids renumbered in the same
 /// order (children before parents, the root last) and parents set from the
 /// children lists.
-fn renumbered(clusters: Vec<Cluster>, dissolved: &[Option<Vec<u32>>]) -> Vec<Cluster> {
-    let mut id = vec![u32::MAX; clusters.len()];
+/// Per cluster, its id once the `dissolved` are dropped (`u32::MAX` for
+/// those).
+fn kept_ids(dissolved: &[Option<Vec<u32>>]) -> Vec<u32> {
+    let mut id = vec![u32::MAX; dissolved.len()];
     let mut next = 0;
     for (old, d) in dissolved.iter().enumerate() {
         if d.is_none() {
@@ -547,12 +593,18 @@ fn renumbered(clusters: Vec<Cluster>, dissolved: &[Option<Vec<u32>>]) -> Vec<Clu
             next += 1;
         }
     }
+    id
+}
+
+/// The `clusters` but the dissolved ones (`u32::MAX` in `id`), each
+/// numbered by its place's `id`.
+fn renumbered(clusters: Vec<Cluster>, id: &[u32]) -> Vec<Cluster> {
     let mut out: Vec<Cluster> = clusters
         .into_iter()
-        .zip(dissolved)
-        .filter(|(_, d)| d.is_none())
-        .map(|(mut c, _)| {
-            c.id = id[c.id as usize];
+        .zip(id)
+        .filter(|&(_, &new)| new != u32::MAX)
+        .map(|(mut c, &new)| {
+            c.id = new;
             c.parent = None;
             for k in &mut c.children {
                 *k = id[*k as usize];

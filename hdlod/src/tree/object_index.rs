@@ -252,6 +252,23 @@ impl ObjectRows {
             .expect("encoded rows are well formed")
     }
 
+    /// The rows with each cluster `c` they name renamed `new_id(c)`, which
+    /// must keep the clusters' order (a renumbering that drops some).
+    pub(crate) fn renumbered(&self, new_id: impl Fn(u32) -> u32) -> ObjectRows {
+        let len = self.bytes.len();
+        let mut words = vec![0u64; len.div_ceil(8)];
+        let bytes = &mut bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..len];
+        bytes.copy_from_slice(&self.bytes);
+        let (a, b) = self.sections[CLUSTERS];
+        for c in bytemuck::cast_slice_mut::<u8, u32>(&mut bytes[a..b]) {
+            *c = new_id(*c);
+        }
+        ObjectRows {
+            bytes: Bytes::Owned(Arc::new(words), len),
+            sections: self.sections,
+        }
+    }
+
     /// Maps `path` and checks its header, sections and checksum and every
     /// invariant of the rows; what they say of the tasks and clusters is
     /// checked with the tables ([`super::ObjectTables::validate`]).

@@ -262,7 +262,9 @@ impl TreeWriter {
         // megabytes): serialised in chunks on every core and written while
         // the index and the object tables are made beside it. The index
         // names the table's length, known last, so it is set afterwards.
-        let (table, (mut index_bytes, objects)) = rayon::join(
+        // The sources and the skins too: the skins' JSON is megabytes where
+        // a scene has many skinned objects.
+        let (table, (mut index_bytes, (objects, others))) = rayon::join(
             || -> Result<(u64, usize)> {
                 let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE), previous)?;
                 table.write(&self.tmp.join(CLUSTERS_FILE))?;
@@ -271,29 +273,25 @@ impl TreeWriter {
             || {
                 rayon::join(
                     || index::unsealed(tree),
-                    || match &tree.objects {
-                        Some(tables) => self.write_objects(tables, tree, previous),
-                        None => Ok(()),
+                    || {
+                        rayon::join(
+                            || match &tree.objects {
+                                Some(tables) => self.write_objects(tables, tree, previous),
+                                None => Ok(()),
+                            },
+                            || self.write_sources_and_skins(tree),
+                        )
                     },
                 )
             },
         );
         let (json_len, copied) = table?;
         objects?;
+        others?;
         index::set_json_len(&mut index_bytes, json_len);
         write_bytes(&self.tmp.join(INDEX_FILE), &index_bytes)?;
         drop(index_bytes);
         let serialised = lap();
-        if let Some(digests) = &tree.sources {
-            write_bytes(
-                &self.tmp.join(SOURCES_FILE),
-                &super::sources::encode(digests),
-            )?;
-        }
-        if let Some(skins) = tree.skins.as_ref().filter(|s| !s.is_empty()) {
-            write_json(&self.tmp.join(SKINS_FILE), &skins.to_record(), false)?;
-        }
-        let written = lap();
 
         let old = sibling(&self.target, "old");
         let had_old = self.target.exists();
@@ -319,10 +317,10 @@ impl TreeWriter {
             fs::remove_dir_all(&store).map_err(|e| Error::io(&store, e))?;
         }
         tracing::debug!(
-            "{}: validated in {validated:.2} s, the tables and the indexes made and \
-             written in {serialised:.2} s ({copied} of {} cluster records copied from the \
-             tree replaced), the sources in {written:.2} s, moved into place and the old \
-             tree removed in {:.2} s",
+            "{}: validated in {validated:.2} s, the tables, the indexes, the sources and the \
+             skins made and written in {serialised:.2} s ({copied} of {} cluster records \
+             copied from the tree replaced), moved into place and the old tree removed in \
+             {:.2} s",
             self.target.display(),
             tree.cluster_count(),
             lap()
@@ -332,6 +330,20 @@ impl TreeWriter {
 }
 
 impl TreeWriter {
+    /// Writes `sources.bin` and `skins.json`, where the tree has them.
+    fn write_sources_and_skins(&self, tree: &Tree) -> Result<()> {
+        if let Some(digests) = &tree.sources {
+            write_bytes(
+                &self.tmp.join(SOURCES_FILE),
+                &super::sources::encode(digests),
+            )?;
+        }
+        if let Some(skins) = tree.skins.as_ref().filter(|s| !s.is_empty()) {
+            write_json(&self.tmp.join(SKINS_FILE), &skins.to_record(), false)?;
+        }
+        Ok(())
+    }
+
     /// Writes `objects.json` and `objects.bin`; where the JSON is that of
     /// the tree replaced, byte for byte (an update that moved geometry
     /// only), links that tree's two files instead: the binary rows are made
