@@ -214,13 +214,19 @@ pub(crate) fn hash_bytes(hex: &str) -> Option<[u8; 32]> {
 }
 
 pub(crate) fn hex(bytes: &[u8; 32]) -> String {
+    let mut out = Vec::with_capacity(64);
+    push_hex(bytes, &mut out);
+    String::from_utf8(out).expect("hexadecimal digits are ASCII")
+}
+
+/// Appends the lowercase hex of `bytes` to `out`.
+pub(crate) fn push_hex(bytes: &[u8; 32], out: &mut Vec<u8>) {
     const DIGITS: &[u8; 16] = b"0123456789abcdef";
-    let mut out = String::with_capacity(64);
-    for &b in bytes {
-        out.push(DIGITS[usize::from(b >> 4)] as char);
-        out.push(DIGITS[usize::from(b & 15)] as char);
-    }
-    out
+    out.extend(
+        bytes
+            .iter()
+            .flat_map(|&b| [DIGITS[usize::from(b >> 4)], DIGITS[usize::from(b & 15)]]),
+    );
 }
 
 /// The index of a valid tree, as the file's bytes; `json_len` is the
@@ -607,8 +613,13 @@ impl Index {
 
     /// The blake3 hex of the cluster's GLB.
     pub fn geometry(&self, id: u32) -> Option<String> {
+        self.geometry_hash(id).map(hex)
+    }
+
+    /// The blake3 hash of cluster `id`'s GLB as stored; `None` on the root.
+    pub fn geometry_hash(&self, id: u32) -> Option<&[u8; 32]> {
         let g = self.record(id).geometry;
-        (g != NONE).then(|| hex(&self.section::<[u8; 32]>(HASHES)[g as usize]))
+        (g != NONE).then(|| &self.section::<[u8; 32]>(HASHES)[g as usize])
     }
 
     /// The object ids of a leaf.

@@ -507,6 +507,23 @@ impl Tree {
         }
     }
 
+    /// Appends [`Self::geometry_of`] to `out` without making a string of it
+    /// (a cut answer writes thousands); nothing on the root.
+    pub fn push_geometry_of(&self, id: u32, out: &mut Vec<u8>) {
+        match &self.clusters {
+            Clusters::Built(v) => {
+                if let Some(hash) = &v[id as usize].geometry {
+                    out.extend_from_slice(hash.as_bytes());
+                }
+            }
+            Clusters::Mapped(index) => {
+                if let Some(hash) = index.geometry_hash(id) {
+                    index::push_hex(hash, out);
+                }
+            }
+        }
+    }
+
     /// The distinct geometry hashes of the clusters, as bytes: read from a
     /// mapped tree's index as they are stored.
     pub fn geometry_hashes(&self) -> Vec<[u8; 32]> {
