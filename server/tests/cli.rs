@@ -140,6 +140,22 @@ fn bench_paper_writes_the_table() {
             assert!(rows[0].get(key).is_some(), "{key}");
         }
         assert!(report["median_nanos_per_visited"].as_f64().unwrap() > 0.0);
+        // Each cell's bytes per cut, stored and plain, within the tree's;
+        // the animation rows have none.
+        let tree_bytes = report["tree_bytes"].as_u64().unwrap();
+        for r in rows {
+            if r["time"] == "animation" {
+                assert!(r["bytes"].is_null(), "{r}");
+                continue;
+            }
+            let (stored, plain) = (
+                r["bytes"]["stored"].as_u64().unwrap(),
+                r["bytes"]["plain"].as_u64().unwrap(),
+            );
+            assert_eq!(stored > 0, r["clusters"].as_f64().unwrap() > 0.0, "{r}");
+            assert_eq!(plain > 0, stored > 0, "{r}");
+            assert!(stored <= tree_bytes, "{r}");
+        }
     }
     // A frame that names no object is refused, naming what it looked for.
     for (frame, want) in [("site", "KEY=VALUE"), ("site=Nowhere", "\"Nowhere\"")] {

@@ -1,5 +1,6 @@
-//! `hdlod bench paper TREE [--json]`: the paper's table 2 on a tree
-//! (`hdlod_fixtures::paper`), printed and written into docs/benchmarks.md.
+//! `hdlod bench paper TREE [--json] [--doc FILE]`: the paper's table 2 on
+//! a tree (`hdlod_fixtures::paper`) with each cell's bytes per cut,
+//! printed, and written into FILE when asked.
 //! `hdlod bench ws --url .. --tree TREE`: many WebSocket viewers updating
 //! their view at a fixed rate, bounded in time, reporting update latency.
 //! `build`, `simplify`, `objects`, `image`, `viewer` and `xer` are in their
@@ -112,15 +113,26 @@ const END: &str = "<!-- bench paper: end -->";
 fn markdown(tree: &hdlod::tree::Tree, frame: Option<&str>, report: &paper::Report) -> String {
     let framed = frame.map_or(String::new(), |f| format!(", framed on `{f}`"));
     let mut out = format!(
-        "{BEGIN}\nScene `{}`, {} clusters{framed}; `hdlod bench paper`: 1920x1080, fov_y 60 degrees, 1 pixel of error.\n\n\
-         | time | screen | triangles | clusters | baseline triangles | baseline draws | ratio | cut (us) | visited |\n\
-         |---|---|---|---|---|---|---|---|---|\n",
+        "{BEGIN}\nScene `{}`, {} clusters{framed}; `hdlod bench paper`: 1920x1080, fov_y 60 degrees, 1 pixel of error.{}\n\n\
+         | time | screen | triangles | clusters | baseline triangles | baseline draws | ratio | bytes | plain bytes | bytes / plain | cut (us) | visited |\n\
+         |---|---|---|---|---|---|---|---|---|---|---|---|\n",
         tree.scene,
-        tree.cluster_count()
+        tree.cluster_count(),
+        report.tree_bytes.map_or(String::new(), |b| format!(
+            " The tree's geometry: {b} bytes as stored; a cell's bytes are those of its cut's distinct GLB files."
+        ))
     );
     for r in &report.rows {
+        let bytes = r.bytes.map_or("| - | - | - |".to_owned(), |b| {
+            format!(
+                "| {} | {} | {:.1}% |",
+                b.stored,
+                b.plain,
+                100.0 * b.stored as f64 / b.plain.max(1) as f64
+            )
+        });
         out.push_str(&format!(
-            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1}x | {:.1} | {:.0} |\n",
+            "| {} | {} | {:.0} | {:.0} | {:.0} | {:.0} | {:.1}x {bytes} {:.1} | {:.0} |\n",
             r.time,
             r.screen,
             r.triangles,
@@ -156,7 +168,8 @@ fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
             })?
         }
     };
-    let report = paper::table(&tree, &frame, args.frames, args.repeats);
+    let mut report = paper::table(&tree, &frame, args.frames, args.repeats);
+    weigh(&tree, &args.tree, &frame, &mut report)?;
     let table = markdown(&tree, args.frame.as_deref(), &report);
     if args.json {
         println!("{}", serde_json::to_string_pretty(&report)?);
@@ -166,8 +179,10 @@ fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
     if let Some(path) = &args.doc {
         let old = std::fs::read_to_string(path).unwrap_or_else(|_| "# Benchmarks\n".into());
         let new = match (old.find(BEGIN), old.find(END)) {
+            // The table ends in a newline; a blank line keeps the
+            // section after it apart.
             (Some(a), Some(b)) if a < b => format!(
-                "{}{table}{}",
+                "{}{table}\n{}",
                 &old[..a],
                 &old[b + END.len()..].trim_start_matches('\n')
             ),
@@ -176,6 +191,39 @@ fn paper_table(args: PaperArgs) -> anyhow::Result<()> {
         std::fs::write(path, new).with_context(|| path.display().to_string())?;
         eprintln!("table written into {}", path.display());
     }
+    Ok(())
+}
+
+/// The cells' bytes per cut and the tree's geometry bytes, read from the
+/// tree's files in `dir`.
+fn weigh(
+    tree: &hdlod::tree::Tree,
+    dir: &std::path::Path,
+    frame: &paper::Frame,
+    report: &mut paper::Report,
+) -> anyhow::Result<()> {
+    paper::weigh(
+        tree,
+        frame,
+        report,
+        |hash| -> anyhow::Result<paper::Bytes> {
+            let path = tree.geometry_file(dir, hash);
+            let glb = std::fs::read(&path).with_context(|| path.display().to_string())?;
+            let plain = hdlod::io::compact::plain(&glb)
+                .map_err(|m| anyhow::anyhow!("{}: {m}", path.display()))?;
+            Ok(paper::Bytes {
+                stored: glb.len() as u64,
+                plain: plain.len() as u64,
+            })
+        },
+    )?;
+    let mut total = 0;
+    for (_, path) in hdlod::tree::store::geometry_files(dir)? {
+        total += std::fs::metadata(&path)
+            .with_context(|| path.display().to_string())?
+            .len();
+    }
+    report.tree_bytes = Some(total);
     Ok(())
 }
 
