@@ -125,6 +125,11 @@ fn bench_paper_writes_the_table() {
         let (ok, out, err) = hdlod(&args);
         assert!(ok, "{err}");
         let report: Value = serde_json::from_str(&out).unwrap();
+        common::assert_valid(
+            &common::schema("bench-paper.schema.json"),
+            &report,
+            "bench paper --json",
+        );
         let rows = report["rows"].as_array().unwrap();
         assert_eq!(rows.len(), 15);
         for key in [

@@ -6,7 +6,7 @@
 use std::borrow::Cow;
 
 use hdlod::time::format_date;
-use hdlod::tree::{Baseline, ClusterClass, Cut, CutStats, Tree};
+use hdlod::tree::{Baseline, Cut, CutStats, Tree};
 use rustc_hash::FxHashMap;
 use serde::Serialize;
 
@@ -163,7 +163,6 @@ pub struct Fragments {
 impl Fragments {
     pub fn of(tree: &Tree) -> Fragments {
         let dynamic_objects = (0..tree.cluster_count() as u32)
-            .filter(|&id| tree.class_of(id) == ClusterClass::Dynamic)
             .filter_map(|id| Some((id, tree.dynamic_object(id)?)))
             .collect();
         Fragments {
