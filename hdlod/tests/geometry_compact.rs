@@ -2,7 +2,8 @@
 //! within the quantization's error (normals, colours, texture coordinates;
 //! positions within the allowance given, the move answered) and exactly
 //! (positions without an allowance, feature ids, the texture's PNG, the
-//! triangles in order, each with its winding); the
+//! triangles in order, each with its winding), corner by corner: vertices
+//! that no stored value tells apart are stored once; the
 //! plain form derived from it is today's `f32` GLB; both pass the Khronos
 //! glTF validator; a tree stores the compact form under the hash of its
 //! bytes.
@@ -73,17 +74,69 @@ fn position_tolerance(mesh: &Mesh) -> f32 {
     4.0 * f32::EPSILON * far
 }
 
-/// Each triangle's corners rotated to start at its least index: the
-/// index codec may rotate a triangle, keeping its winding (and the
-/// triangles' order).
-fn rotated(indices: &[u32]) -> Vec<[u32; 3]> {
-    indices
+/// One triangle corner as a reader sees it: the position (moved by the
+/// node's translation), normal, colour, feature id and texture coordinate.
+#[derive(Debug, Clone, Copy)]
+struct Corner {
+    p: Vec3,
+    n: Option<Vec3>,
+    c: Option<[f32; 4]>,
+    f: Option<u32>,
+    uv: Option<Vec2>,
+}
+
+fn corners(mesh: &Mesh, translation: Vec3, uvs: Option<&[Vec2]>) -> Vec<[Corner; 3]> {
+    mesh.indices
         .chunks_exact(3)
         .map(|t| {
-            let k = (0..3).min_by_key(|&k| t[k]).unwrap();
-            [t[k], t[(k + 1) % 3], t[(k + 2) % 3]]
+            [0, 1, 2].map(|k| {
+                let i = t[k] as usize;
+                Corner {
+                    p: mesh.positions[i] + translation,
+                    n: mesh.normals.get(i).copied(),
+                    c: mesh.colors.get(i).copied(),
+                    f: mesh.features.get(i).copied(),
+                    uv: uvs.map(|u| u[i]),
+                }
+            })
         })
         .collect()
+}
+
+/// The triangles `read` are those `written`, in order, each with its
+/// winding: the index codec may rotate a triangle's corners, and the
+/// vertices are numbered anew. `check` compares each corner with the one
+/// it was written as.
+fn same_triangles(written: &[[Corner; 3]], read: &[[Corner; 3]], check: impl Fn(&Corner, &Corner)) {
+    assert_eq!(written.len(), read.len(), "triangles");
+    for (w, r) in written.iter().zip(read) {
+        let turn = (0..3)
+            .min_by(|&a, &b| {
+                let d = |k: usize| r[k].p.distance(w[0].p);
+                d(a).total_cmp(&d(b))
+            })
+            .unwrap();
+        for k in 0..3 {
+            check(&w[k], &r[(k + turn) % 3]);
+        }
+    }
+}
+
+/// How many vertices the GLB's one primitive stores.
+fn stored_vertices(glb: &[u8]) -> u64 {
+    let json = json_of(glb);
+    let position = &json["meshes"][0]["primitives"][0]["attributes"]["POSITION"];
+    json["accessors"][position.as_u64().unwrap() as usize]["count"]
+        .as_u64()
+        .unwrap()
+}
+
+/// How many of `mesh`'s vertices differ in position or object.
+fn distinct_vertices(mesh: &Mesh) -> usize {
+    (mesh.positions.iter().zip(&mesh.features))
+        .map(|(p, f)| (p.to_array().map(f32::to_bits), *f))
+        .collect::<std::collections::HashSet<_>>()
+        .len()
 }
 
 fn json_of(glb: &[u8]) -> serde_json::Value {
@@ -105,39 +158,40 @@ fn a_compact_glb_reads_back_its_positions_exact_and_the_rest_within_the_quantiza
         plain.len()
     );
 
-    let decoded = compact::decode(&glb).unwrap();
-    let tolerance = position_tolerance(&mesh);
-    assert_eq!(decoded.mesh.positions.len(), mesh.positions.len());
-    for (k, (p, q)) in mesh
-        .positions
-        .iter()
-        .zip(&decoded.mesh.positions)
-        .enumerate()
-    {
-        let q = *q + decoded.translation;
-        assert!(
-            p.distance(q) <= tolerance,
-            "vertex {k}: {p} read as {q}, tolerance {tolerance}"
-        );
-    }
-    assert_eq!(rotated(&decoded.mesh.indices), rotated(&mesh.indices));
-    assert_eq!(decoded.mesh.features, mesh.features);
-    for (n, m) in mesh.normals.iter().zip(&decoded.mesh.normals) {
-        assert!(n.distance(*m) <= 0.01, "{n} read as {m}");
-    }
-    for (c, d) in mesh.colors.iter().zip(&decoded.mesh.colors) {
-        for k in 0..4 {
-            assert!(
-                (c[k] - d[k]).abs() <= 0.5 / 255.0 + 1e-6,
-                "{c:?} read as {d:?}"
-            );
-        }
-    }
-    let read = decoded.texture.expect("the texture reads back");
+    // A box's faces share their corners once their normals are left out
+    // (flat): each position of an object is stored once, as the colours
+    // and texture coordinates are functions of it here.
+    assert_eq!(stored_vertices(&glb), distinct_vertices(&mesh) as u64);
+    assert!(distinct_vertices(&mesh) < mesh.positions.len());
+
+    let decoded = compact::decode(&glb).unwrap().drawn();
+    let read = decoded.texture.clone().expect("the texture reads back");
     assert_eq!(read.png, texture.png);
-    for (u, v) in texture.uvs.iter().zip(&read.uvs) {
-        assert!(u.distance(*v) <= 1.0 / 65535.0, "{u} read as {v}");
-    }
+    let tolerance = position_tolerance(&mesh);
+    same_triangles(
+        &corners(&mesh, Vec3::ZERO, Some(&texture.uvs)),
+        &corners(&decoded.mesh, decoded.translation, Some(&read.uvs)),
+        |w, r| {
+            assert!(
+                w.p.distance(r.p) <= tolerance,
+                "{} read as {}, tolerance {tolerance}",
+                w.p,
+                r.p
+            );
+            assert_eq!(w.f, r.f);
+            let (n, m) = (w.n.unwrap(), r.n.unwrap());
+            assert!(n.distance(m) <= 0.01, "{n} read as {m}");
+            let (c, d) = (w.c.unwrap(), r.c.unwrap());
+            for k in 0..4 {
+                assert!(
+                    (c[k] - d[k]).abs() <= 0.5 / 255.0 + 1e-6,
+                    "{c:?} read as {d:?}"
+                );
+            }
+            let (u, v) = (w.uv.unwrap(), r.uv.unwrap());
+            assert!(u.distance(v) <= 1.0 / 65535.0, "{u} read as {v}");
+        },
+    );
 }
 
 #[test]
@@ -156,14 +210,22 @@ fn flat_normals_are_left_out_and_read_back_as_the_triangles_own() {
     for allowance in [0.0, 0.01] {
         let (glb, _) = compact_mesh_to_glb(&flat, None, allowance);
         assert!(!has_normals(&glb), "allowance {allowance}");
-        let decoded = compact::decode(&glb).unwrap().mesh;
-        assert_eq!(decoded.normals.len(), flat.normals.len());
-        for (n, m) in flat.normals.iter().zip(&decoded.normals) {
-            assert!(n.distance(*m) <= 0.01, "{n} read as {m}");
-            // On the grid of a stored 8-bit normal, as they read back
-            // when stored.
-            assert_eq!(*m * 127.0, (*m * 127.0).round(), "{m}");
-        }
+        assert_eq!(stored_vertices(&glb), distinct_vertices(&flat) as u64);
+        let decoded = compact::decode(&glb).unwrap().drawn();
+        // A corner shared by faces reads back once for each face, with
+        // that face's normal.
+        same_triangles(
+            &corners(&flat, Vec3::ZERO, None),
+            &corners(&decoded.mesh, decoded.translation, None),
+            |w, r| {
+                let (n, m) = (w.n.unwrap(), r.n.unwrap());
+                assert!(n.distance(m) <= 0.01, "{n} read as {m}");
+                // On the grid of a stored 8-bit normal, as they read back
+                // when stored.
+                assert_eq!(m * 127.0, (m * 127.0).round(), "{m}");
+                assert_eq!(w.f, r.f);
+            },
+        );
         // The plain form writes them out, for readers that do not compute
         // them.
         assert!(has_normals(&compact::plain(&glb).unwrap()));
@@ -182,10 +244,15 @@ fn flat_normals_are_left_out_and_read_back_as_the_triangles_own() {
     for (what, mesh) in [("smooth", smooth), ("turned", turned)] {
         let (glb, _) = compact_mesh_to_glb(&mesh, None, 0.0);
         assert!(has_normals(&glb), "{what}");
-        let decoded = compact::decode(&glb).unwrap().mesh;
-        for (n, m) in mesh.normals.iter().zip(&decoded.normals) {
-            assert!(n.distance(*m) <= 0.01, "{n} read as {m}");
-        }
+        let decoded = compact::decode(&glb).unwrap().drawn();
+        same_triangles(
+            &corners(&mesh, Vec3::ZERO, None),
+            &corners(&decoded.mesh, decoded.translation, None),
+            |w, r| {
+                let (n, m) = (w.n.unwrap(), r.n.unwrap());
+                assert!(n.distance(m) <= 0.01, "{what}: {n} read as {m}");
+            },
+        );
     }
 }
 
@@ -219,16 +286,22 @@ fn the_plain_form_of_a_compact_glb_is_an_f32_glb_of_the_same_mesh() {
     std::fs::write(&b, &plain).unwrap();
     let (ma, ta) = hdlod::io::read_textured_mesh(&a).unwrap();
     let (mb, tb) = hdlod::io::read_textured_mesh(&b).unwrap();
-    assert_eq!(ma.indices, mb.indices);
-    assert_eq!(ma.features, mb.features);
-    assert_eq!(ta.unwrap().png, tb.unwrap().png);
+    let (ta, tb) = (ta.unwrap(), tb.unwrap());
+    assert_eq!(ta.png, tb.png);
     let tolerance = position_tolerance(&mesh);
-    for (p, q) in ma.positions.iter().zip(&mb.positions) {
-        assert!(p.distance(*q) <= tolerance, "{p} {q}");
-    }
-    for (p, q) in mesh.positions.iter().zip(&ma.positions) {
-        assert!(p.distance(*q) <= tolerance, "{p} {q}");
-    }
+    let same = |w: &Corner, r: &Corner| {
+        assert!(w.p.distance(r.p) <= tolerance, "{} {}", w.p, r.p);
+        assert_eq!(w.f, r.f);
+        let (u, v) = (w.uv.unwrap(), r.uv.unwrap());
+        assert!(u.distance(v) <= 1.0 / 65535.0, "{u} {v}");
+    };
+    let compact = corners(&ma, Vec3::ZERO, Some(&ta.uvs));
+    same_triangles(&compact, &corners(&mb, Vec3::ZERO, Some(&tb.uvs)), same);
+    same_triangles(
+        &corners(&mesh, Vec3::ZERO, Some(&texture.uvs)),
+        &compact,
+        same,
+    );
 }
 
 #[test]
@@ -341,14 +414,24 @@ fn positions_are_quantized_within_the_allowance_and_the_move_is_answered() {
             assert!(text.len() <= 12 && x.to_string() == text, "{key}: {text}");
         }
     }
-    let decoded = compact::decode(&glb).unwrap();
+    let decoded = compact::decode(&glb).unwrap().drawn();
     let slack = position_tolerance(&mesh);
-    let mut farthest = 0.0f32;
-    for (p, q) in mesh.positions.iter().zip(&decoded.mesh.positions) {
-        let d = p.distance(*q + decoded.translation);
-        assert!(d <= moved + slack, "{p} read as {q}: {d} beyond {moved}");
-        farthest = farthest.max(d);
-    }
+    let farthest = std::cell::Cell::new(0.0f32);
+    same_triangles(
+        &corners(&mesh, Vec3::ZERO, None),
+        &corners(&decoded.mesh, decoded.translation, None),
+        |w, r| {
+            let d = w.p.distance(r.p);
+            assert!(
+                d <= moved + slack,
+                "{} read as {}: {d} beyond {moved}",
+                w.p,
+                r.p
+            );
+            farthest.set(farthest.get().max(d));
+        },
+    );
+    let farthest = farthest.get();
     // The answer is the move, not a loose bound of it.
     assert!(farthest > moved / 4.0, "moved {farthest}, answered {moved}");
     let dir = tempfile::tempdir().unwrap();

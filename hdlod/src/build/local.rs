@@ -51,6 +51,7 @@ use super::steps::StepFunction;
 use super::update::{Carried, Split, Update, object_sources, update_schedule_of};
 use crate::error::{Error, Result};
 use crate::geometry::{ErrorMetric, Mesh};
+use crate::io::compact::Decoded;
 use crate::scene::{Class, Scene, Visibility};
 use crate::tree::sources::Digest;
 use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
@@ -526,8 +527,9 @@ impl Plan<'_> {
             .edited
             .par_iter()
             .map(|&c| {
-                let (before, _) = stored_mesh(old, old_dir, c)?;
-                Ok((c, moved_by(&before, &edited[&c].mesh, &within)))
+                let before = placed(stored_file(old, old_dir, c)?.0);
+                let after = as_stored(&edited[&c].mesh);
+                Ok((c, moved_by(&before, &after, &within)))
             })
             .collect::<Result<_>>()?;
         moved.extend(self.removed.iter().map(|&c| (c, f64::INFINITY)));
@@ -831,7 +833,8 @@ impl Plan<'_> {
     /// they are few enough for the direct bound.
     fn stored(&self, old: &Tree, old_dir: &Path, id: u32) -> Result<Made> {
         let c = old.cluster(id);
-        let (mesh, hash) = stored_mesh(old, old_dir, id)?;
+        let (decoded, hash) = stored_file(old, old_dir, id)?;
+        let mesh = placed(decoded.drawn());
         Ok(Made {
             mesh: Arc::new(mesh),
             eps: c.eps,
@@ -1063,20 +1066,34 @@ impl Plan<'_> {
     }
 }
 
-/// The geometry of old cluster `id`, read back from its file, in place,
-/// and the file's hash.
-fn stored_mesh(old: &Tree, old_dir: &Path, id: u32) -> Result<(Mesh, String)> {
+/// Old cluster `id`'s file as stored (its mesh in the node's frame) and
+/// its hash.
+fn stored_file(old: &Tree, old_dir: &Path, id: u32) -> Result<(Decoded, String)> {
     let hash = (old.cluster(id).geometry.clone())
         .ok_or_else(|| Error::argument("tree", format!("cluster {id} has no geometry")))?;
     let path = old.geometry_file(old_dir, &hash);
     let bytes = std::fs::read(&path).map_err(|e| Error::io(&path, e))?;
     let decoded = crate::io::compact::decode(&bytes)
         .map_err(|message| Error::invalid(&path, "glb", message))?;
+    Ok((decoded, hash))
+}
+
+/// A decoded file's mesh where the scene has it: moved by its node's
+/// translation.
+fn placed(decoded: Decoded) -> Mesh {
     let mut mesh = decoded.mesh;
     for p in &mut mesh.positions {
         *p += decoded.translation;
     }
-    Ok((mesh, hash))
+    mesh
+}
+
+/// A leaf's `mesh` as its file stores it and [`stored_mesh`] reads it
+/// back: its vertices welded and numbered as in the file, so that
+/// [`displacement`] pairs them with those of the leaf's old file.
+fn as_stored(mesh: &Mesh) -> Mesh {
+    let (glb, _) = crate::io::glb::compact_mesh_to_glb(mesh, None, 0.0);
+    placed(crate::io::compact::decode(&glb).expect("a GLB just written reads back"))
 }
 
 /// How an edited leaf's move is measured: the build's metric, and the

@@ -19,6 +19,8 @@
 //! (exact, and a run of equal ids costs the vertex codec almost nothing),
 //! indices `UNSIGNED_SHORT` below 65,536 vertices. The attributes are
 //! interleaved in one view, each 4-byte aligned, as both extensions ask.
+//! Vertices whose stored values are the same bytes are stored once: with
+//! flat normals left out, a box's faces share their corners.
 //!
 //! Compression: the compressed streams are the GLB's binary chunk (buffer
 //! 0); the views point into buffer 1, a fallback buffer without data, so
@@ -27,7 +29,8 @@
 //! indices the `TRIANGLES` mode. Both codecs are lossless, except that the
 //! index codec may rotate a triangle's corners (keeping its winding and
 //! the triangles' order): the plain form ([`plain`]) holds exactly the
-//! stored values, as `f32`.
+//! stored values, as `f32`, a welded vertex copied once for each flat
+//! normal it takes.
 
 use std::borrow::Cow;
 
@@ -125,6 +128,8 @@ impl GlbBuilder {
                 vertex[at..at + 4].copy_from_slice(&(mesh.features[i] as f32).to_le_bytes());
             }
         }
+        let (raw, indices) = welded(&raw, stride, &mesh.indices);
+        let n = raw.len() / stride;
         let encoded = encode_vertices(&raw, stride);
         let view = self.compressed_view(raw.len(), &encoded, Some(stride), n, "ATTRIBUTES");
         use json::accessor::{ComponentType as C, Type as T};
@@ -148,7 +153,7 @@ impl GlbBuilder {
                 distinct.len(),
             )
         });
-        let indices = self.compressed_indices(&mesh.indices, n);
+        let indices = self.compressed_indices(&indices, n);
         let accessors = MeshAccessors {
             positions,
             normals,
@@ -443,6 +448,41 @@ fn quantized(positions: &[Vec3], allowance: f32) -> Option<Quantized> {
     })
 }
 
+/// The distinct vertices of `raw` (records of `stride` bytes, as stored)
+/// in the order of their first use, and `indices` into them. A box's
+/// faces each have their own four corners only for their normals: with
+/// the normals left out (`is_flat`), the corners the faces share are one
+/// vertex, a third of them. meshoptimizer's remap compares the records
+/// byte for byte, so no stored value changes; a vertex no triangle uses
+/// goes. Without triangles the records stay as they are.
+fn welded(raw: &[u8], stride: usize, indices: &[u32]) -> (Vec<u8>, Vec<u32>) {
+    fn with<T: bytemuck::Pod>(raw: &[u8], indices: &[u32]) -> (Vec<u8>, Vec<u32>) {
+        let records = bytemuck::cast_slice::<u8, T>(raw);
+        let (count, remap) = meshopt::generate_vertex_remap(records, Some(indices));
+        let mut distinct = vec![T::zeroed(); count];
+        for (old, &new) in remap.iter().enumerate() {
+            // A vertex no triangle uses maps to `u32::MAX`.
+            if let Some(to) = distinct.get_mut(new as usize) {
+                *to = records[old];
+            }
+        }
+        let indices = meshopt::remap_index_buffer(Some(indices), count, &remap);
+        (bytemuck::cast_vec(distinct), indices)
+    }
+    if indices.is_empty() {
+        return (raw.to_vec(), Vec::new());
+    }
+    match stride {
+        8 => with::<[u8; 8]>(raw, indices),
+        12 => with::<[u8; 12]>(raw, indices),
+        16 => with::<[u8; 16]>(raw, indices),
+        20 => with::<[u8; 20]>(raw, indices),
+        24 => with::<[u8; 24]>(raw, indices),
+        28 => with::<[u8; 28]>(raw, indices),
+        other => unreachable!("no vertex stream of {other} bytes is written"),
+    }
+}
+
 /// Encodes `raw`, elements of `stride` bytes, with the vertex codec at the
 /// version `EXT_meshopt_compression` decoders read.
 fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
@@ -480,7 +520,7 @@ pub fn plain(glb: &[u8]) -> Result<Cow<'_, [u8]>, String> {
     if !is_compact(glb) {
         return Ok(Cow::Borrowed(glb));
     }
-    let decoded = decode(glb)?;
+    let decoded = decode(glb)?.drawn();
     let mesh = unit_normals(&decoded.mesh);
     Ok(Cow::Owned(glb_at(
         &mesh,
@@ -500,9 +540,26 @@ pub struct Decoded {
     pub texture: Option<Texture>,
 }
 
+impl Decoded {
+    /// The mesh as glTF draws it: where the file stores no normals, each
+    /// triangle's own, rounded as a stored 8-bit normal reads back, so
+    /// that the plain form holds the values it held when the normals were
+    /// stored (and compresses as well on the wire). A vertex that
+    /// triangles of different normals share (a box's corner, welded when
+    /// stored) is copied, with its texture coordinate, once for each
+    /// normal after the first.
+    pub fn drawn(mut self) -> Self {
+        if self.mesh.normals.is_empty() {
+            flat_normals(&mut self.mesh, self.texture.as_mut().map(|t| &mut t.uvs));
+        }
+        self
+    }
+}
+
 /// Reads the mesh of a GLB as this module writes it: one node with one
 /// triangle primitive, views compressed or not, attributes quantized or
-/// not.
+/// not. The mesh is as the file stores it, its vertices welded, without
+/// normals where the file has none ([`Decoded::drawn`] gives them).
 pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
     let container = gltf::binary::Glb::from_slice(glb).map_err(|e| format!("not a GLB: {e}"))?;
     let json: Value =
@@ -582,17 +639,6 @@ pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
             .collect(),
         None => (0..n as u32).collect(),
     };
-    if normals.is_none() && n > 0 {
-        // Flat, as glTF draws a primitive without normals: each vertex's
-        // is a triangle's at it (`unit_normals` fills in normals of zero),
-        // rounded as a stored 8-bit normal reads back, so that the plain
-        // form holds the values it held when the normals were stored (and
-        // compresses as well on the wire).
-        mesh.normals = vec![Vec3::ZERO; n];
-        mesh.normals = (unit_normals(&mesh).normals.iter())
-            .map(|&v| byte_grid(v) / 127.0)
-            .collect();
-    }
     let texture = match attribute("TEXCOORD_0")? {
         Some((uvs, 2)) => file.base_color_png(primitive)?.map(|png| Texture {
             uvs: uvs.chunks_exact(2).map(Vec2::from_slice).collect(),
@@ -614,6 +660,54 @@ pub fn decode(glb: &[u8]) -> Result<Decoded, String> {
         translation,
         texture,
     })
+}
+
+/// [`Decoded::drawn`]'s normals: `mesh`'s triangles' own, a vertex copied
+/// where they differ.
+fn flat_normals(mesh: &mut Mesh, mut uvs: Option<&mut Vec<Vec2>>) {
+    let n = mesh.positions.len();
+    let mut normals: Vec<Option<Vec3>> = vec![None; n];
+    let mut copies: rustc_hash::FxHashMap<(u32, [u32; 3]), u32> = Default::default();
+    for t in 0..mesh.indices.len() / 3 {
+        let corners = [0, 1, 2].map(|k| mesh.indices[3 * t + k]);
+        let [a, b, c] = corners.map(|i| mesh.positions[i as usize]);
+        // A degenerate triangle has no normal of its own and takes its
+        // vertices' as they come.
+        let Some(face) = (b - a).cross(c - a).try_normalize() else {
+            continue;
+        };
+        let face = byte_grid(face) / 127.0;
+        for (k, i) in corners.into_iter().enumerate() {
+            let at = i as usize;
+            match normals[at] {
+                None => normals[at] = Some(face),
+                Some(v) if v == face => {}
+                Some(_) => {
+                    let copy = *copies
+                        .entry((i, face.to_array().map(f32::to_bits)))
+                        .or_insert_with(|| {
+                            normals.push(Some(face));
+                            mesh.positions.push(mesh.positions[at]);
+                            if !mesh.colors.is_empty() {
+                                mesh.colors.push(mesh.colors[at]);
+                            }
+                            if !mesh.features.is_empty() {
+                                mesh.features.push(mesh.features[at]);
+                            }
+                            if let Some(uvs) = uvs.as_deref_mut() {
+                                uvs.push(uvs[at]);
+                            }
+                            (normals.len() - 1) as u32
+                        });
+                    mesh.indices[3 * t + k] = copy;
+                }
+            }
+        }
+    }
+    mesh.normals = normals
+        .into_iter()
+        .map(|v| v.unwrap_or(byte_grid(Vec3::Z) / 127.0))
+        .collect();
 }
 
 /// A GLB's JSON and binary chunk.
