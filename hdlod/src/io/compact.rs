@@ -31,6 +31,11 @@
 //! the triangles' order): the plain form ([`plain`]) holds exactly the
 //! stored values, as `f32`, a welded vertex copied once for each flat
 //! normal it takes.
+//!
+//! A skinned cluster's file (a mesh, its skin and its joints' animation)
+//! has every view compressed the same way but nothing quantized
+//! (`GlbBuilder::compress_views`); its plain form is the views
+//! decompressed, the glTF otherwise as written.
 
 use std::borrow::Cow;
 
@@ -63,6 +68,7 @@ impl GlbBuilder {
         allowance: f32,
     ) -> (MeshAccessors, f32, f32) {
         let n = mesh.positions.len();
+        self.quantized = true;
         let quantized = quantized(&mesh.positions, allowance);
         let (scale, moved) = quantized
             .as_ref()
@@ -290,6 +296,101 @@ impl GlbBuilder {
     }
 }
 
+impl GlbBuilder {
+    /// Every view written so far compressed after `EXT_meshopt_compression`,
+    /// losslessly, without quantizing anything: a skinned cluster's file,
+    /// whose joints' keyframes in `f32` are most of its bytes (a walker's
+    /// 2,045 keyframes of five joints, 450 kB plain). Triangle indices in
+    /// the `TRIANGLES` mode, a view of elements of 4 to 32 bytes in the
+    /// `ATTRIBUTES` mode; any other view (the inverse binds' matrices)
+    /// stays as it is.
+    pub(super) fn compress_views(&mut self) {
+        use json::accessor::Type;
+        let plain = std::mem::take(&mut self.bin);
+        let views = self.root.buffer_views.len();
+        // Each view's element size, if its accessors agree on one.
+        let mut element: Vec<Option<Option<usize>>> = vec![None; views];
+        for a in &self.root.accessors {
+            let (Some(view), Valid(kind), Valid(component)) =
+                (a.buffer_view, &a.type_, &a.component_type)
+            else {
+                continue;
+            };
+            let components = match kind {
+                Type::Scalar => 1,
+                Type::Vec2 => 2,
+                Type::Vec3 => 3,
+                Type::Vec4 | Type::Mat2 => 4,
+                Type::Mat3 => 9,
+                Type::Mat4 => 16,
+            };
+            let size = components * component.0.size();
+            let slot = &mut element[view.value()];
+            *slot = match *slot {
+                None => Some(Some(size)),
+                Some(Some(s)) if s == size => Some(Some(s)),
+                _ => Some(None),
+            };
+        }
+        let mut indices = vec![false; views];
+        for primitive in self.root.meshes.iter().flat_map(|m| &m.primitives) {
+            let view = primitive
+                .indices
+                .and_then(|i| self.root.accessors[i.value()].buffer_view);
+            if let Some(view) = view {
+                indices[view.value()] = true;
+            }
+        }
+        for (v, view) in self.root.buffer_views.iter_mut().enumerate() {
+            let start = view.byte_offset.map_or(0, |o| o.0 as usize);
+            let bytes = &plain[start..start + view.byte_length.0 as usize];
+            let size = match element[v] {
+                Some(Some(size))
+                    if view.byte_stride.is_none() && bytes.len().is_multiple_of(size) =>
+                {
+                    size
+                }
+                _ => 0,
+            };
+            let count = bytes.len() / size.max(1);
+            let (encoded, mode) = match size {
+                4 if indices[v] && count.is_multiple_of(3) => {
+                    let indices: &[u32] = bytemuck::cast_slice(bytes);
+                    let vertices = indices.iter().max().map_or(0, |&m| m as usize + 1);
+                    let encoded = meshopt::encode_index_buffer(indices, vertices)
+                        .expect("the indices are triangles");
+                    (encoded, "TRIANGLES")
+                }
+                4 | 8 | 12 | 16 | 20 | 24 | 28 | 32 => (encode_vertices(bytes, size), "ATTRIBUTES"),
+                _ => {
+                    // Left as it is, in the binary chunk.
+                    view.byte_offset =
+                        (!self.bin.is_empty()).then(|| USize64::from(self.bin.len()));
+                    self.bin.extend_from_slice(bytes);
+                    self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+                    continue;
+                }
+            };
+            let mut extension = serde_json::json!({
+                "buffer": 0,
+                "byteLength": encoded.len(),
+                "byteStride": size,
+                "count": count,
+                "mode": mode,
+            });
+            if !self.bin.is_empty() {
+                extension["byteOffset"] = self.bin.len().into();
+            }
+            self.bin.extend_from_slice(&encoded);
+            self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+            // The fallback buffer keeps the plain layout.
+            view.buffer = json::Index::new(1);
+            self.compressed.push((v, extension));
+        }
+        self.fallback = plain.len().next_multiple_of(4);
+    }
+}
+
 /// Unit normal `n` as a normalized `BYTE` stores it: its components times
 /// 127, rounded.
 fn byte_grid(n: Vec3) -> Vec3 {
@@ -327,7 +428,12 @@ fn is_flat(positions: &[Vec3], normals: &[Vec3], indices: &[u32]) -> bool {
 /// for a plain GLB): each view's `EXT_meshopt_compression` object, the
 /// fallback buffer of `fallback` bytes, and both extensions used and
 /// required.
-pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback: usize) {
+pub(super) fn declare(
+    json: &mut Value,
+    compressed: &[(usize, Value)],
+    fallback: usize,
+    quantized: bool,
+) {
     if compressed.is_empty() {
         return;
     }
@@ -382,6 +488,9 @@ pub(super) fn declare(json: &mut Value, compressed: &[(usize, Value)], fallback:
             .map(std::mem::take)
             .unwrap_or_default();
         for name in [MESHOPT, QUANTIZATION] {
+            if name == QUANTIZATION && !quantized {
+                continue;
+            }
             if !list.iter().any(|v| v == name) {
                 list.push(name.into());
             }
@@ -490,12 +599,14 @@ fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
         meshopt::encode_vertex_buffer_level(elements, 2, Some(0)).expect("a vertex stream encodes")
     }
     match stride {
+        4 => with(bytemuck::cast_slice::<u8, [u8; 4]>(raw)),
         8 => with(bytemuck::cast_slice::<u8, [u8; 8]>(raw)),
         12 => with(bytemuck::cast_slice::<u8, [u8; 12]>(raw)),
         16 => with(bytemuck::cast_slice::<u8, [u8; 16]>(raw)),
         20 => with(bytemuck::cast_slice::<u8, [u8; 20]>(raw)),
         24 => with(bytemuck::cast_slice::<u8, [u8; 24]>(raw)),
         28 => with(bytemuck::cast_slice::<u8, [u8; 28]>(raw)),
+        32 => with(bytemuck::cast_slice::<u8, [u8; 32]>(raw)),
         other => unreachable!("no vertex stream of {other} bytes is written"),
     }
 }
@@ -520,6 +631,12 @@ pub fn plain(glb: &[u8]) -> Result<Cow<'_, [u8]>, String> {
     if !is_compact(glb) {
         return Ok(Cow::Borrowed(glb));
     }
+    let json = gltf::binary::Glb::from_slice(glb)
+        .ok()
+        .and_then(|g| serde_json::from_slice::<Value>(&g.json).ok());
+    if json.is_some_and(|json| json.get("skins").is_some()) {
+        return inflated(glb).map(Cow::Owned);
+    }
     let decoded = decode(glb)?.drawn();
     let mesh = unit_normals(&decoded.mesh);
     Ok(Cow::Owned(glb_at(
@@ -529,6 +646,66 @@ pub fn plain(glb: &[u8]) -> Result<Cow<'_, [u8]>, String> {
         None,
         Encoding::Plain,
     )))
+}
+
+/// A GLB whose views are compressed but nothing quantized (a skinned
+/// cluster's, [`GlbBuilder::compress_views`]) with every view decompressed
+/// into the binary chunk and the extension gone: the same glTF as it was
+/// written before compression, but for the views' offsets.
+fn inflated(glb: &[u8]) -> Result<Vec<u8>, String> {
+    let container = gltf::binary::Glb::from_slice(glb).map_err(|e| format!("not a GLB: {e}"))?;
+    let mut json: Value =
+        serde_json::from_slice(&container.json).map_err(|e| format!("JSON chunk: {e}"))?;
+    let bin: &[u8] = container.bin.as_deref().unwrap_or(&[]);
+    let views = json["bufferViews"].as_array().map_or(0, Vec::len);
+    let mut out = Vec::new();
+    let mut placed = Vec::with_capacity(views);
+    {
+        let file = File { json: &json, bin };
+        for v in 0..views {
+            let (bytes, _) = file.view(v)?;
+            placed.push((out.len(), bytes.len()));
+            out.extend_from_slice(&bytes);
+            out.resize(out.len().next_multiple_of(4), 0);
+        }
+    }
+    for (v, (offset, length)) in placed.into_iter().enumerate() {
+        let view = &mut json["bufferViews"][v];
+        view["buffer"] = 0.into();
+        view["byteLength"] = length.into();
+        match offset {
+            0 => view.as_object_mut().map(|o| o.remove("byteOffset")),
+            at => {
+                view["byteOffset"] = at.into();
+                None
+            }
+        };
+        if let Some(o) = view.as_object_mut() {
+            o.remove("extensions");
+        }
+    }
+    json["buffers"] = serde_json::json!([{ "byteLength": out.len() }]);
+    for key in ["extensionsUsed", "extensionsRequired"] {
+        if let Some(list) = json[key].as_array_mut() {
+            list.retain(|name| name != MESHOPT);
+            if list.is_empty() {
+                json.as_object_mut().map(|o| o.remove(key));
+            }
+        }
+    }
+    let json_bytes = serde_json::to_vec(&json).map_err(|e| e.to_string())?;
+    let glb = gltf::binary::Glb {
+        header: gltf::binary::Header {
+            magic: *b"glTF",
+            version: 2,
+            length: 0,
+        },
+        json: json_bytes.into(),
+        bin: (!out.is_empty()).then_some(out.into()),
+    };
+    let mut bytes = Vec::new();
+    glb.to_writer(&mut bytes).map_err(|e| e.to_string())?;
+    Ok(bytes)
 }
 
 /// A compact GLB's one mesh in its node's frame (scaled, not translated),

@@ -102,6 +102,7 @@ pub fn skinned_mesh_to_glb(mesh: &Mesh, skin: &ObjectSkin, name: &str) -> Vec<u8
     let node = glb.add_node(primitive, &Mat4::IDENTITY, None);
     let (index, skeleton) = glb.add_skin(name, skin, &skin.times());
     glb.set_skin(node, index);
+    glb.compress_views();
     glb.finish(vec![node, skeleton])
 }
 
@@ -433,6 +434,8 @@ pub(crate) struct GlbBuilder {
     pub(super) compressed: Vec<(usize, serde_json::Value)>,
     /// The byte length of the fallback buffer, the views decompressed.
     pub(super) fallback: usize,
+    /// Whether an attribute is quantized (`KHR_mesh_quantization`).
+    pub(super) quantized: bool,
 }
 
 impl GlbBuilder {
@@ -445,6 +448,7 @@ impl GlbBuilder {
             materials: HashMap::new(),
             compressed: Vec::new(),
             fallback: 0,
+            quantized: false,
         }
     }
 
@@ -573,6 +577,9 @@ impl GlbBuilder {
             skin.joints.iter().map(|j| self.add_joint(j)).collect();
         let mut channels = Vec::new();
         let mut samplers = Vec::new();
+        // The joints of a skeleton are sampled at the same times, as a
+        // rule: one input accessor for all of them.
+        let mut inputs: Vec<(Vec<f32>, json::Index<json::Accessor>)> = Vec::new();
         for (joint, node) in skin.joints.iter().zip(&joints) {
             let Some(motion) = &joint.motion else {
                 continue;
@@ -583,12 +590,19 @@ impl GlbBuilder {
                 .map(|k| times.partition_point(|&t| t < k.t) as f32)
                 .collect();
             let (first, last) = (clip_times[0], clip_times[clip_times.len() - 1]);
-            let input = self.data_accessor(
-                bytemuck::cast_slice(&clip_times),
-                keys.len(),
-                json::accessor::Type::Scalar,
-                Some((vec![first], vec![last])),
-            );
+            let input = match inputs.iter().find(|(t, _)| *t == clip_times) {
+                Some(&(_, input)) => input,
+                None => {
+                    let input = self.data_accessor(
+                        bytemuck::cast_slice(&clip_times),
+                        keys.len(),
+                        json::accessor::Type::Scalar,
+                        Some((vec![first], vec![last])),
+                    );
+                    inputs.push((clip_times, input));
+                    input
+                }
+            };
             let translations: Vec<Vec3> = keys.iter().map(|k| k.translation).collect();
             let rotations: Vec<glam::Quat> = keys
                 .iter()
@@ -971,7 +985,7 @@ impl GlbBuilder {
         self.close(nodes);
         let mut value = serde_json::to_value(&self.root).expect("glTF JSON serialises");
         edit(&mut value);
-        super::compact::declare(&mut value, &self.compressed, self.fallback);
+        super::compact::declare(&mut value, &self.compressed, self.fallback, self.quantized);
         let json_bytes = serde_json::to_vec(&value).expect("JSON serialises");
         let mut out = Vec::with_capacity(json_bytes.len() + self.bin.len() + 40);
         write_container(&mut out, &json_bytes, &self.bin).expect("writing to a Vec cannot fail");
