@@ -43,7 +43,7 @@ use glam::{Vec2, Vec3};
 use gltf::json::{self, validation::Checked::Valid, validation::USize64};
 use serde_json::Value;
 
-use super::glb::{Encoding, GlbBuilder, MeshAccessors, glb_at, unit_normals};
+use super::glb::{Encoding, GlbBuilder, MeshAccessors, glb_at, unit_normals, write_container};
 use super::texture::Texture;
 use crate::geometry::Mesh;
 
@@ -694,17 +694,8 @@ fn inflated(glb: &[u8]) -> Result<Vec<u8>, String> {
         }
     }
     let json_bytes = serde_json::to_vec(&json).map_err(|e| e.to_string())?;
-    let glb = gltf::binary::Glb {
-        header: gltf::binary::Header {
-            magic: *b"glTF",
-            version: 2,
-            length: 0,
-        },
-        json: json_bytes.into(),
-        bin: (!out.is_empty()).then_some(out.into()),
-    };
-    let mut bytes = Vec::new();
-    glb.to_writer(&mut bytes).map_err(|e| e.to_string())?;
+    let mut bytes = Vec::with_capacity(json_bytes.len() + out.len() + 40);
+    write_container(&mut bytes, &json_bytes, &out).map_err(|e| e.to_string())?;
     Ok(bytes)
 }
 

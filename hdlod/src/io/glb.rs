@@ -1030,7 +1030,11 @@ impl GlbBuilder {
     }
 }
 
-fn write_container(out: &mut impl Write, json_bytes: &[u8], bin: &[u8]) -> std::io::Result<()> {
+pub(super) fn write_container(
+    out: &mut impl Write,
+    json_bytes: &[u8],
+    bin: &[u8],
+) -> std::io::Result<()> {
     let glb = gltf::binary::Glb {
         header: gltf::binary::Header {
             magic: *b"glTF",
