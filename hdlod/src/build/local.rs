@@ -1088,7 +1088,7 @@ fn placed(decoded: Decoded) -> Mesh {
     mesh
 }
 
-/// A leaf's `mesh` as its file stores it and [`stored_mesh`] reads it
+/// A leaf's `mesh` as its file stores it and [`stored_file`] reads it
 /// back: its vertices welded and numbered as in the file, so that
 /// [`displacement`] pairs them with those of the leaf's old file.
 fn as_stored(mesh: &Mesh) -> Mesh {

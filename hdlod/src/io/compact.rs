@@ -294,9 +294,7 @@ impl GlbBuilder {
         self.compressed.push((view.value(), extension));
         view
     }
-}
 
-impl GlbBuilder {
     /// Every view written so far compressed after `EXT_meshopt_compression`,
     /// losslessly, without quantizing anything: a skinned cluster's file,
     /// whose joints' keyframes in `f32` are most of its bytes (a walker's
@@ -305,7 +303,6 @@ impl GlbBuilder {
     /// `ATTRIBUTES` mode; any other view (the inverse binds' matrices)
     /// stays as it is.
     pub(super) fn compress_views(&mut self) {
-        use json::accessor::Type;
         let plain = std::mem::take(&mut self.bin);
         let views = self.root.buffer_views.len();
         // Each view's element size, if its accessors agree on one.
@@ -316,15 +313,7 @@ impl GlbBuilder {
             else {
                 continue;
             };
-            let components = match kind {
-                Type::Scalar => 1,
-                Type::Vec2 => 2,
-                Type::Vec3 => 3,
-                Type::Vec4 | Type::Mat2 => 4,
-                Type::Mat3 => 9,
-                Type::Mat4 => 16,
-            };
-            let size = components * component.0.size();
+            let size = kind.multiplicity() * component.0.size();
             let slot = &mut element[view.value()];
             *slot = match *slot {
                 None => Some(Some(size)),
@@ -614,12 +603,18 @@ fn encode_vertices(raw: &[u8], stride: usize) -> Vec<u8> {
 /// Whether a GLB uses either extension of the compact form, judged by its
 /// JSON's `extensionsUsed` (a file that is no GLB is not).
 pub fn is_compact(glb: &[u8]) -> bool {
-    gltf::binary::Glb::from_slice(glb)
+    compact_json(glb).is_some()
+}
+
+/// The JSON of a GLB that uses either extension of the compact form.
+fn compact_json(glb: &[u8]) -> Option<Value> {
+    let json = gltf::binary::Glb::from_slice(glb)
         .ok()
-        .and_then(|g| serde_json::from_slice::<Value>(&g.json).ok())
-        .and_then(|json| json.get("extensionsUsed").cloned())
-        .and_then(|used| used.as_array().cloned())
-        .is_some_and(|used| used.iter().any(|u| u == MESHOPT || u == QUANTIZATION))
+        .and_then(|g| serde_json::from_slice::<Value>(&g.json).ok())?;
+    let used = json.get("extensionsUsed").and_then(Value::as_array)?;
+    used.iter()
+        .any(|u| u == MESHOPT || u == QUANTIZATION)
+        .then_some(json)
 }
 
 /// The plain form of a GLB: a compact one decoded and written again with
@@ -628,13 +623,10 @@ pub fn is_compact(glb: &[u8]) -> bool {
 /// compact file is always the same bytes. An error says what of the file
 /// could not be read.
 pub fn plain(glb: &[u8]) -> Result<Cow<'_, [u8]>, String> {
-    if !is_compact(glb) {
+    let Some(json) = compact_json(glb) else {
         return Ok(Cow::Borrowed(glb));
-    }
-    let json = gltf::binary::Glb::from_slice(glb)
-        .ok()
-        .and_then(|g| serde_json::from_slice::<Value>(&g.json).ok());
-    if json.is_some_and(|json| json.get("skins").is_some()) {
+    };
+    if json.get("skins").is_some() {
         return inflated(glb).map(Cow::Owned);
     }
     let decoded = decode(glb)?.drawn();
