@@ -370,3 +370,31 @@ fn a_flat_tree_is_updated_into_a_sharded_one() {
     };
     assert_eq!(common::geometry_files(&dir), want);
 }
+
+/// An update names every geometry file of the tree it replaces, so a tree
+/// missing one is not updated, by either kind of update: it is built in
+/// full, and the tree left is whole.
+#[test]
+fn a_tree_missing_a_geometry_file_is_built_in_full() {
+    let scene = tiny();
+    let config = BuildConfig::default();
+    let mut moved = scene.clone();
+    moved.objects[0].transform.w_axis.x += 1.0;
+    for edited in [rescheduled(&scene, 3600.0), moved] {
+        let tmp = tempfile::tempdir().unwrap();
+        let dir = tmp.path().join("tree");
+        build_to(&scene, &config, &dir, &Silent).unwrap();
+        let gone = common::geometry_files(&dir).pop().expect("a geometry file");
+        std::fs::remove_file(&gone).unwrap();
+        let (tree, _, how) = build_or_update_to(&edited, &config, &dir, false, &Silent).unwrap();
+        let How::Full { why: Some(why) } = how else {
+            panic!("{how:?}")
+        };
+        let name = gone.file_name().unwrap().to_string_lossy().into_owned();
+        let hash = name.trim_end_matches(".glb");
+        assert!(why.contains("does not load") && why.contains(hash), "{why}");
+        let loaded = load(&dir).expect("the rebuilt tree loads");
+        hdlod::tree::store::check_geometry(&dir, &loaded).expect("every file there");
+        assert_eq!(geometry(&loaded), geometry(&tree));
+    }
+}
