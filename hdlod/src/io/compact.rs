@@ -259,9 +259,6 @@ impl GlbBuilder {
         count: usize,
         mode: &str,
     ) -> json::Index<json::buffer::View> {
-        let offset = self.bin.len();
-        self.bin.extend_from_slice(encoded);
-        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         let at = self.fallback;
         self.fallback = (at + length).next_multiple_of(4);
         let view = self.root.push(json::buffer::View {
@@ -279,6 +276,23 @@ impl GlbBuilder {
             extensions: None,
             extras: None,
         });
+        self.push_compressed(view.value(), encoded, stride, count, mode);
+        view
+    }
+
+    /// Appends `encoded`, the data of view `view`, to the binary chunk and
+    /// records the view's `EXT_meshopt_compression` object.
+    fn push_compressed(
+        &mut self,
+        view: usize,
+        encoded: &[u8],
+        stride: Option<usize>,
+        count: usize,
+        mode: &str,
+    ) {
+        let offset = self.bin.len();
+        self.bin.extend_from_slice(encoded);
+        self.bin.resize(self.bin.len().next_multiple_of(4), 0);
         let mut extension = serde_json::json!({
             "buffer": 0,
             "byteLength": encoded.len(),
@@ -291,8 +305,7 @@ impl GlbBuilder {
         if let Some(stride) = stride {
             extension["byteStride"] = stride.into();
         }
-        self.compressed.push((view.value(), extension));
-        view
+        self.compressed.push((view, extension));
     }
 
     /// Every view written so far compressed after `EXT_meshopt_compression`,
@@ -330,7 +343,8 @@ impl GlbBuilder {
                 indices[view.value()] = true;
             }
         }
-        for (v, view) in self.root.buffer_views.iter_mut().enumerate() {
+        for v in 0..views {
+            let view = &self.root.buffer_views[v];
             let start = view.byte_offset.map_or(0, |o| o.0 as usize);
             let bytes = &plain[start..start + view.byte_length.0 as usize];
             let size = match element[v] {
@@ -353,28 +367,16 @@ impl GlbBuilder {
                 4 | 8 | 12 | 16 | 20 | 24 | 28 | 32 => (encode_vertices(bytes, size), "ATTRIBUTES"),
                 _ => {
                     // Left as it is, in the binary chunk.
-                    view.byte_offset =
+                    self.root.buffer_views[v].byte_offset =
                         (!self.bin.is_empty()).then(|| USize64::from(self.bin.len()));
                     self.bin.extend_from_slice(bytes);
                     self.bin.resize(self.bin.len().next_multiple_of(4), 0);
                     continue;
                 }
             };
-            let mut extension = serde_json::json!({
-                "buffer": 0,
-                "byteLength": encoded.len(),
-                "byteStride": size,
-                "count": count,
-                "mode": mode,
-            });
-            if !self.bin.is_empty() {
-                extension["byteOffset"] = self.bin.len().into();
-            }
-            self.bin.extend_from_slice(&encoded);
-            self.bin.resize(self.bin.len().next_multiple_of(4), 0);
+            self.push_compressed(v, &encoded, Some(size), count, mode);
             // The fallback buffer keeps the plain layout.
-            view.buffer = json::Index::new(1);
-            self.compressed.push((v, extension));
+            self.root.buffer_views[v].buffer = json::Index::new(1);
         }
         self.fallback = plain.len().next_multiple_of(4);
     }
@@ -476,10 +478,12 @@ pub(super) fn declare(
             .as_array_mut()
             .map(std::mem::take)
             .unwrap_or_default();
-        for name in [MESHOPT, QUANTIZATION] {
-            if name == QUANTIZATION && !quantized {
-                continue;
-            }
+        let names: &[&str] = if quantized {
+            &[MESHOPT, QUANTIZATION]
+        } else {
+            &[MESHOPT]
+        };
+        for &name in names {
             if !list.iter().any(|v| v == name) {
                 list.push(name.into());
             }
@@ -662,19 +666,17 @@ fn inflated(glb: &[u8]) -> Result<Vec<u8>, String> {
         }
     }
     for (v, (offset, length)) in placed.into_iter().enumerate() {
-        let view = &mut json["bufferViews"][v];
-        view["buffer"] = 0.into();
-        view["byteLength"] = length.into();
-        match offset {
-            0 => view.as_object_mut().map(|o| o.remove("byteOffset")),
-            at => {
-                view["byteOffset"] = at.into();
-                None
-            }
+        let Some(view) = json["bufferViews"][v].as_object_mut() else {
+            continue;
         };
-        if let Some(o) = view.as_object_mut() {
-            o.remove("extensions");
-        }
+        view.insert("buffer".into(), 0.into());
+        view.insert("byteLength".into(), length.into());
+        // 0 is the default, and unwritten.
+        match offset {
+            0 => view.remove("byteOffset"),
+            at => view.insert("byteOffset".into(), at.into()),
+        };
+        view.remove("extensions");
     }
     json["buffers"] = serde_json::json!([{ "byteLength": out.len() }]);
     for key in ["extensionsUsed", "extensionsRequired"] {
