@@ -13,6 +13,7 @@
 mod align;
 mod config;
 mod context;
+mod digest;
 mod dynamic;
 mod hilbert;
 mod instances;
@@ -37,11 +38,12 @@ use crate::{Error, Result};
 use context::{Context, Node, add};
 
 pub use config::{BuildConfig, Thresholds, level_count, thresholds};
+use digest::MeshesKey;
+pub use digest::{geometry_key, object_sources};
 pub use hilbert::hilbert_key;
 pub use outputs::{BuildStats, GeometrySink, LevelStats, Progress, Silent};
 pub use steps::StepFunction;
-use update::MeshesKey;
-pub use update::{Update, geometry_key, object_sources, update_schedule};
+pub use update::{Update, update_schedule};
 
 /// Builds the HDLOD tree of `scene`. Geometry goes to `sink` as it is made.
 pub fn build(
