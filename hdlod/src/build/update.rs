@@ -45,7 +45,7 @@ pub enum Update {
 
 /// The tree `old` brought to `scene`'s schedule, or why it cannot be.
 /// `old` must have been built from a scene with the same
-/// [`geometry_key`] (the caller compares the key stored in its
+/// [`super::geometry_key`] (the caller compares the key stored in its
 /// statistics).
 pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Update {
     let carried = Carried {
