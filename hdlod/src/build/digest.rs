@@ -92,12 +92,9 @@ pub fn object_sources(scene: &Scene) -> Vec<Digest> {
 trait Feed {
     fn feed(&mut self, bytes: &[u8]);
 
+    /// A float's bytes are those of its bits as a word.
     fn floats(&mut self, values: &[f32]) {
-        if cfg!(target_endian = "little") {
-            self.feed(bytemuck::cast_slice(values));
-        } else {
-            values.iter().for_each(|v| self.feed(&v.to_le_bytes()));
-        }
+        self.words(bytemuck::cast_slice(values));
     }
 
     fn words(&mut self, values: &[u32]) {
