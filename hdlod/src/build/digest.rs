@@ -1,6 +1,7 @@
 //! The digests an update decides by: the scene's geometry key (the build
 //! configuration, the meshes, the objects in order) and each object's
-//! source digest (`tree::sources`).
+//! source digest (`tree::sources`); and a mesh's content digest, which
+//! also tells the build's repeated shapes apart (`instances`).
 //!
 //! Both are blake3 over a byte stream that trees already written fix: each
 //! value in order, little-endian. The stream is fed in bulk (a mesh's
@@ -65,15 +66,7 @@ impl MeshesKey {
 /// of: its id, its mesh's content, its placement, colour and motion
 /// (`tree::sources`). A geometry update compares them with the tree's.
 pub fn object_sources(scene: &Scene) -> Vec<Digest> {
-    let meshes: Vec<blake3::Hash> = scene
-        .meshes
-        .par_iter()
-        .map(|m| {
-            let mut hash = blake3::Hasher::new();
-            hash_mesh(&mut hash, m);
-            hash.finalize()
-        })
-        .collect();
+    let meshes: Vec<blake3::Hash> = scene.meshes.par_iter().map(mesh_digest).collect();
     scene
         .objects
         .par_iter()
@@ -86,6 +79,14 @@ pub fn object_sources(scene: &Scene) -> Vec<Digest> {
             digest
         })
         .collect()
+}
+
+/// A digest of `mesh`'s content, every array with its length: meshes
+/// with the same digest are the same.
+pub(super) fn mesh_digest(mesh: &Mesh) -> blake3::Hash {
+    let mut hash = blake3::Hasher::new();
+    hash_mesh(&mut hash, mesh);
+    hash.finalize()
 }
 
 /// Where a digest's bytes go: a hasher, or bytes hashed later.

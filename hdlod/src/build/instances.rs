@@ -25,6 +25,7 @@ use rayon::prelude::*;
 
 use super::config::Thresholds;
 use super::context::{Active, Context};
+use super::digest::mesh_digest;
 use super::parent::{Single, bake_colour, reduce_lone, single_parent};
 use crate::geometry::{self, Mesh, Part, Parts};
 
@@ -162,31 +163,8 @@ pub(super) fn farthest(at: &[Vec3], from: &[Vec3], t: Vec3) -> f64 {
 /// 2,636 meshes are 1,580 distinct ones), and leaves of equal meshes are
 /// one shape.
 fn same_meshes(meshes: &[Mesh]) -> Vec<usize> {
-    let digest = |m: &Mesh| {
-        let mut bytes = Vec::new();
-        // The counts keep a mesh's arrays apart.
-        for n in [
-            m.positions.len(),
-            m.normals.len(),
-            m.colors.len(),
-            m.features.len(),
-        ] {
-            bytes.extend((n as u64).to_le_bytes());
-        }
-        for v in m.positions.iter().chain(&m.normals) {
-            bytes.extend(v.to_array().iter().flat_map(|x| x.to_le_bytes()));
-        }
-        bytes.extend(m.colors.iter().flatten().flat_map(|x| x.to_le_bytes()));
-        bytes.extend(
-            m.features
-                .iter()
-                .chain(&m.indices)
-                .flat_map(|i| i.to_le_bytes()),
-        );
-        *blake3::hash(&bytes).as_bytes()
-    };
-    let digests: Vec<[u8; 32]> = meshes.par_iter().map(digest).collect();
-    let mut first: HashMap<[u8; 32], usize> = HashMap::new();
+    let digests: Vec<blake3::Hash> = meshes.par_iter().map(mesh_digest).collect();
+    let mut first: HashMap<blake3::Hash, usize> = HashMap::new();
     digests
         .iter()
         .enumerate()
