@@ -200,6 +200,8 @@ struct Repeated {
     /// Clusters the first addition made again and widened.
     addition_rebuilt_clusters: usize,
     addition_widened_clusters: usize,
+    /// The first addition's phases, in seconds.
+    addition_phases: Vec<(String, f64)>,
     /// Table 2 after the additions against a full build of the same scene.
     addition_table_largest_change_percent: f64,
     /// The process's peak resident set over every build (and the scene's
@@ -328,6 +330,7 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
         addition_runs: geometry.additions.runs,
         addition_rebuilt_clusters: geometry.additions.rebuilt,
         addition_widened_clusters: geometry.additions.widened,
+        addition_phases: geometry.additions.phases,
         addition_table_largest_change_percent: geometry.additions.largest_change,
         runs,
     };
@@ -404,6 +407,10 @@ fn repeated(args: &Args, path: &Path, work: &Path) -> anyhow::Result<()> {
                 100.0 * report.median_addition_wall_seconds / report.median_wall_seconds,
                 report.addition_table_largest_change_percent
             );
+            println!(
+                "  the first one's phases (s): {}",
+                phases(&report.addition_phases)
+            );
         }
     }
     Ok(())
@@ -429,6 +436,7 @@ struct Additions {
     runs: Vec<Run>,
     rebuilt: usize,
     widened: usize,
+    phases: Vec<(String, f64)>,
     largest_change: f64,
 }
 
@@ -615,7 +623,7 @@ fn additions(
         let count = back.len();
         now.objects.extend(back);
         now.apply_schedule();
-        let (how, _, run) = timed_update(&now, out)?;
+        let (how, stats, run) = timed_update(&now, out)?;
         let How::GeometryUpdate {
             rebuilt, widened, ..
         } = how
@@ -624,6 +632,7 @@ fn additions(
         };
         if k == 0 {
             (result.rebuilt, result.widened) = (rebuilt, widened);
+            result.phases = stats.phases;
         }
         if !args.json {
             eprintln!(
