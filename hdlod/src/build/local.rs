@@ -919,8 +919,11 @@ impl Plan<'_> {
         let new_id = |c: u32| new_ids[c as usize];
         let scene = &self.scene;
         let span = scene.time.seconds;
-        let mut clusters: Vec<Cluster> = Vec::with_capacity(next as usize);
-        let mut origin: Vec<Option<u32>> = Vec::with_capacity(next as usize);
+        // Room for every cluster, the root last: growing a vector of
+        // 180,000 records to push it copied them all.
+        let total = first_grouped as usize + hierarchy.len() + lone_parents + 1;
+        let mut clusters: Vec<Cluster> = Vec::with_capacity(total);
+        let mut origin: Vec<Option<u32>> = Vec::with_capacity(total);
         let replace = |c: &mut Cluster, m: &Made| {
             c.bounds = Aabb::from_f32(m.lo, m.hi);
             c.w = f64::from((m.hi - m.lo).length());
@@ -1002,6 +1005,7 @@ impl Plan<'_> {
         root.children.extend(alone_tops);
         clusters.push(root);
         origin.push(Some(old.root));
+        debug_assert_eq!(clusters.len(), total, "every cluster was counted");
         for (i, c) in clusters.iter_mut().enumerate() {
             c.id = i as u32;
             c.parent = None;

@@ -11,7 +11,7 @@
 //! alone can tear where a joint bends. Its box holds the mesh in every
 //! pose ([`posed_bounds`]).
 
-use std::collections::HashMap;
+use rustc_hash::FxHashMap;
 
 use glam::{DVec3, Mat4, Vec3};
 
@@ -34,14 +34,20 @@ pub(super) fn is_skinned(o: &Object) -> bool {
 /// leaves of `tree` (`None` when there are none): those whose chains
 /// were made by [`chain`], in a build or an update.
 pub(super) fn skeletons(scene: &Scene, tree: &Tree) -> Option<Skins> {
-    let by_id: HashMap<&str, &Object> = scene.objects.iter().map(|o| (o.id.as_str(), o)).collect();
+    // The skinned objects alone: an update makes the skeletons again over a
+    // scene of tens of thousands of objects, a few hundred of them skinned.
+    let skinned: FxHashMap<&str, &ObjectSkin> = (scene.objects.iter())
+        .filter_map(|o| Some((o.id.as_str(), &**o.skin.as_ref().filter(|_| is_skinned(o))?)))
+        .collect();
+    if skinned.is_empty() {
+        return None;
+    }
     let skins = Skins::new((0..tree.cluster_count() as u32).flat_map(|c| {
         let leaf = tree.class_of(c) == ClusterClass::Dynamic && tree.children_of(c).is_empty();
         let objects = if leaf { tree.objects_of(c) } else { Vec::new() };
         objects.into_iter().filter_map(|id| {
-            let o = by_id.get(id)?;
-            let skin = o.skin.as_ref().filter(|_| is_skinned(o))?;
-            Some((o.id.clone(), Skeleton::of(skin)))
+            let (&id, skin) = skinned.get_key_value(id)?;
+            Some((id.to_owned(), Skeleton::of(skin)))
         })
     }));
     (!skins.is_empty()).then_some(skins)

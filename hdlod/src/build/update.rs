@@ -163,7 +163,13 @@ fn schedule_pass(
         .filter(|&c| dissolved[c as usize].is_none())
         .collect();
     let new_ids = kept_ids(&dissolved);
-    let clusters = renumbered(clusters, &new_ids);
+    // Nothing dissolved: the ids and parents stand, and moving 180,000
+    // records to the places they are in was a tenth of the pass.
+    let clusters = if gone == 0 {
+        clusters
+    } else {
+        renumbered(clusters, &new_ids)
+    };
     let root = clusters
         .iter()
         .position(|c| c.class == ClusterClass::Root)

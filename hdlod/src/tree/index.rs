@@ -391,6 +391,11 @@ pub(crate) fn set_json_len(bytes: &mut [u8], json_len: u64) {
     sections::seal(bytes);
 }
 
+/// The header of an index's bytes: all that [`set_json_len`] changes.
+pub(crate) fn header(bytes: &[u8]) -> &[u8] {
+    &bytes[..sections::HEADER]
+}
+
 /// A checked, memory-mapped `clusters.bin`.
 #[derive(Clone)]
 pub struct Index {

@@ -23,7 +23,7 @@
 use std::collections::HashSet;
 use std::fs;
 use std::hash::{BuildHasherDefault, Hasher};
-use std::io::{BufWriter, Write};
+use std::io::{BufWriter, Seek, SeekFrom, Write};
 use std::path::{Path, PathBuf};
 use std::sync::Mutex;
 use std::sync::atomic::{AtomicU64, Ordering};
@@ -261,10 +261,12 @@ impl TreeWriter {
         // The cluster table is most of the time at paper scale (hundreds of
         // megabytes): serialised in chunks on every core and written while
         // the index and the object tables are made beside it. The index
-        // names the table's length, known last, so it is set afterwards.
+        // names the table's length, known last: it is written beside the
+        // table but for its header, which is set and sealed afterwards.
         // The sources and the skins too: the skins' JSON is megabytes where
         // a scene has many skinned objects.
-        let (table, (mut index_bytes, (objects, others))) = rayon::join(
+        let index_path = self.tmp.join(INDEX_FILE);
+        let (table, (index, (objects, others))) = rayon::join(
             || -> Result<(u64, usize)> {
                 let table = ClustersJson::of(tree, &self.tmp.join(CLUSTERS_FILE), previous)?;
                 table.write(&self.tmp.join(CLUSTERS_FILE))?;
@@ -272,7 +274,14 @@ impl TreeWriter {
             },
             || {
                 rayon::join(
-                    || index::unsealed(tree),
+                    || -> Result<(Vec<u8>, fs::File)> {
+                        let bytes = index::unsealed(tree);
+                        let mut file =
+                            fs::File::create(&index_path).map_err(|e| Error::io(&index_path, e))?;
+                        file.write_all(&bytes)
+                            .map_err(|e| Error::io(&index_path, e))?;
+                        Ok((bytes, file))
+                    },
                     || {
                         rayon::join(
                             || match &tree.objects {
@@ -288,8 +297,13 @@ impl TreeWriter {
         let (json_len, copied) = table?;
         objects?;
         others?;
+        let (mut index_bytes, mut index_file) = index?;
         index::set_json_len(&mut index_bytes, json_len);
-        write_bytes(&self.tmp.join(INDEX_FILE), &index_bytes)?;
+        index_file
+            .seek(SeekFrom::Start(0))
+            .and_then(|_| index_file.write_all(index::header(&index_bytes)))
+            .and_then(|()| index_file.sync_all())
+            .map_err(|e| Error::io(&index_path, e))?;
         drop(index_bytes);
         let serialised = lap();
 

@@ -12,7 +12,7 @@
 //! came from.
 
 use std::fs;
-use std::io::Write;
+use std::io::{IoSlice, Write};
 use std::ops::Range;
 use std::path::Path;
 
@@ -47,51 +47,47 @@ pub(super) struct ClustersJson {
 /// Consecutive records of the table, without the commas before and after.
 #[derive(Default)]
 struct Chunk {
+    /// The bytes made afresh: whole records, and the ids of records
+    /// otherwise copied.
+    new: Vec<u8>,
     pieces: Vec<Piece>,
     copied: usize,
 }
 
+/// A run of the chunk's bytes: of its own, or of the previous table. A
+/// record copied under new ids is its ids made afresh and the rest of its
+/// bytes where they are in the old file, written from there: copying
+/// 150 MB of records into buffers first was most of an update's table.
 enum Piece {
-    New(Vec<u8>),
-    /// Bytes of the previous table: a run of records that stand as they
-    /// were, ids and all, with the commas between them.
+    New(Range<usize>),
     Old(Range<usize>),
 }
 
 impl Chunk {
-    /// The bytes to append to.
-    fn bytes(&mut self) -> &mut Vec<u8> {
-        if !matches!(self.pieces.last(), Some(Piece::New(_))) {
-            self.pieces.push(Piece::New(Vec::with_capacity(1 << 16)));
-        }
+    /// Appends what `write` writes to the chunk's own bytes.
+    fn push_new(&mut self, write: impl FnOnce(&mut Vec<u8>)) {
+        let start = self.new.len();
+        write(&mut self.new);
+        let end = self.new.len();
         match self.pieces.last_mut() {
-            Some(Piece::New(bytes)) => bytes,
-            _ => unreachable!("a new piece was pushed"),
+            Some(Piece::New(run)) if run.end == start => run.end = end,
+            _ => self.pieces.push(Piece::New(start..end)),
         }
     }
 
-    /// Appends the old record at `range`, after a comma unless `first`: a
-    /// run of records goes on where the last one ended, the comma between
-    /// them included.
-    fn old(&mut self, range: Range<usize>, first: bool) {
-        if let Some(Piece::Old(run)) = self.pieces.last_mut()
-            && !first
-            && run.end + 1 == range.start
-        {
-            run.end = range.end;
-            return;
+    /// Appends the previous table's bytes at `range`: a run of them goes on
+    /// where the last one ended.
+    fn push_old(&mut self, range: Range<usize>) {
+        match self.pieces.last_mut() {
+            Some(Piece::Old(run)) if run.end == range.start => run.end = range.end,
+            _ => self.pieces.push(Piece::Old(range)),
         }
-        if !first {
-            self.bytes().push(b',');
-        }
-        self.pieces.push(Piece::Old(range));
     }
 
     fn len(&self) -> usize {
         (self.pieces.iter())
             .map(|p| match p {
-                Piece::New(bytes) => bytes.len(),
-                Piece::Old(range) => range.len(),
+                Piece::New(range) | Piece::Old(range) => range.len(),
             })
             .sum()
     }
@@ -123,11 +119,14 @@ impl ClustersJson {
                         chunk.copied += 1;
                         continue;
                     }
-                    let out = chunk.bytes();
-                    if !first {
-                        out.push(b',');
-                    }
-                    serde_json::to_writer(out, &tree.cluster_record(id))?;
+                    let mut record = Ok(());
+                    chunk.push_new(|out| {
+                        if !first {
+                            out.push(b',');
+                        }
+                        record = serde_json::to_writer(out, &tree.cluster_record(id));
+                    });
+                    record?;
                 }
                 Ok(chunk)
             })
@@ -148,28 +147,43 @@ impl ClustersJson {
     }
 
     pub(super) fn write(&self, path: &Path) -> Result<()> {
-        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        let mut written = file.write_all(OPEN);
+        let old: &[u8] = self.old.as_ref().map_or(&[], |old| &old.map);
+        let mut slices = vec![IoSlice::new(OPEN)];
         for (i, chunk) in self.chunks.iter().enumerate() {
             if i > 0 {
-                written = written.and_then(|()| file.write_all(b","));
+                slices.push(IoSlice::new(b","));
             }
-            for piece in &chunk.pieces {
-                let bytes = match piece {
-                    Piece::New(bytes) => bytes.as_slice(),
-                    Piece::Old(range) => match &self.old {
-                        Some(old) => &old.map[range.clone()],
-                        None => unreachable!("old pieces come from an old table"),
-                    },
-                };
-                written = written.and_then(|()| file.write_all(bytes));
-            }
+            slices.extend(chunk.pieces.iter().map(|piece| {
+                IoSlice::new(match piece {
+                    Piece::New(range) => &chunk.new[range.clone()],
+                    Piece::Old(range) => &old[range.clone()],
+                })
+            }));
         }
-        written
-            .and_then(|()| file.write_all(CLOSE))
+        slices.push(IoSlice::new(CLOSE));
+        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
+        write_all_vectored(&mut file, &mut slices)
             .and_then(|()| file.sync_all())
             .map_err(|e| Error::io(path, e))
     }
+}
+
+/// `Write::write_all_vectored`, which is not stable: a few hundred calls for
+/// the hundreds of thousands of pieces of an update's table, where writing
+/// them one by one was a call each.
+fn write_all_vectored(file: &mut fs::File, mut slices: &mut [IoSlice<'_>]) -> std::io::Result<()> {
+    // Linux takes at most 1,024 slices a call (`IOV_MAX`).
+    const MOST: usize = 1024;
+    while !slices.is_empty() {
+        let take = slices.len().min(MOST);
+        match file.write_vectored(&slices[..take]) {
+            Ok(0) => return Err(std::io::ErrorKind::WriteZero.into()),
+            Ok(n) => IoSlice::advance_slices(&mut slices, n),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
 }
 
 /// The old tree's `clusters.json`, mapped, and where each record starts.
@@ -267,7 +281,16 @@ impl OldTable {
             return false;
         }
         if same_ids {
-            chunk.old(range, first);
+            // After the comma that ends the record before it in the old
+            // file, where there is one: consecutive records make one run.
+            if first {
+                chunk.push_old(range);
+            } else if from > 0 {
+                chunk.push_old(range.start - 1..range.end);
+            } else {
+                chunk.push_new(|out| out.push(b','));
+                chunk.push_old(range);
+            }
             return true;
         }
         // Ids, parents and children are digits, commas and brackets: the
@@ -275,40 +298,51 @@ impl OldTable {
         let Some(level) = self.level.find(record) else {
             return false;
         };
+        // In the old file: the record's bytes from `level` on, but the
+        // digits of `motion_from` where it names one.
+        let at = range.start;
         let (before, after) = match named {
-            None => (&record[level..], &[][..]),
-            Some(at) => {
-                let digits = &record[at + MOTION_FROM.len()..];
+            None => (at + level..range.end, range.end..range.end),
+            Some(named) => {
+                let digits = &record[named + MOTION_FROM.len()..];
                 let len = digits.iter().take_while(|b| b.is_ascii_digit()).count();
-                (&record[level..at], &digits[len..])
+                (
+                    at + level..at + named,
+                    at + named + MOTION_FROM.len() + len..range.end,
+                )
             }
         };
-        let out = chunk.bytes();
-        if !first {
-            out.push(b',');
-        }
         let mut ids = itoa::Buffer::new();
-        out.extend_from_slice(RECORD);
-        out.extend_from_slice(ids.format(id).as_bytes());
-        out.extend_from_slice(b",\"parent\":");
-        match new.parent {
-            Some(p) => out.extend_from_slice(ids.format(p).as_bytes()),
-            None => out.extend_from_slice(b"null"),
-        }
-        out.extend_from_slice(b",\"children\":[");
-        for (i, &k) in new.children.iter().enumerate() {
-            if i > 0 {
+        chunk.push_new(|out| {
+            if !first {
                 out.push(b',');
             }
-            out.extend_from_slice(ids.format(k).as_bytes());
-        }
-        out.push(b']');
-        out.extend_from_slice(before);
+            out.extend_from_slice(RECORD);
+            out.extend_from_slice(ids.format(id).as_bytes());
+            out.extend_from_slice(b",\"parent\":");
+            match new.parent {
+                Some(p) => out.extend_from_slice(ids.format(p).as_bytes()),
+                None => out.extend_from_slice(b"null"),
+            }
+            out.extend_from_slice(b",\"children\":[");
+            for (i, &k) in new.children.iter().enumerate() {
+                if i > 0 {
+                    out.push(b',');
+                }
+                out.extend_from_slice(ids.format(k).as_bytes());
+            }
+            out.push(b']');
+        });
+        chunk.push_old(before);
         if let Some(source) = motion_from {
-            out.extend_from_slice(MOTION_FROM);
-            out.extend_from_slice(ids.format(source).as_bytes());
+            chunk.push_new(|out| {
+                out.extend_from_slice(MOTION_FROM);
+                out.extend_from_slice(ids.format(source).as_bytes());
+            });
         }
-        out.extend_from_slice(after);
+        if !after.is_empty() {
+            chunk.push_old(after);
+        }
         true
     }
 }
