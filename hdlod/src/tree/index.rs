@@ -26,7 +26,8 @@ use super::baseline::{Baseline, Present};
 use super::nodes::{Node, Nodes, Step, triangle_count};
 use super::sections::{self, Layout};
 use super::{
-    Aabb, Cluster, ClusterClass, LevelSummary, Steps, Tree, TreeSummary, keyframe_bits, step_bits,
+    Aabb, Cluster, ClusterClass, Clusters, LevelSummary, Steps, Tree, TreeSummary, keyframe_bits,
+    step_bits,
 };
 use crate::error::{Error, Result};
 use crate::scene::{Keyframe, Motion, keys_until};
@@ -313,17 +314,27 @@ struct Flat {
 
 impl Flat {
     fn of(tree: &Tree) -> Flat {
+        let n = tree.cluster_count();
+        // Object names, counted once per cluster that names them.
+        let named = match &tree.clusters {
+            Clusters::Built(clusters) => clusters.iter().map(|c| c.objects.len()).sum(),
+            Clusters::Mapped(index) => index.section::<u32>(OBJECTS).len(),
+        };
         let mut flat = Flat {
-            records: Vec::with_capacity(tree.cluster_count()),
+            records: Vec::with_capacity(n),
             keys: Vec::new(),
-            hashes: Vec::new(),
-            objects: Vec::new(),
-            string_starts: vec![0],
+            hashes: Vec::with_capacity(n),
+            objects: Vec::with_capacity(named),
+            string_starts: Vec::with_capacity(named + 1),
             strings: Vec::new(),
         };
+        flat.string_starts.push(0);
         // Keyed by the hashes' bytes: no string is copied to look one up.
-        let mut hash_ids: FxHashMap<[u8; 32], u32> = FxHashMap::default();
-        let mut string_ids: FxHashMap<String, u32> = FxHashMap::default();
+        // Sized up front: growing them was a fifth of the records' time.
+        let mut hash_ids: FxHashMap<[u8; 32], u32> =
+            FxHashMap::with_capacity_and_hasher(n, Default::default());
+        let mut string_ids: FxHashMap<String, u32> =
+            FxHashMap::with_capacity_and_hasher(named, Default::default());
         let mut ranges: FxHashMap<u32, (u32, u32)> = FxHashMap::default();
         for c in tree.clusters() {
             let geometry = match &c.geometry {
