@@ -49,8 +49,20 @@ pub fn merge(parts: &[Part<'_>], weld_tolerance: f32) -> Mesh {
     let with_features = parts
         .iter()
         .all(|p| p.feature.is_some() || p.mesh.features.len() == p.mesh.positions.len());
-    let mut welder = Welder::new(tolerance);
+    // Sized for no weld up front: growing the welder's table and the
+    // vectors was most of the time of merging an object's parts, which an
+    // update does for every original below the clusters it remakes.
+    let vertices: usize = parts.iter().map(|p| p.mesh.positions.len()).sum();
+    let mut welder = Welder::new(tolerance, vertices);
     let mut out = Mesh::default();
+    out.positions.reserve(vertices);
+    out.normals.reserve(vertices);
+    out.colors.reserve(vertices);
+    if with_features {
+        out.features.reserve(vertices);
+    }
+    out.indices
+        .reserve(parts.iter().map(|p| p.mesh.indices.len()).sum());
     for part in parts {
         let mesh = part.mesh;
         let n = mesh.positions.len();
@@ -135,11 +147,17 @@ struct Welder {
 }
 
 impl Welder {
-    fn new(tolerance: f32) -> Self {
+    /// A welder for at most `vertices` vertices.
+    fn new(tolerance: f32, vertices: usize) -> Self {
+        let (cells, exact) = if tolerance == 0.0 {
+            (0, vertices)
+        } else {
+            (vertices, 0)
+        };
         Welder {
             tolerance,
-            cells: FxHashMap::default(),
-            exact: FxHashMap::default(),
+            cells: FxHashMap::with_capacity_and_hasher(cells, Default::default()),
+            exact: FxHashMap::with_capacity_and_hasher(exact, Default::default()),
         }
     }
 
