@@ -125,7 +125,8 @@ fn bounds_hold(after: &Tree, dir: &Path, scene: &Scene, ids: &[u32]) -> usize {
 
 /// Checks that `clusters.json` at `dir`, whose unchanged records an update
 /// copies from the tree it replaced (its ids written afresh where they
-/// changed), is the file a fresh write of the tree makes, byte for byte.
+/// changed), is the file a fresh write of the tree makes, byte for byte;
+/// and `skins.json`, which it links where the skins stayed, too.
 fn table_as_fresh(dir: &Path, tree: &Tree) {
     let fresh = dir.with_file_name("fresh");
     let writer = TreeWriter::create(&fresh).unwrap();
@@ -135,10 +136,16 @@ fn table_as_fresh(dir: &Path, tree: &Tree) {
         }
     }
     writer.finish(tree).unwrap();
-    let read = |d: &Path| std::fs::read(d.join("clusters.json")).unwrap();
+    let read = |d: &Path, name: &str| std::fs::read(d.join(name)).ok();
+    for name in ["clusters.json", "skins.json"] {
+        assert!(
+            read(dir, name) == read(&fresh, name),
+            "the updated {name} is not the one a fresh write makes"
+        );
+    }
     assert!(
-        read(dir) == read(&fresh),
-        "the updated clusters.json is not the one a fresh write makes"
+        read(dir, "skins.json").is_some() == tree.skins.as_ref().is_some_and(|s| !s.is_empty()),
+        "skins.json is there exactly when the tree has skins"
     );
     std::fs::remove_dir_all(&fresh).unwrap();
 }

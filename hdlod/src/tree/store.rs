@@ -288,7 +288,7 @@ impl TreeWriter {
                                 Some(tables) => self.write_objects(tables, tree, previous),
                                 None => Ok(()),
                             },
-                            || self.write_sources_and_skins(tree),
+                            || self.write_sources_and_skins(tree, previous),
                         )
                     },
                 )
@@ -344,8 +344,12 @@ impl TreeWriter {
 }
 
 impl TreeWriter {
-    /// Writes `sources.bin` and `skins.json`, where the tree has them.
-    fn write_sources_and_skins(&self, tree: &Tree) -> Result<()> {
+    /// Writes `sources.bin` and `skins.json`, where the tree has them;
+    /// where the skins are those of the tree replaced (an update that
+    /// added or removed no skinned object), links that tree's
+    /// `skins.json`, which it was loaded from: megabytes of JSON that
+    /// would be made again the same.
+    fn write_sources_and_skins(&self, tree: &Tree, previous: Option<&Previous>) -> Result<()> {
         if let Some(digests) = &tree.sources {
             write_bytes(
                 &self.tmp.join(SOURCES_FILE),
@@ -353,7 +357,14 @@ impl TreeWriter {
             )?;
         }
         if let Some(skins) = tree.skins.as_ref().filter(|s| !s.is_empty()) {
-            write_json(&self.tmp.join(SKINS_FILE), &skins.to_record(), false)?;
+            let path = self.tmp.join(SKINS_FILE);
+            let linked = previous.is_some_and(|p| {
+                p.tree.skins.as_ref() == Some(skins)
+                    && fs::hard_link(p.dir.join(SKINS_FILE), &path).is_ok()
+            });
+            if !linked {
+                write_json(&path, &skins.to_record(), false)?;
+            }
         }
         Ok(())
     }
