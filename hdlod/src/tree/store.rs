@@ -547,8 +547,12 @@ pub fn load_json(dir: impl AsRef<Path>) -> Result<Tree> {
 /// nor what the cut and the server derive.
 pub fn load_to_update(dir: impl AsRef<Path>) -> Result<Tree> {
     let dir = dir.as_ref();
-    let tree = load_clusters(dir, true)?;
-    check_geometry(dir, &tree)?;
+    // The listing needs the manifest's layout alone: made beside the
+    // clusters' load and checks.
+    let layout = layout_of(dir)?;
+    let (tree, present) = rayon::join(|| load_clusters(dir, true), || list_geometry(dir, layout));
+    let tree = tree?;
+    check_present(dir, &tree, &present?)?;
     Ok(tree)
 }
 
@@ -607,17 +611,46 @@ fn check_made_from(index_path: &Path, json: &Path, what: &str, made_from: u64) -
 pub(super) fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
     let manifest: format::ManifestRecord = read_json(&dir.join(MANIFEST_FILE))?;
     let index_path = dir.join(INDEX_FILE);
-    let tree = if use_index && index_path.exists() {
-        let index = Index::open(&index_path)?;
+    // The skins' JSON (megabytes where many objects are skinned) is read
+    // while the clusters are, and checked against them after.
+    let (tree, skins) = rayon::join(
+        || load_records(dir, manifest, &index_path, use_index),
+        || read_skins(dir),
+    );
+    let tree = tree?;
+    let skins = match skins? {
+        Some((skins, path)) => {
+            skins.validate(&tree, &path)?;
+            Some(skins)
+        }
+        None => None,
+    };
+    Ok(Tree {
+        sources: load_sources(dir)?,
+        skins,
+        ..tree
+    })
+}
+
+/// The tree of `manifest` with its clusters, from the index at
+/// `index_path` when there is one and `use_index`, else from the JSON.
+fn load_records(
+    dir: &Path,
+    manifest: format::ManifestRecord,
+    index_path: &Path,
+    use_index: bool,
+) -> Result<Tree> {
+    Ok(if use_index && index_path.exists() {
+        let index = Index::open(index_path)?;
         check_made_from(
-            &index_path,
+            index_path,
             &dir.join(CLUSTERS_FILE),
             "a clusters.json",
             index.json_len(),
         )?;
         if index.root() != manifest.root {
             return Err(Error::invalid(
-                &index_path,
+                index_path,
                 "header.root",
                 format!(
                     "root {} is not the manifest's root {}",
@@ -628,31 +661,24 @@ pub(super) fn load_clusters(dir: &Path, use_index: bool) -> Result<Tree> {
         }
         let tree = Tree::from_manifest(manifest, dir)?;
         let tree = Tree::mapped(tree, index);
-        tree.validate(&index_path)?;
+        tree.validate(index_path)?;
         tree
     } else {
         let clusters: format::ClustersRecord = read_json(&dir.join(CLUSTERS_FILE))?;
         Tree::from_records(manifest, clusters, dir)?
-    };
-    let skins = load_skins(dir, &tree)?;
-    Ok(Tree {
-        sources: load_sources(dir)?,
-        skins,
-        ..tree
     })
 }
 
-/// The skinned objects' skeletons, when the tree has them, checked
-/// against its clusters.
-fn load_skins(dir: &Path, tree: &Tree) -> Result<Option<super::Skins>> {
+/// The skinned objects' skeletons and their file, when the tree has them;
+/// not yet checked against its clusters.
+fn read_skins(dir: &Path) -> Result<Option<(super::Skins, PathBuf)>> {
     let path = dir.join(SKINS_FILE);
     if !path.exists() {
         return Ok(None);
     }
     let record: super::skins::SkinsRecord = read_json(&path)?;
     let skins = super::Skins::from_record(record, &path)?;
-    skins.validate(tree, &path)?;
-    Ok(Some(skins))
+    Ok(Some((skins, path)))
 }
 
 /// The objects' source digests, when the tree has them.
@@ -783,7 +809,11 @@ pub fn geometry_files(dir: &Path) -> Result<Vec<(String, PathBuf)>> {
 /// no reads. Names are compared as hash bytes, and a mapped tree's are its
 /// index's distinct hashes, so no hex string is made per cluster.
 pub fn check_geometry(dir: &Path, tree: &Tree) -> Result<()> {
-    let present = list_geometry(dir, tree.layout)?;
+    check_present(dir, tree, &list_geometry(dir, tree.layout)?)
+}
+
+/// An error unless every geometry file of `tree` is among those `present`.
+fn check_present(dir: &Path, tree: &Tree, present: &Hashes) -> Result<()> {
     let missing = match tree.index() {
         Some(index) => index
             .hashes()
