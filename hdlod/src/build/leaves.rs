@@ -41,7 +41,9 @@ impl Piece {
 /// built tree: the static and pseudo-dynamic ones first, as the build
 /// numbers the leaves. What an update matches an object's old leaves with.
 pub(super) fn pieces_by_object(pieces: &[Piece]) -> FxHashMap<usize, Vec<usize>> {
-    let mut out: FxHashMap<usize, Vec<usize>> = FxHashMap::default();
+    // Most objects are one piece: sized for them up front.
+    let mut out: FxHashMap<usize, Vec<usize>> =
+        FxHashMap::with_capacity_and_hasher(pieces.len(), Default::default());
     for (i, p) in pieces.iter().enumerate() {
         out.entry(p.object).or_default().push(i);
     }

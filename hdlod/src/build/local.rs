@@ -1046,19 +1046,28 @@ impl Plan<'_> {
         tree.config = old.config.clone();
         tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
         tree.sources = Some(self.sources);
-        tree.skins = super::skinned::skeletons(scene, &tree);
         let split = Split {
             classes: self.classes,
             pieces: self.pieces,
         };
-        match update_schedule_of(tree, carried, scene, split, config) {
+        // The skeletons are the dynamic leaves' objects', which the pass
+        // keeps (it renumbers, and dissolves no leaf): made beside it.
+        let dynamic = super::skinned::dynamic_leaf_objects(&tree);
+        let (skins, update) = rayon::join(
+            || super::skinned::skeletons_of(scene, &dynamic),
+            || update_schedule_of(tree, carried, scene, split, config),
+        );
+        match update {
             Update::Updated {
-                tree,
+                mut tree,
                 stats,
                 dissolved,
                 origin: passed,
             } => Ok(Updated {
-                tree: *tree,
+                tree: {
+                    tree.skins = skins;
+                    *tree
+                },
                 stats,
                 rebuilt,
                 widened: widened.len(),

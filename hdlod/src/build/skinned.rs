@@ -34,6 +34,21 @@ pub(super) fn is_skinned(o: &Object) -> bool {
 /// leaves of `tree` (`None` when there are none): those whose chains
 /// were made by [`chain`], in a build or an update.
 pub(super) fn skeletons(scene: &Scene, tree: &Tree) -> Option<Skins> {
+    skeletons_of(scene, &dynamic_leaf_objects(tree))
+}
+
+/// The objects of the dynamic leaves of `tree`: those [`skeletons`] may
+/// be of.
+pub(super) fn dynamic_leaf_objects(tree: &Tree) -> Vec<String> {
+    (0..tree.cluster_count() as u32)
+        .filter(|&c| tree.class_of(c) == ClusterClass::Dynamic && tree.children_of(c).is_empty())
+        .flat_map(|c| tree.objects_of(c).into_iter().map(str::to_owned))
+        .collect()
+}
+
+/// The skeletons of the skinned objects of `scene` among `objects`
+/// (`None` when there are none).
+pub(super) fn skeletons_of(scene: &Scene, objects: &[String]) -> Option<Skins> {
     // The skinned objects alone: an update makes the skeletons again over a
     // scene of tens of thousands of objects, a few hundred of them skinned.
     let skinned: FxHashMap<&str, &ObjectSkin> = (scene.objects.iter())
@@ -42,13 +57,9 @@ pub(super) fn skeletons(scene: &Scene, tree: &Tree) -> Option<Skins> {
     if skinned.is_empty() {
         return None;
     }
-    let skins = Skins::new((0..tree.cluster_count() as u32).flat_map(|c| {
-        let leaf = tree.class_of(c) == ClusterClass::Dynamic && tree.children_of(c).is_empty();
-        let objects = if leaf { tree.objects_of(c) } else { Vec::new() };
-        objects.into_iter().filter_map(|id| {
-            let (&id, skin) = skinned.get_key_value(id)?;
-            Some((id.to_owned(), Skeleton::of(skin)))
-        })
+    let skins = Skins::new(objects.iter().filter_map(|id| {
+        let (&id, skin) = skinned.get_key_value(id.as_str())?;
+        Some((id.to_owned(), Skeleton::of(skin)))
     }));
     (!skins.is_empty()).then_some(skins)
 }

@@ -405,7 +405,7 @@ fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap
         .collect();
     let leaves = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
-    let mut out = FxHashMap::default();
+    let mut out = FxHashMap::with_capacity_and_hasher(pieces.len(), Default::default());
     for leaf in leaves {
         let [id] = old.objects_of(leaf)[..] else {
             return None;
