@@ -21,7 +21,6 @@ use std::sync::Arc;
 
 use bytemuck::{Pod, Zeroable};
 use memmap2::Mmap;
-use rayon::prelude::*;
 
 use super::index::NONE;
 use super::objects::{ObjectEntry, Page, open_presence, push_lowercase, search_rows};
@@ -143,87 +142,14 @@ impl PartialEq for ObjectRows {
 
 /// The rows of `objects` as the file's bytes, with an empty `rest` and the
 /// header's JSON length and checksum zero ([`file`] sets them).
-pub(crate) fn encode(objects: &[ObjectEntry]) -> Vec<u8> {
-    // The search text is each object's alone: made on the other cores
-    // while the rows, whose strings are shared, are made in order here.
-    let ((text, text_ends), (rows, properties, tasks, presence, clusters, strings)) =
-        rayon::join(|| search_text(objects), || rows_of(objects));
-    let (string_starts, strings) = strings;
-    let mut by_id: Vec<u32> = (0..objects.len() as u32).collect();
-    by_id.par_sort_unstable_by(|&a, &b| {
-        objects[a as usize]
-            .id
-            .cmp(&objects[b as usize].id)
-            .then(a.cmp(&b))
-    });
-    let sections: [&[u8]; SECTIONS] = [
-        bytemuck::cast_slice(&rows),
-        bytemuck::cast_slice(&properties),
-        bytemuck::cast_slice(&tasks),
-        bytemuck::cast_slice(&presence),
-        bytemuck::cast_slice(&clusters),
-        bytemuck::cast_slice(&by_id),
-        bytemuck::cast_slice(&text_ends),
-        text.as_bytes(),
-        bytemuck::cast_slice(&string_starts),
-        &strings,
-        &[],
-    ];
-    sections::write(MAGIC, VERSION, objects.len() as u32, 0, 0, &sections)
-}
-
-/// The objects' lowercase fields, each after a `\0`, and where each
-/// object's end: made in pieces on every core, then joined.
-fn search_text(objects: &[ObjectEntry]) -> (String, Vec<u64>) {
-    const PIECE: usize = 4096;
-    let pieces: Vec<(String, Vec<u64>)> = objects
-        .par_chunks(PIECE)
-        .map(|piece| {
-            let mut text = String::new();
-            let mut ends = Vec::with_capacity(piece.len());
-            for o in piece {
-                // A separator no query holds (`search` matches nothing for
-                // one that does), so that no match spans two fields.
-                let fields = [o.id.as_str(), o.name.as_deref().unwrap_or_default()]
-                    .into_iter()
-                    .chain(o.properties.values().map(String::as_str));
-                for field in fields {
-                    text.push('\0');
-                    push_lowercase(&mut text, field);
-                }
-                ends.push(text.len() as u64);
-            }
-            (text, ends)
-        })
-        .collect();
-    let mut text = String::with_capacity(pieces.iter().map(|(t, _)| t.len()).sum());
-    let mut text_ends = Vec::with_capacity(objects.len());
-    for (piece, ends) in pieces {
-        let offset = text.len() as u64;
-        text.push_str(&piece);
-        text_ends.extend(ends.iter().map(|e| e + offset));
-    }
-    (text, text_ends)
-}
-
-/// The rows of the objects and the flat arrays they point into; the
-/// strings as their starts and bytes.
-#[allow(clippy::type_complexity)]
-fn rows_of<'a>(
-    objects: &'a [ObjectEntry],
-) -> (
-    Vec<Row>,
-    Vec<[u32; 2]>,
-    Vec<u32>,
-    Vec<[f64; 2]>,
-    Vec<u32>,
-    (Vec<u64>, Vec<u8>),
-) {
+pub(crate) fn encode<'a>(objects: &'a [ObjectEntry]) -> Vec<u8> {
     let mut rows = Vec::with_capacity(objects.len());
     let mut properties: Vec<[u32; 2]> = Vec::new();
     let mut tasks: Vec<u32> = Vec::new();
     let mut presence: Vec<[f64; 2]> = Vec::new();
     let mut clusters: Vec<u32> = Vec::new();
+    let mut text_ends: Vec<u64> = Vec::with_capacity(objects.len());
+    let mut text = String::new();
     let mut string_starts: Vec<u64> = vec![0];
     let mut strings: Vec<u8> = Vec::new();
     let mut string_ids: FxHashMap<&str, u32> = FxHashMap::default();
@@ -270,15 +196,38 @@ fn rows_of<'a>(
             first_cluster,
             cluster_count,
         });
+        // A separator no query holds (`search` matches nothing for one
+        // that does), so that no match spans two fields.
+        let fields = [o.id.as_str(), o.name.as_deref().unwrap_or_default()]
+            .into_iter()
+            .chain(o.properties.values().map(String::as_str));
+        for field in fields {
+            text.push('\0');
+            push_lowercase(&mut text, field);
+        }
+        text_ends.push(text.len() as u64);
     }
-    (
-        rows,
-        properties,
-        tasks,
-        presence,
-        clusters,
-        (string_starts, strings),
-    )
+    let mut by_id: Vec<u32> = (0..objects.len() as u32).collect();
+    by_id.sort_unstable_by(|&a, &b| {
+        objects[a as usize]
+            .id
+            .cmp(&objects[b as usize].id)
+            .then(a.cmp(&b))
+    });
+    let sections: [&[u8]; SECTIONS] = [
+        bytemuck::cast_slice(&rows),
+        bytemuck::cast_slice(&properties),
+        bytemuck::cast_slice(&tasks),
+        bytemuck::cast_slice(&presence),
+        bytemuck::cast_slice(&clusters),
+        bytemuck::cast_slice(&by_id),
+        bytemuck::cast_slice(&text_ends),
+        text.as_bytes(),
+        bytemuck::cast_slice(&string_starts),
+        &strings,
+        &[],
+    ];
+    sections::write(MAGIC, VERSION, objects.len() as u32, 0, 0, &sections)
 }
 
 /// The file of `rows` with `rest` as its last section, the length of the

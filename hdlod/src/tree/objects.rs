@@ -14,7 +14,6 @@
 
 use std::collections::BTreeMap;
 
-use rayon::prelude::*;
 use rustc_hash::FxHashMap;
 use std::path::Path;
 
@@ -264,9 +263,10 @@ impl ObjectTables {
                 }
             })
             .collect();
-        // Each object's entry is its own: made on every core.
-        let objects = (scene.objects.par_iter())
-            .zip(leaves.into_par_iter().zip(acting))
+        let objects = scene
+            .objects
+            .iter()
+            .zip(leaves.into_iter().zip(acting))
             .map(|(o, (mut clusters, tasks))| {
                 clusters.sort_unstable();
                 clusters.dedup();
