@@ -55,7 +55,7 @@ use crate::geometry::{ErrorMetric, Mesh};
 use crate::io::compact::Decoded;
 use crate::scene::{Class, Scene, Visibility};
 use crate::tree::sources::Digest;
-use crate::tree::{Aabb, Cluster, ClusterClass, Tree};
+use crate::tree::{Aabb, Cluster, ClusterClass, ObjectTables, Tree};
 
 /// Edits above this share of the objects are built in full: the groups
 /// would no longer be the scene's.
@@ -174,32 +174,25 @@ pub fn plan<'a>(
         ));
     }
 
-    let classes: Vec<Class> = scene.objects.iter().map(|o| scene.class_of(o)).collect();
-    let pieces = split_at_rest(&scene, &classes);
+    // The scene's pieces beside the old tree's leaves: each side is a pass
+    // over tens of thousands of objects or leaves, mostly on one core.
+    let ((classes, pieces, pieces_of), old_side) = rayon::join(
+        || {
+            let classes: Vec<Class> = (scene.objects.par_iter())
+                .map(|o| scene.class_of(o))
+                .collect();
+            let pieces = split_at_rest(&scene, &classes);
+            let pieces_of = pieces_by_object(&pieces);
+            (classes, pieces, pieces_of)
+        },
+        || old_leaves(old),
+    );
+    let OldLeaves {
+        ids: old_leaves,
+        leaves,
+        of_object: leaves_of,
+    } = old_side?;
     let changed_class = || "an object changed class (static, pseudo-dynamic, dynamic or absent), so the leaves differ";
-    // The build's order: the static and pseudo-dynamic leaves first.
-    let old_leaves: Vec<u32> = (0..old.cluster_count() as u32)
-        .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root)
-        .collect();
-    let leaves = old_leaves
-        .iter()
-        .take_while(|&&c| old.class_of(c) != ClusterClass::Dynamic)
-        .count();
-    if old_leaves[..leaves]
-        .iter()
-        .enumerate()
-        .any(|(i, &c)| c as usize != i)
-    {
-        return Err("the tree's leaves are not in the build's order".into());
-    }
-    let mut leaves_of: FxHashMap<&str, Vec<u32>> = FxHashMap::default();
-    for &leaf in &old_leaves {
-        match old.objects_of(leaf)[..] {
-            [object] => leaves_of.entry(object).or_default().push(leaf),
-            _ => return Err(format!("leaf cluster {leaf} does not name one object")),
-        }
-    }
-    let pieces_of = pieces_by_object(&pieces);
     let no_leaves: Vec<u32> = Vec::new();
     let old_leaves_of = |k: usize| {
         leaves_of
@@ -1006,56 +999,76 @@ impl Plan<'_> {
         clusters.push(root);
         origin.push(Some(old.root));
         debug_assert_eq!(clusters.len(), total, "every cluster was counted");
-        for (i, c) in clusters.iter_mut().enumerate() {
-            c.id = i as u32;
-            c.parent = None;
-        }
-        set_parents(&mut clusters);
-        // As `virtual_root` makes it, from its children's new boxes and
-        // errors.
-        let root = new_id(old.root).expect("the root stays");
-        let (bounds, eps) = super::root_extent(&clusters, &clusters[root as usize].children);
-        {
-            let r = &mut clusters[root as usize];
-            r.bounds = bounds;
-            r.w = bounds.diagonal();
-            r.eps = eps;
-        }
-
-        // The clusters kept as they were hold the visibility of their
-        // children: the schedule pass recomputes the others and those
-        // above a change.
-        let carried = Carried {
-            span: old.time.seconds,
-            clusters: Some(
-                origin
-                    .par_iter()
-                    .map(|o| {
-                        o.is_some_and(|o| {
-                            !(edited.contains_key(&o)
-                                || made.contains_key(&o)
-                                || widened.contains_key(&o)
-                                || joined.contains_key(&o))
-                        })
-                    })
-                    .collect(),
-            ),
-        };
+        // The object tables are made on one core while the other numbers
+        // the clusters and makes the schedule pass: the kept clusters'
+        // objects read from the old tree, the new ones' from their records.
+        let fresh = |c: &Cluster| (!c.objects.is_empty()).then(|| c.objects.clone());
+        let added_range = first_added as usize..first_added as usize + added.len();
+        let new_named: Vec<(u32, Vec<String>)> = (added_range.chain(first_chain as usize..total))
+            .filter_map(|i| Some((i as u32, fresh(&clusters[i])?)))
+            .collect();
+        let kept_named = (0..n as u32)
+            .filter(|&c| old.object_count_of(c) > 0)
+            .filter_map(|c| Some((new_id(c)?, old.objects_of(c))));
+        let named = kept_named
+            .chain((new_named.iter()).map(|(i, o)| (*i, o.iter().map(String::as_str).collect())));
         let stats = self.stats;
-        let mut tree = super::tree_of(scene, bounds, root, clusters);
-        tree.config = old.config.clone();
-        tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
-        tree.sources = Some(self.sources);
+        let sources = self.sources;
         let split = Split {
             classes: self.classes,
             pieces: self.pieces,
         };
-        // The skeletons are the dynamic leaves' objects', which the pass
-        // keeps (it renumbers, and dissolves no leaf): made beside it.
-        let dynamic = super::skinned::dynamic_leaf_objects(&tree);
-        let (skins, update) = rayon::join(
-            || super::skinned::skeletons_of(scene, &dynamic),
-            || update_schedule_of(tree, carried, scene, split, config),
+        let (objects, (skins, update)) = rayon::join(
+            || ObjectTables::of_leaves(scene, named),
+            || {
+                for (i, c) in clusters.iter_mut().enumerate() {
+                    c.id = i as u32;
+                    c.parent = None;
+                }
+                set_parents(&mut clusters);
+                // As `virtual_root` makes it, from its children's new boxes
+                // and errors.
+                let root = new_id(old.root).expect("the root stays");
+                let (bounds, eps) =
+                    super::root_extent(&clusters, &clusters[root as usize].children);
+                {
+                    let r = &mut clusters[root as usize];
+                    r.bounds = bounds;
+                    r.w = bounds.diagonal();
+                    r.eps = eps;
+                }
+                // The clusters kept as they were hold the visibility of
+                // their children: the schedule pass recomputes the others
+                // and those above a change.
+                let carried = Carried {
+                    span: old.time.seconds,
+                    clusters: Some(
+                        origin
+                            .par_iter()
+                            .map(|o| {
+                                o.is_some_and(|o| {
+                                    !(edited.contains_key(&o)
+                                        || made.contains_key(&o)
+                                        || widened.contains_key(&o)
+                                        || joined.contains_key(&o))
+                                })
+                            })
+                            .collect(),
+                    ),
+                };
+                let mut tree = super::tree_of(scene, bounds, root, clusters);
+                tree.config = old.config.clone();
+                tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
+                tree.sources = Some(sources);
+                // The skeletons are the dynamic leaves' objects', which the
+                // pass keeps (it renumbers, and dissolves no leaf): made
+                // beside it.
+                let dynamic = super::skinned::dynamic_leaf_objects(&tree);
+                rayon::join(
+                    || super::skinned::skeletons_of(scene, &dynamic),
+                    || update_schedule_of(tree, carried, scene, split, config),
+                )
+            },
         );
         match update {
             Update::Updated {
@@ -1063,18 +1076,30 @@ impl Plan<'_> {
                 stats,
                 dissolved,
                 origin: passed,
-            } => Ok(Updated {
-                tree: {
-                    tree.skins = skins;
-                    *tree
-                },
-                stats,
-                rebuilt,
-                widened: widened.len(),
-                dropped: gone.iter().filter(|&&g| g).count(),
-                dissolved,
-                origin: passed.iter().map(|&c| origin[c as usize]).collect(),
-            }),
+            } => {
+                // A dissolved group may come before a leaf, whose id then
+                // changed; no leaf is dissolved.
+                let objects = if dissolved == 0 {
+                    objects
+                } else {
+                    let mut new_id = vec![u32::MAX; origin.len()];
+                    for (i, &c) in passed.iter().enumerate() {
+                        new_id[c as usize] = i as u32;
+                    }
+                    objects.renumbered(|c| new_id[c as usize])
+                };
+                tree.objects = Some(objects);
+                tree.skins = skins;
+                Ok(Updated {
+                    tree: *tree,
+                    stats,
+                    rebuilt,
+                    widened: widened.len(),
+                    dropped: gone.iter().filter(|&&g| g).count(),
+                    dissolved,
+                    origin: passed.iter().map(|&c| origin[c as usize]).collect(),
+                })
+            }
             Update::Rebuild(why) => Err(Error::argument("scene", why)),
         }
     }
@@ -1198,6 +1223,49 @@ pub(super) fn set_parents(clusters: &mut [Cluster]) {
 /// The record of a cluster of `piece`'s class at `level` over `children`
 /// (its leaf, or one of its lone parents): its geometry, box and errors
 /// set by the caller, its visibility the piece's until the schedule pass.
+/// The leaves of an old tree.
+struct OldLeaves<'a> {
+    /// In order of id.
+    ids: Vec<u32>,
+    /// How many of them come first, as a build's static and pseudo-dynamic
+    /// leaves do.
+    leaves: usize,
+    /// Each object's leaves.
+    of_object: FxHashMap<&'a str, Vec<u32>>,
+}
+
+fn old_leaves(old: &Tree) -> std::result::Result<OldLeaves<'_>, String> {
+    // The build's order: the static and pseudo-dynamic leaves first.
+    let old_leaves: Vec<u32> = (0..old.cluster_count() as u32)
+        .into_par_iter()
+        .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root)
+        .collect();
+    let leaves = old_leaves
+        .iter()
+        .take_while(|&&c| old.class_of(c) != ClusterClass::Dynamic)
+        .count();
+    if old_leaves[..leaves]
+        .iter()
+        .enumerate()
+        .any(|(i, &c)| c as usize != i)
+    {
+        return Err("the tree's leaves are not in the build's order".into());
+    }
+    let mut leaves_of: FxHashMap<&str, Vec<u32>> =
+        FxHashMap::with_capacity_and_hasher(old_leaves.len(), Default::default());
+    for &leaf in &old_leaves {
+        match old.objects_of(leaf)[..] {
+            [object] => leaves_of.entry(object).or_default().push(leaf),
+            _ => return Err(format!("leaf cluster {leaf} does not name one object")),
+        }
+    }
+    Ok(OldLeaves {
+        ids: old_leaves,
+        leaves,
+        of_object: leaves_of,
+    })
+}
+
 fn piece_record(piece: &Piece, level: u32, children: Vec<u32>, span: f64) -> Cluster {
     Cluster {
         id: 0,

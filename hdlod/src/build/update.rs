@@ -54,13 +54,15 @@ pub fn update_schedule(old: &Tree, scene: &Scene, config: &BuildConfig) -> Updat
     };
     let scene = scheduled(scene, config);
     let split = Split::of(&scene);
-    schedule_pass(Cow::Borrowed(old), carried, &scene, split, config)
+    schedule_pass(Cow::Borrowed(old), carried, &scene, split, config, true)
 }
 
 /// [`update_schedule`] of a tree made in memory, whose clusters it takes
-/// rather than copies (a geometry update's, `super::local`).
-/// `scene` is scheduled as `config` says and `split` is of it: the
-/// geometry update has made both already.
+/// rather than copies (a geometry update's, `super::local`), but for its
+/// object tables, which the caller makes beside it: the tree answered has
+/// none, and where groups were dissolved the caller renumbers its tables'
+/// leaves by `origin`. `scene` is scheduled as `config` says and `split` is
+/// of it: the geometry update has made both already.
 pub(super) fn update_schedule_of(
     tree: Tree,
     carried: Carried,
@@ -68,7 +70,7 @@ pub(super) fn update_schedule_of(
     split: Split,
     config: &BuildConfig,
 ) -> Update {
-    schedule_pass(Cow::Owned(tree), carried, scene, split, config)
+    schedule_pass(Cow::Owned(tree), carried, scene, split, config, false)
 }
 
 /// A scene's objects' classes and the pieces of its leaves
@@ -96,13 +98,15 @@ pub(super) struct Carried {
     pub clusters: Option<Vec<bool>>,
 }
 
-/// The pass over `scene`, scheduled as the build's configuration says.
+/// The pass over `scene`, scheduled as the build's configuration says;
+/// with the tree's object tables where `tables`.
 fn schedule_pass(
     old: Cow<Tree>,
     carried: Carried,
     scene: &Scene,
     Split { classes, pieces }: Split,
     config: &BuildConfig,
+    tables: bool,
 ) -> Update {
     let span = scene.time.seconds;
     let Some(leaf_pieces) = match_leaves(&old, scene, &pieces) else {
@@ -138,11 +142,16 @@ fn schedule_pass(
     // one core while the other recomputes the visibility, the objects put
     // back after.
     let leaf_objects: Vec<(u32, Vec<String>)> = (records.iter_mut())
-        .filter(|c| !c.objects.is_empty())
+        .filter(|c| tables && !c.objects.is_empty())
         .map(|c| (c.id, std::mem::take(&mut c.objects)))
         .collect();
     let (objects, visibility) = rayon::join(
-        || ObjectTables::of_leaves(scene, leaf_objects.iter().map(|(c, o)| (*c, o.as_slice()))),
+        || {
+            let named = leaf_objects
+                .iter()
+                .map(|(c, o)| (*c, o.iter().map(String::as_str)));
+            tables.then(|| ObjectTables::of_leaves(scene, named))
+        },
         || {
             visibility_pass(
                 records,
@@ -176,10 +185,9 @@ fn schedule_pass(
         .expect("a built tree has its virtual root") as u32;
     // A dissolved group may come before a leaf, whose id then changed; no
     // leaf is dissolved.
-    let objects = if gone == 0 {
-        objects
-    } else {
-        objects.renumbered(|c| new_ids[c as usize])
+    let objects = match objects {
+        Some(objects) if gone > 0 => Some(objects.renumbered(|c| new_ids[c as usize])),
+        objects => objects,
     };
     level_stats(&clusters, &mut stats);
     // A removed object's tombstone (`super::align`) is no object of the
@@ -201,7 +209,7 @@ fn schedule_pass(
     let mut tree = super::tree_of(scene, bounds, root, clusters);
     tree.config = old_config;
     tree.stats = serde_json::to_value(&stats).expect("the statistics serialise");
-    tree.objects = Some(objects);
+    tree.objects = objects;
     tree.sources = sources;
     tree.skins = skins;
     Update::Updated {

@@ -233,30 +233,23 @@ pub(crate) fn push_hex(bytes: &[u8; 32], out: &mut Vec<u8>) {
 /// The index of a valid tree, as the file's bytes; `json_len` is the
 /// length of the `clusters.json` written beside it.
 pub fn encode(tree: &Tree, json_len: u64) -> Vec<u8> {
-    let mut out = unsealed(tree);
+    let made = unsealed(tree);
+    let sections = made.sections();
+    let mut out = made.parts(&sections).to_vec();
     set_json_len(&mut out, json_len);
     out
 }
 
 /// The index of a valid tree but its `clusters.json` length and checksum,
-/// for [`set_json_len`] once the length is known: a writer makes it while
-/// it writes that file.
-pub(crate) fn unsealed(tree: &Tree) -> Vec<u8> {
-    let n = tree.cluster_count();
+/// for [`Unsealed::parts`] to write and seal once the length is known: a
+/// writer makes it while it writes that file.
+pub(crate) fn unsealed(tree: &Tree) -> Unsealed {
     // The nodes, the records and the tree's figures are independent: made
     // side by side, as the writer's other tables are.
     let (nodes, (flat, (summary, baseline))) = rayon::join(
         || Nodes::new(tree),
         || rayon::join(|| Flat::of(tree), || (tree.summary(), tree.baseline())),
     );
-    let Flat {
-        records,
-        keys,
-        hashes,
-        objects,
-        string_starts,
-        strings,
-    } = flat;
     let class_count = |class: ClusterClass| summary.classes[class.name()] as u64;
     let counts = Counts {
         leaves: summary.leaves as u64,
@@ -284,22 +277,53 @@ pub(crate) fn unsealed(tree: &Tree) -> Vec<u8> {
             draws: p.draws,
         })
         .collect();
-    let sections: [&[u8]; SECTIONS] = [
-        bytemuck::cast_slice(&nodes.nodes),
-        bytemuck::cast_slice(&nodes.node_of),
-        bytemuck::cast_slice(&nodes.order),
-        bytemuck::cast_slice(&nodes.steps),
-        bytemuck::cast_slice(&records),
-        bytemuck::cast_slice(&keys),
-        bytemuck::cast_slice(&hashes),
-        bytemuck::cast_slice(&objects),
-        bytemuck::cast_slice(&string_starts),
-        &strings,
-        bytemuck::bytes_of(&counts),
-        bytemuck::cast_slice(&levels),
-        bytemuck::cast_slice(&baseline),
-    ];
-    sections::write(MAGIC, VERSION, n as u32, tree.root, 0, &sections)
+    Unsealed {
+        nodes,
+        flat,
+        counts,
+        levels,
+        baseline,
+        count: tree.cluster_count() as u32,
+        root: tree.root,
+    }
+}
+
+/// An index's sections, made ([`unsealed`]) and not yet laid out in a file.
+pub(crate) struct Unsealed {
+    nodes: Nodes,
+    flat: Flat,
+    counts: Counts,
+    levels: Vec<Level>,
+    baseline: Vec<Change>,
+    count: u32,
+    root: u32,
+}
+
+impl Unsealed {
+    /// The sections' bytes, in file order.
+    pub(crate) fn sections(&self) -> [&[u8]; SECTIONS] {
+        let (nodes, flat) = (&self.nodes, &self.flat);
+        [
+            bytemuck::cast_slice(&nodes.nodes),
+            bytemuck::cast_slice(&nodes.node_of),
+            bytemuck::cast_slice(&nodes.order),
+            bytemuck::cast_slice(&nodes.steps),
+            bytemuck::cast_slice(&flat.records),
+            bytemuck::cast_slice(&flat.keys),
+            bytemuck::cast_slice(&flat.hashes),
+            bytemuck::cast_slice(&flat.objects),
+            bytemuck::cast_slice(&flat.string_starts),
+            &flat.strings,
+            bytemuck::bytes_of(&self.counts),
+            bytemuck::cast_slice(&self.levels),
+            bytemuck::cast_slice(&self.baseline),
+        ]
+    }
+
+    /// The file of `sections` (as [`Unsealed::sections`] gives them).
+    pub(crate) fn parts<'a>(&self, sections: &'a [&'a [u8]]) -> sections::Parts<'a> {
+        sections::Parts::new(MAGIC, VERSION, self.count, self.root, sections)
+    }
 }
 
 /// The records of an index and the flat arrays they point into.
@@ -400,11 +424,6 @@ impl Flat {
 pub(crate) fn set_json_len(bytes: &mut [u8], json_len: u64) {
     sections::set_json_len(bytes, json_len);
     sections::seal(bytes);
-}
-
-/// The header of an index's bytes: all that [`set_json_len`] changes.
-pub(crate) fn header(bytes: &[u8]) -> &[u8] {
-    &bytes[..sections::HEADER]
 }
 
 /// A checked, memory-mapped `clusters.bin`.

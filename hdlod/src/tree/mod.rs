@@ -16,6 +16,7 @@ pub mod migrate;
 mod nodes;
 pub mod object_index;
 pub mod objects;
+mod objects_json;
 pub mod presence;
 mod sections;
 pub mod skins;

@@ -140,9 +140,9 @@ impl PartialEq for ObjectRows {
     }
 }
 
-/// The rows of `objects` as the file's bytes, with an empty `rest` and the
+/// The rows of `objects`, as the file's bytes with an empty `rest` and the
 /// header's JSON length and checksum zero ([`file`] sets them).
-pub(crate) fn encode<'a>(objects: &'a [ObjectEntry]) -> Vec<u8> {
+pub(crate) fn rows_of<'a>(objects: &'a [ObjectEntry]) -> ObjectRows {
     let mut rows = Vec::with_capacity(objects.len());
     let mut properties: Vec<[u32; 2]> = Vec::new();
     let mut tasks: Vec<u32> = Vec::new();
@@ -227,31 +227,50 @@ pub(crate) fn encode<'a>(objects: &'a [ObjectEntry]) -> Vec<u8> {
         &strings,
         &[],
     ];
-    sections::write(MAGIC, VERSION, objects.len() as u32, 0, 0, &sections)
+    let (words, len) =
+        sections::Parts::new(MAGIC, VERSION, objects.len() as u32, 0, &sections).to_words();
+    ObjectRows::parse(Bytes::Owned(Arc::new(words), len), Path::new(""))
+        .expect("encoded rows are well formed")
 }
 
 /// The file of `rows` with `rest` as its last section, the length of the
-/// `objects.json` written beside it and the checksum.
-pub(crate) fn file(rows: &ObjectRows, rest: &[u8], json_len: u64) -> Vec<u8> {
-    let offset = rows.sections[REST].0;
-    let mut bytes = rows.bytes[..offset].to_vec();
+/// `objects.json` written beside it and the checksum set.
+pub(crate) fn file<'a>(rows: &'a ObjectRows, rest: &'a [u8], json_len: u64) -> IndexFile<'a> {
+    let mut body: [u8; BODY] = rows.bytes[..BODY].try_into().expect("a header and table");
     let at = HEADER + 16 * REST;
-    bytes[at + 8..at + 16].copy_from_slice(&(rest.len() as u64).to_le_bytes());
-    bytes.extend_from_slice(rest);
-    sections::set_json_len(&mut bytes, json_len);
-    sections::seal(&mut bytes);
-    bytes
+    body[at + 8..at + 16].copy_from_slice(&(rest.len() as u64).to_le_bytes());
+    sections::set_json_len(&mut body, json_len);
+    let rows = &rows.bytes[BODY..rows.sections[REST].0];
+    let header = body[..HEADER].try_into().expect("a header");
+    let sum = sections::checksum_of(header, [&body[HEADER..], rows, rest]);
+    body[32..64].copy_from_slice(&sum);
+    IndexFile { body, rows, rest }
+}
+
+/// An object index file ([`file`]), written from where its rows are
+/// rather than copied beside its last section first.
+pub(crate) struct IndexFile<'a> {
+    body: [u8; BODY],
+    rows: &'a [u8],
+    rest: &'a [u8],
+}
+
+impl IndexFile<'_> {
+    fn pieces(&self) -> [&[u8]; 3] {
+        [&self.body, self.rows, self.rest]
+    }
+
+    pub(crate) fn to_vec(&self) -> Vec<u8> {
+        self.pieces().concat()
+    }
+
+    pub(crate) fn write(&self, file: &mut std::fs::File) -> std::io::Result<()> {
+        let mut slices = self.pieces().map(std::io::IoSlice::new);
+        sections::write_all_vectored(file, &mut slices)
+    }
 }
 
 impl ObjectRows {
-    /// Rows of encoded bytes, made by [`encode`] (so valid).
-    pub(crate) fn of_encoded(bytes: &[u8]) -> ObjectRows {
-        let mut words = vec![0u64; bytes.len().div_ceil(8)];
-        bytemuck::cast_slice_mut::<u64, u8>(&mut words)[..bytes.len()].copy_from_slice(bytes);
-        ObjectRows::parse(Bytes::Owned(Arc::new(words), bytes.len()), Path::new(""))
-            .expect("encoded rows are well formed")
-    }
-
     /// The rows with each cluster `c` they name renamed `new_id(c)`, which
     /// must keep the clusters' order (a renumbering that drops some).
     pub(crate) fn renumbered(&self, new_id: impl Fn(u32) -> u32) -> ObjectRows {

@@ -155,7 +155,7 @@ impl ObjectTables {
         dates: Dates,
         appearance: Option<Profile>,
     ) -> ObjectTables {
-        let rows = ObjectRows::of_encoded(&object_index::encode(&objects));
+        let rows = object_index::rows_of(&objects);
         ObjectTables::with_rows(rows, tasks, dates, appearance)
     }
 
@@ -197,13 +197,16 @@ impl ObjectTables {
     /// The tables of `scene` (as built: its schedule applied) over the
     /// leaf clusters that name its objects.
     pub fn of(scene: &Scene, clusters: &[Cluster]) -> ObjectTables {
-        Self::of_leaves(scene, clusters.iter().map(|c| (c.id, c.objects.as_slice())))
+        Self::of_leaves(
+            scene,
+            (clusters.iter()).map(|c| (c.id, c.objects.iter().map(String::as_str))),
+        )
     }
 
     /// [`ObjectTables::of`] over the clusters' ids and objects alone.
-    pub fn of_leaves<'a>(
+    pub fn of_leaves<'a, I: IntoIterator<Item = &'a str>>(
         scene: &Scene,
-        clusters: impl IntoIterator<Item = (u32, &'a [String])>,
+        clusters: impl IntoIterator<Item = (u32, I)>,
     ) -> ObjectTables {
         let index: FxHashMap<&str, u32> = scene
             .objects
@@ -214,7 +217,7 @@ impl ObjectTables {
         let mut leaves: Vec<Vec<u32>> = vec![Vec::new(); scene.objects.len()];
         for (cluster, objects) in clusters {
             for id in objects {
-                if let Some(&i) = index.get(id.as_str()) {
+                if let Some(&i) = index.get(id) {
                     leaves[i as usize].push(cluster);
                 }
             }
@@ -569,20 +572,34 @@ impl ObjectTables {
     /// The on-disk record; `time` gives the tasks' dates.
     pub fn to_record(&self, time: &TimeSpan) -> ObjectsRecord {
         ObjectsRecord {
-            format: FORMAT.into(),
             objects: (0..self.objects.len() as u32)
-                .map(|i| self.object(i))
-                .map(|o| ObjectRecord {
-                    presence: o.open_presence(),
-                    id: o.id,
-                    name: o.name,
-                    class: o.class,
-                    properties: o.properties,
-                    visibility_class: o.visibility_class,
-                    tasks: o.tasks,
-                    clusters: o.clusters,
-                })
+                .map(|i| self.object_record(i))
                 .collect(),
+            ..self.to_record_without_objects(time)
+        }
+    }
+
+    /// Object `i`'s record in `objects.json`.
+    pub(crate) fn object_record(&self, i: u32) -> ObjectRecord {
+        let o = self.object(i);
+        ObjectRecord {
+            presence: o.open_presence(),
+            id: o.id,
+            name: o.name,
+            class: o.class,
+            properties: o.properties,
+            visibility_class: o.visibility_class,
+            tasks: o.tasks,
+            clusters: o.clusters,
+        }
+    }
+
+    /// [`ObjectTables::to_record`] with no objects: what `objects.bin`
+    /// keeps as JSON.
+    pub(crate) fn to_record_without_objects(&self, time: &TimeSpan) -> ObjectsRecord {
+        ObjectsRecord {
+            format: FORMAT.into(),
+            objects: Vec::new(),
             tasks: self.task_records(time),
             dates: self.dates,
             appearance: self.appearance.as_ref().map(Profile::to_file),
@@ -590,18 +607,14 @@ impl ObjectTables {
     }
 
     /// `objects.bin` (`hdlod-objects-index/1`) for these tables, written
-    /// beside an `objects.json` of `json_len` bytes; `time` gives the
-    /// tasks' dates.
-    pub fn to_index(&self, time: &TimeSpan, json_len: u64) -> Vec<u8> {
-        let rest = ObjectsRecord {
-            format: FORMAT.into(),
-            objects: Vec::new(),
-            tasks: self.task_records(time),
-            dates: self.dates,
-            appearance: self.appearance.as_ref().map(Profile::to_file),
-        };
-        let rest = serde_json::to_vec(&rest).expect("the records serialise");
-        object_index::file(&self.objects, &rest, json_len)
+    /// beside an `objects.json` of `json_len` bytes; `rest`: their
+    /// [`ObjectTables::to_record_without_objects`], serialised.
+    pub(crate) fn to_index<'a>(
+        &'a self,
+        rest: &'a [u8],
+        json_len: u64,
+    ) -> object_index::IndexFile<'a> {
+        object_index::file(&self.objects, rest, json_len)
     }
 
     fn task_records(&self, time: &TimeSpan) -> Vec<TaskRecord> {
@@ -668,7 +681,7 @@ impl ObjectTables {
                 clusters: r.clusters,
             });
         }
-        let rows = ObjectRows::of_encoded(&object_index::encode(&objects));
+        let rows = object_index::rows_of(&objects);
         ObjectTables::with_records(rows, record, tree, file)
     }
 

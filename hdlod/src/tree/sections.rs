@@ -53,36 +53,115 @@ fn body(count: usize) -> usize {
     HEADER + 16 * count
 }
 
-/// A file of `sections` with the checksum left zero (see [`seal`]).
-pub(crate) fn write(
-    magic: [u8; 8],
-    version: u32,
-    count: u32,
-    word: u32,
-    json_len: u64,
-    sections: &[&[u8]],
-) -> Vec<u8> {
-    // Sized once: the cluster index is tens of megabytes, and growing it
-    // section by section copied it again at each step.
-    let size = (sections.iter()).fold(body(sections.len()), |at, bytes| {
-        at.next_multiple_of(8) + bytes.len()
-    });
-    let mut out = Vec::with_capacity(size);
-    out.resize(body(sections.len()), 0);
-    out[..8].copy_from_slice(&magic);
-    out[8..12].copy_from_slice(&version.to_le_bytes());
-    out[12..16].copy_from_slice(&(sections.len() as u32).to_le_bytes());
-    out[16..20].copy_from_slice(&count.to_le_bytes());
-    out[20..24].copy_from_slice(&word.to_le_bytes());
-    out[24..32].copy_from_slice(&json_len.to_le_bytes());
-    for (k, bytes) in sections.iter().enumerate() {
-        out.resize(out.len().next_multiple_of(8), 0);
-        let (at, offset) = (HEADER + 16 * k, out.len() as u64);
-        out[at..at + 8].copy_from_slice(&offset.to_le_bytes());
-        out[at + 8..at + 16].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
-        out.extend_from_slice(bytes);
+/// A file's header and section table, and its sections where they are:
+/// written to a file piece by piece ([`Parts::write`]) and sealed there
+/// ([`Parts::sealed_header`]), rather than copied into one buffer of the
+/// file's size first (the cluster index of the paper scene is 67 MB,
+/// whose pages were faulted in for a copy that the write makes again).
+pub(crate) struct Parts<'a> {
+    /// The header (its JSON length and checksum zero) and the table.
+    body: Vec<u8>,
+    sections: &'a [&'a [u8]],
+}
+
+/// Zeros that pad a section to a multiple of 8 bytes.
+const PADDING: [u8; 8] = [0; 8];
+
+impl<'a> Parts<'a> {
+    pub(crate) fn new(
+        magic: [u8; 8],
+        version: u32,
+        count: u32,
+        word: u32,
+        sections: &'a [&'a [u8]],
+    ) -> Parts<'a> {
+        let mut body = vec![0; self::body(sections.len())];
+        body[..8].copy_from_slice(&magic);
+        body[8..12].copy_from_slice(&version.to_le_bytes());
+        body[12..16].copy_from_slice(&(sections.len() as u32).to_le_bytes());
+        body[16..20].copy_from_slice(&count.to_le_bytes());
+        body[20..24].copy_from_slice(&word.to_le_bytes());
+        let mut offset = body.len();
+        for (k, bytes) in sections.iter().enumerate() {
+            offset = offset.next_multiple_of(8);
+            let at = HEADER + 16 * k;
+            body[at..at + 8].copy_from_slice(&(offset as u64).to_le_bytes());
+            body[at + 8..at + 16].copy_from_slice(&(bytes.len() as u64).to_le_bytes());
+            offset += bytes.len();
+        }
+        Parts { body, sections }
     }
-    out
+
+    /// The file's bytes in order: the body, then each section after the
+    /// zeros that align it.
+    fn pieces(&self) -> impl Iterator<Item = &[u8]> {
+        let mut at = self.body.len();
+        std::iter::once(&self.body[..]).chain(self.sections.iter().flat_map(move |&bytes| {
+            let pad = at.next_multiple_of(8) - at;
+            at += pad + bytes.len();
+            [&PADDING[..pad], bytes]
+        }))
+    }
+
+    /// The whole file, its checksum zero.
+    pub(crate) fn to_vec(&self) -> Vec<u8> {
+        let mut out = Vec::with_capacity(self.pieces().map(<[u8]>::len).sum());
+        self.pieces().for_each(|piece| out.extend_from_slice(piece));
+        out
+    }
+
+    /// The whole file, its checksum zero, in words (8-aligned, as reading
+    /// its sections in place needs), and its length in bytes.
+    pub(crate) fn to_words(&self) -> (Vec<u64>, usize) {
+        let len: usize = self.pieces().map(<[u8]>::len).sum();
+        let mut words = vec![0u64; len.div_ceil(8)];
+        let mut at = 0;
+        let bytes = bytemuck::cast_slice_mut::<u64, u8>(&mut words);
+        for piece in self.pieces() {
+            bytes[at..at + piece.len()].copy_from_slice(piece);
+            at += piece.len();
+        }
+        (words, len)
+    }
+
+    /// Writes the file, its JSON length and checksum zero, to `file`.
+    pub(crate) fn write(&self, file: &mut std::fs::File) -> std::io::Result<()> {
+        let mut slices: Vec<std::io::IoSlice> = self.pieces().map(std::io::IoSlice::new).collect();
+        write_all_vectored(file, &mut slices)
+    }
+
+    /// The header of the file with `json_len` set and sealed, as [`seal`]
+    /// seals the whole file: for the first [`HEADER`] bytes of a file
+    /// [`Parts::write`] wrote.
+    pub(crate) fn sealed_header(&self, json_len: u64) -> [u8; HEADER] {
+        let mut header: [u8; HEADER] = self.body[..HEADER].try_into().expect("a header");
+        set_json_len(&mut header, json_len);
+        let body = &self.body[HEADER..];
+        let sum = checksum_of(&header, std::iter::once(body).chain(self.pieces().skip(1)));
+        header[32..64].copy_from_slice(&sum);
+        header
+    }
+}
+
+/// `Write::write_all_vectored`, which is not stable: a few calls for
+/// pieces that would take a call each.
+pub(crate) fn write_all_vectored(
+    file: &mut std::fs::File,
+    mut slices: &mut [std::io::IoSlice<'_>],
+) -> std::io::Result<()> {
+    use std::io::Write;
+    // Linux takes at most 1,024 slices a call (`IOV_MAX`).
+    const MOST: usize = 1024;
+    while !slices.is_empty() {
+        let take = slices.len().min(MOST);
+        match file.write_vectored(&slices[..take]) {
+            Ok(0) => return Err(std::io::ErrorKind::WriteZero.into()),
+            Ok(n) => std::io::IoSlice::advance_slices(&mut slices, n),
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
+            Err(e) => return Err(e),
+        }
+    }
+    Ok(())
 }
 
 /// Sets the length of the JSON file the file is made from.
@@ -105,6 +184,19 @@ pub(crate) fn checksum(bytes: &[u8]) -> [u8; 32] {
         .update_rayon(&bytes[HEADER..])
         .finalize()
         .as_bytes()
+}
+
+/// [`checksum`] of the file of `header` followed by `rest`, in pieces.
+pub(crate) fn checksum_of<'a>(
+    header: &[u8; HEADER],
+    rest: impl IntoIterator<Item = &'a [u8]>,
+) -> [u8; 32] {
+    let mut hasher = blake3::Hasher::new();
+    hasher.update(&header[..32]);
+    for piece in rest {
+        hasher.update_rayon(piece);
+    }
+    *hasher.finalize().as_bytes()
 }
 
 /// The checksum stored in the header.

@@ -38,6 +38,7 @@ use super::format::{
 use super::index::{self, Index};
 use super::object_index::ObjectRows;
 use super::objects::{ObjectTables, ObjectsRecord};
+use super::objects_json::ObjectsJson;
 use super::table::{ClustersJson, Previous};
 use crate::error::{Error, Result};
 
@@ -274,13 +275,13 @@ impl TreeWriter {
             },
             || {
                 rayon::join(
-                    || -> Result<(Vec<u8>, fs::File)> {
-                        let bytes = index::unsealed(tree);
+                    || -> Result<(index::Unsealed, fs::File)> {
+                        let made = index::unsealed(tree);
                         let mut file =
                             fs::File::create(&index_path).map_err(|e| Error::io(&index_path, e))?;
-                        file.write_all(&bytes)
+                        (made.parts(&made.sections()).write(&mut file))
                             .map_err(|e| Error::io(&index_path, e))?;
-                        Ok((bytes, file))
+                        Ok((made, file))
                     },
                     || {
                         rayon::join(
@@ -297,14 +298,14 @@ impl TreeWriter {
         let (json_len, copied) = table?;
         objects?;
         others?;
-        let (mut index_bytes, mut index_file) = index?;
-        index::set_json_len(&mut index_bytes, json_len);
+        let (made, mut index_file) = index?;
+        let header = made.parts(&made.sections()).sealed_header(json_len);
         index_file
             .seek(SeekFrom::Start(0))
-            .and_then(|_| index_file.write_all(index::header(&index_bytes)))
+            .and_then(|_| index_file.write_all(&header))
             .and_then(|()| index_file.sync_all())
             .map_err(|e| Error::io(&index_path, e))?;
-        drop(index_bytes);
+        drop(made);
         let serialised = lap();
 
         let old = sibling(&self.target, "old");
@@ -383,9 +384,7 @@ impl TreeWriter {
             self.tmp.join(OBJECTS_FILE),
             self.tmp.join(OBJECTS_INDEX_FILE),
         );
-        let mut json = serde_json::to_vec(&tables.to_record(&tree.time))
-            .map_err(|e| Error::invalid(&json_path, "", e.to_string()))?;
-        json.push(b'\n');
+        let json = ObjectsJson::of(tables, &tree.time, &json_path)?;
         if let Some(p) = previous {
             let (old_json, old_index) = (p.dir.join(OBJECTS_FILE), p.dir.join(OBJECTS_INDEX_FILE));
             let current = |path: &Path| {
@@ -394,8 +393,11 @@ impl TreeWriter {
                     .and_then(|mut f| std::io::Read::read_exact(&mut f, &mut header))
                     .is_ok_and(|()| header[8..12] == super::object_index::VERSION.to_le_bytes())
             };
+            // Read only when it may be the same: a removal changes its length.
+            let same_len = |path: &Path| fs::metadata(path).is_ok_and(|m| m.len() == json.len());
             if current(&old_index)
-                && fs::read(&old_json).is_ok_and(|old| old == json)
+                && same_len(&old_json)
+                && fs::read(&old_json).is_ok_and(|old| json.is(&old))
                 && fs::hard_link(&old_json, &json_path).is_ok()
                 && fs::hard_link(&old_index, &index_path).is_ok()
             {
@@ -404,8 +406,17 @@ impl TreeWriter {
             // A link made before the other failed.
             let _ = fs::remove_file(&json_path);
         }
-        write_bytes(&json_path, &json)?;
-        write_bytes(&index_path, &tables.to_index(&tree.time, json.len() as u64))
+        let (written, index) = rayon::join(
+            || json.write(&json_path),
+            || {
+                let index = tables.to_index(json.rest(), json.len());
+                let mut file =
+                    fs::File::create(&index_path).map_err(|e| Error::io(&index_path, e))?;
+                (index.write(&mut file).and_then(|()| file.sync_all()))
+                    .map_err(|e| Error::io(&index_path, e))
+            },
+        );
+        written.and(index)
     }
 }
 
@@ -851,9 +862,11 @@ pub fn write_index(dir: impl AsRef<Path>) -> Result<()> {
     if let Some(tables) = &tree.objects {
         let json = dir.join(OBJECTS_FILE);
         let json_len = fs::metadata(&json).map_err(|e| Error::io(&json, e))?.len();
+        let rest = serde_json::to_vec(&tables.to_record_without_objects(&tree.time))
+            .map_err(|e| Error::invalid(&json, "", e.to_string()))?;
         replace(
             &dir.join(OBJECTS_INDEX_FILE),
-            &tables.to_index(&tree.time, json_len),
+            &tables.to_index(&rest, json_len).to_vec(),
         )?;
     }
     let json = dir.join(CLUSTERS_FILE);

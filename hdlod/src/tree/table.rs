@@ -12,7 +12,7 @@
 //! came from.
 
 use std::fs;
-use std::io::{IoSlice, Write};
+use std::io::IoSlice;
 use std::ops::Range;
 use std::path::Path;
 
@@ -162,28 +162,10 @@ impl ClustersJson {
         }
         slices.push(IoSlice::new(CLOSE));
         let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        write_all_vectored(&mut file, &mut slices)
+        super::sections::write_all_vectored(&mut file, &mut slices)
             .and_then(|()| file.sync_all())
             .map_err(|e| Error::io(path, e))
     }
-}
-
-/// `Write::write_all_vectored`, which is not stable: a few hundred calls for
-/// the hundreds of thousands of pieces of an update's table, where writing
-/// them one by one was a call each.
-fn write_all_vectored(file: &mut fs::File, mut slices: &mut [IoSlice<'_>]) -> std::io::Result<()> {
-    // Linux takes at most 1,024 slices a call (`IOV_MAX`).
-    const MOST: usize = 1024;
-    while !slices.is_empty() {
-        let take = slices.len().min(MOST);
-        match file.write_vectored(&slices[..take]) {
-            Ok(0) => return Err(std::io::ErrorKind::WriteZero.into()),
-            Ok(n) => IoSlice::advance_slices(&mut slices, n),
-            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => {}
-            Err(e) => return Err(e),
-        }
-    }
-    Ok(())
 }
 
 /// The old tree's `clusters.json`, mapped, and where each record starts.
