@@ -636,6 +636,28 @@ impl Plan<'_> {
                                 .map(|&a| Child::Added(a)),
                         )
                         .collect();
+                    // The originals below the unchanged children are read
+                    // only where the cluster can use them: all of its
+                    // children's together within the direct bound's reach.
+                    let originals = |m: &Made| -> Option<usize> {
+                        Some(
+                            m.originals
+                                .as_ref()?
+                                .iter()
+                                .map(|o| o.triangle_count())
+                                .sum(),
+                        )
+                    };
+                    let wanted = (children.iter())
+                        .map(|&child| match child {
+                            Child::Added(a) => originals(&added[a]),
+                            Child::Old(k) => match edited.get(&k).or_else(|| made.get(&k)) {
+                                Some(m) => originals(m),
+                                None => self.leaves_below(old, k).map(|(_, t)| t),
+                            },
+                        })
+                        .try_fold(0, |total, t| Some(total + t?))
+                        .is_some_and(|total| total <= DIRECT_MAX_TRIANGLES);
                     let active: Vec<Active> = children
                         .iter()
                         .map(|&child| {
@@ -644,7 +666,7 @@ impl Plan<'_> {
                                 Child::Old(k) => match edited.get(&k).or_else(|| made.get(&k)) {
                                     Some(m) => m.clone(),
                                     None => {
-                                        let mut m = self.stored(old, old_dir, k)?;
+                                        let mut m = self.stored(old, old_dir, k, wanted)?;
                                         if let Some(w) = widened.get(&k) {
                                             (m.eps, m.lo, m.hi) = (w.eps, w.lo, w.hi);
                                         }
@@ -823,9 +845,9 @@ impl Plan<'_> {
     }
 
     /// The unchanged cluster `id` of `old`: its geometry read back from its
-    /// file, its error as stored, and the original objects below it while
-    /// they are few enough for the direct bound.
-    fn stored(&self, old: &Tree, old_dir: &Path, id: u32) -> Result<Made> {
+    /// file, its error as stored, and where `originals`, the original
+    /// objects below it while they are few enough for the direct bound.
+    fn stored(&self, old: &Tree, old_dir: &Path, id: u32, originals: bool) -> Result<Made> {
         let c = old.cluster(id);
         let (decoded, hash) = stored_file(old, old_dir, id)?;
         let mesh = placed(decoded.drawn());
@@ -835,7 +857,7 @@ impl Plan<'_> {
             lo: c.bounds.min.as_vec3(),
             hi: c.bounds.max.as_vec3(),
             hash,
-            originals: self.originals_below(old, id),
+            originals: originals.then(|| self.originals_below(old, id)).flatten(),
             instance: None,
         })
     }
@@ -844,13 +866,26 @@ impl Plan<'_> {
     /// places them, when they have at most [`DIRECT_MAX_TRIANGLES`]
     /// triangles.
     fn originals_below(&self, old: &Tree, id: u32) -> Option<Vec<Arc<Mesh>>> {
+        let (leaves, _) = self.leaves_below(old, id)?;
+        Some(
+            leaves
+                .into_iter()
+                .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept_piece(c)])))
+                .collect(),
+        )
+    }
+
+    /// The static and pseudo-dynamic leaves below old cluster `id` and
+    /// their triangles, when they are all of its leaves and have at most
+    /// [`DIRECT_MAX_TRIANGLES`] triangles.
+    fn leaves_below(&self, old: &Tree, id: u32) -> Option<(Vec<u32>, usize)> {
         let mut leaves = Vec::new();
         let mut stack = vec![id];
         let mut triangles = 0;
         while let Some(c) = stack.pop() {
             let children = old.children_of(c);
             if children.is_empty() {
-                triangles += old.cluster(c).triangles as usize;
+                triangles += old.triangles_of(c) as usize;
                 if triangles > DIRECT_MAX_TRIANGLES || c as usize >= self.leaves {
                     return None;
                 }
@@ -859,12 +894,7 @@ impl Plan<'_> {
                 stack.extend_from_slice(children);
             }
         }
-        Some(
-            leaves
-                .into_iter()
-                .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept_piece(c)])))
-                .collect(),
-        )
+        Some((leaves, triangles))
     }
 
     /// The new tree: the old clusters in their order but the `gone` ones,
@@ -948,8 +978,12 @@ impl Plan<'_> {
                 .filter(|&c| c != old.root && new_id(c).is_some())
                 .collect()
         };
+        // In pieces of at most `PIECE`: decoding costs more for some
+        // clusters than others, and in rayon's few large pieces one core
+        // was left decoding alone for a third of the time.
+        const PIECE: usize = 1024;
         let leaves = stay(0..self.leaves);
-        clusters.par_extend(leaves.par_iter().map(|&id| kept(id)));
+        clusters.par_extend(leaves.par_iter().with_max_len(PIECE).map(|&id| kept(id)));
         origin.extend(leaves.iter().map(|&id| Some(id)));
         for ((p, _), m) in self.added.iter().zip(&added) {
             let piece = &self.pieces[*p];
@@ -960,7 +994,7 @@ impl Plan<'_> {
             origin.push(None);
         }
         let others = stay(self.leaves..n);
-        clusters.par_extend(others.par_iter().map(|&id| kept(id)));
+        clusters.par_extend(others.par_iter().with_max_len(PIECE).map(|&id| kept(id)));
         origin.extend(others.iter().map(|&id| Some(id)));
         clusters.extend(chains.iter().cloned().map(|mut c| {
             c.children.iter_mut().for_each(|k| *k += first_chain);
@@ -1012,6 +1046,10 @@ impl Plan<'_> {
             .filter_map(|c| Some((new_id(c)?, old.objects_of(c))));
         let named = kept_named
             .chain((new_named.iter()).map(|(i, o)| (*i, o.iter().map(String::as_str).collect())));
+        // As `virtual_root` makes it, from its children's new boxes and
+        // errors; on every core, before one of them makes the tables.
+        let root = new_id(old.root).expect("the root stays");
+        let (bounds, eps) = super::root_extent(&clusters, &clusters[root as usize].children);
         let stats = self.stats;
         let sources = self.sources;
         let split = Split {
@@ -1026,11 +1064,6 @@ impl Plan<'_> {
                     c.parent = None;
                 }
                 set_parents(&mut clusters);
-                // As `virtual_root` makes it, from its children's new boxes
-                // and errors.
-                let root = new_id(old.root).expect("the root stays");
-                let (bounds, eps) =
-                    super::root_extent(&clusters, &clusters[root as usize].children);
                 {
                     let r = &mut clusters[root as usize];
                     r.bounds = bounds;
@@ -1204,7 +1237,7 @@ fn displacement(before: &Mesh, after: &Mesh) -> Option<f64> {
 }
 
 /// Each cluster's `parent` set from its parent's children list.
-pub(super) fn set_parents(clusters: &mut [Cluster]) {
+fn set_parents(clusters: &mut [Cluster]) {
     // Gathered into a small table first, then set on every core: set one
     // by one, each write missed the cache on records of 180,000 clusters.
     let mut parents: Vec<Option<u32>> = vec![None; clusters.len()];
@@ -1220,9 +1253,6 @@ pub(super) fn set_parents(clusters: &mut [Cluster]) {
     });
 }
 
-/// The record of a cluster of `piece`'s class at `level` over `children`
-/// (its leaf, or one of its lone parents): its geometry, box and errors
-/// set by the caller, its visibility the piece's until the schedule pass.
 /// The leaves of an old tree.
 struct OldLeaves<'a> {
     /// In order of id.
@@ -1266,6 +1296,9 @@ fn old_leaves(old: &Tree) -> std::result::Result<OldLeaves<'_>, String> {
     })
 }
 
+/// The record of a cluster of `piece`'s class at `level` over `children`
+/// (its leaf, or one of its lone parents): its geometry, box and errors
+/// set by the caller, its visibility the piece's until the schedule pass.
 fn piece_record(piece: &Piece, level: u32, children: Vec<u32>, span: f64) -> Cluster {
     Cluster {
         id: 0,

@@ -233,7 +233,7 @@ fn schedule_pass(
 fn visibility_pass(
     records: Vec<Cluster>,
     carried: &[bool],
-    leaf_pieces: &FxHashMap<u32, usize>,
+    leaf_pieces: &[u32],
     pieces: &[Piece],
     config: &BuildConfig,
     (span, scene_w, levels): (f64, f64, u32),
@@ -280,8 +280,8 @@ fn visibility_pass(
             let parts: Vec<(f64, &StepFunction)> = stored.iter().map(|(w, s)| (*w, s)).collect();
             let s = StepFunction::weighted_mean(&parts).simplified(config.max_steps, span);
             (Some(s), Vec::new(), 0.0)
-        } else if let Some(&piece) = leaf_pieces.get(&c.id) {
-            let s = StepFunction::of_visibility(&pieces[piece].visibility, span);
+        } else if let Some(&piece) = leaf_pieces.get(c.id as usize).filter(|&&p| p != NO_PIECE) {
+            let s = StepFunction::of_visibility(&pieces[piece as usize].visibility, span);
             let key: Vec<(u64, u64)> = s
                 .points()
                 .iter()
@@ -399,32 +399,34 @@ fn level_stats(clusters: &[Cluster], stats: &mut BuildStats) {
     }
 }
 
-/// Each leaf cluster of `old` and the piece of `scene` it stands for, when
-/// the pieces are those the tree was built from: each object's leaves are
-/// its pieces, of the same classes, the static and pseudo-dynamic ones
-/// first. Matched by the objects'
-/// ids, as a geometry update may place an object's leaves after others'
+/// Per cluster of `old`, the piece of `scene` it stands for if it is a
+/// leaf ([`NO_PIECE`] if not), when the pieces are those the tree was built
+/// from: each object's leaves are its pieces, of the same classes, the
+/// static and pseudo-dynamic ones first. Matched by the objects' ids, as a
+/// geometry update may place an object's leaves after others'
 /// (`super::local`).
-fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap<u32, usize>> {
+fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<Vec<u32>> {
     // Each object's pieces, and how many of them its leaves took so far.
-    let mut pieces_of: FxHashMap<&str, (Vec<usize>, usize)> = pieces_by_object(pieces)
-        .into_iter()
-        .map(|(k, of_object)| (scene.objects[k].id.as_str(), (of_object, 0)))
-        .collect();
+    let by_object = pieces_by_object(pieces);
+    let mut pieces_of: FxHashMap<&str, (Vec<usize>, usize)> =
+        FxHashMap::with_capacity_and_hasher(by_object.len(), Default::default());
+    pieces_of.extend(
+        (by_object.into_iter())
+            .map(|(k, of_object)| (scene.objects[k].id.as_str(), (of_object, 0))),
+    );
+    // Per cluster: a table, not a map, for the hundred thousand leaves.
+    let mut out = vec![NO_PIECE; old.cluster_count()];
     let leaves = (0..old.cluster_count() as u32)
         .filter(|&c| old.children_of(c).is_empty() && old.class_of(c) != ClusterClass::Root);
-    let mut out = FxHashMap::with_capacity_and_hasher(pieces.len(), Default::default());
     for leaf in leaves {
-        let [id] = old.objects_of(leaf)[..] else {
-            return None;
-        };
+        let id = old.sole_object(leaf)?;
         let (of_object, next) = pieces_of.get_mut(id)?;
         let &i = of_object.get(*next)?;
         *next += 1;
         if old.class_of(leaf) != pieces[i].cluster_class() {
             return None;
         }
-        out.insert(leaf, i);
+        out[leaf as usize] = i as u32;
     }
     pieces_of
         .values()
@@ -432,9 +434,9 @@ fn match_leaves(old: &Tree, scene: &Scene, pieces: &[Piece]) -> Option<FxHashMap
         .then_some(out)
 }
 
-/// The clusters without the dissolved ones, ids renumbered in the same
-/// order (children before parents, the root last) and parents set from the
-/// children lists.
+/// In [`match_leaves`]' table, a cluster that is no leaf.
+const NO_PIECE: u32 = u32::MAX;
+
 /// Per cluster, its id once the `dissolved` are dropped (`u32::MAX` for
 /// those).
 fn kept_ids(dissolved: &[Option<Vec<u32>>]) -> Vec<u32> {
@@ -450,21 +452,36 @@ fn kept_ids(dissolved: &[Option<Vec<u32>>]) -> Vec<u32> {
 }
 
 /// The `clusters` but the dissolved ones (`u32::MAX` in `id`), each
-/// numbered by its place's `id`.
-fn renumbered(clusters: Vec<Cluster>, id: &[u32]) -> Vec<Cluster> {
-    let mut out: Vec<Cluster> = clusters
-        .into_iter()
-        .zip(id)
-        .filter(|&(_, &new)| new != u32::MAX)
-        .map(|(mut c, &new)| {
+/// numbered by its place's `id`, in the same order (children before
+/// parents, the root last), parents set from the children lists.
+fn renumbered(mut clusters: Vec<Cluster>, id: &[u32]) -> Vec<Cluster> {
+    // The records before the first dissolved one keep their places, their
+    // ids and their children's (numbered lower): only the rest moves and is
+    // renumbered, and the children of the rest are given their parents
+    // again. Moving and renumbering all 180,000 was most of the pass's end.
+    let first = (id.iter())
+        .position(|&new| new == u32::MAX)
+        .unwrap_or(id.len());
+    let mut at = 0;
+    clusters.retain_mut(|c| {
+        let new = id[at];
+        at += 1;
+        if new != u32::MAX && at > first {
             c.id = new;
-            c.parent = None;
             for k in &mut c.children {
                 *k = id[*k as usize];
             }
-            c
-        })
-        .collect();
-    super::local::set_parents(&mut out);
-    out
+        }
+        new != u32::MAX
+    });
+    // Every cluster but the root is a child, of a cluster after it: a
+    // parent in the rest is set here, one before it stands.
+    for i in first..clusters.len() {
+        let children = std::mem::take(&mut clusters[i].children);
+        for &k in &children {
+            clusters[k as usize].parent = Some(i as u32);
+        }
+        clusters[i].children = children;
+    }
+    clusters
 }

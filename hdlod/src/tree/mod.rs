@@ -572,6 +572,21 @@ impl Tree {
         }
     }
 
+    /// The one object cluster `id` names, if it names one (as a leaf
+    /// does), without decoding it.
+    pub(crate) fn sole_object(&self, id: u32) -> Option<&str> {
+        match &self.clusters {
+            Clusters::Built(v) => match &v[id as usize].objects[..] {
+                [object] => Some(object),
+                _ => None,
+            },
+            Clusters::Mapped(index) => {
+                let mut objects = index.objects(id);
+                objects.next().filter(|_| objects.next().is_none())
+            }
+        }
+    }
+
     /// The number of objects cluster `id` names, without decoding it.
     pub(crate) fn object_count_of(&self, id: u32) -> usize {
         match &self.clusters {
