@@ -217,7 +217,9 @@ pub fn plan<'a>(
     // Each old leaf and its piece, but the removed and renewed objects':
     // an object's leaves are its pieces in order.
     let mut removed = Vec::new();
-    let mut leaf_pieces: FxHashMap<u32, usize> = FxHashMap::default();
+    // Per old cluster: a table, not a map, for the hundred thousand leaves.
+    let mut leaf_pieces: Vec<Option<usize>> = vec![None; old.cluster_count()];
+    let mut matched = 0;
     for (k, new) in &pieces_of {
         let old_ones = old_leaves_of(*k);
         if *k >= before.len() || renewed[*k] {
@@ -230,19 +232,19 @@ pub fn plan<'a>(
             if old.class_of(leaf) != pieces[p].cluster_class() {
                 return Err(changed_class().into());
             }
-            leaf_pieces.insert(leaf, p);
+            leaf_pieces[leaf as usize] = Some(p);
+            matched += 1;
         }
     }
     for k in (0..before.len()).filter(|&k| renewed[k] || removed_object(k)) {
         removed.extend_from_slice(old_leaves_of(k));
     }
-    if leaf_pieces.len() + removed.len() != old_leaves.len() {
+    if matched + removed.len() != old_leaves.len() {
         return Err(changed_class().into());
     }
     removed.sort_unstable();
-    let kept: Vec<Option<usize>> = (0..leaves as u32)
-        .map(|c| leaf_pieces.get(&c).copied())
-        .collect();
+    let mut kept = leaf_pieces;
+    kept.truncate(leaves);
     let edited: Vec<u32> = (0..leaves as u32)
         .filter(|&c| kept[c as usize].is_some_and(|p| touched[pieces[p].object]))
         .collect();
