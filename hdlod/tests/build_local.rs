@@ -853,6 +853,7 @@ fn a_write_that_replaces_a_tree_copies_its_unchanged_records() {
         tree: &before,
         dir: &dir,
         origin: &origin,
+        table: None,
     };
     let copied = write(&replacing)
         .finish_replacing(&tree, &previous)
@@ -863,6 +864,16 @@ fn a_write_that_replaces_a_tree_copies_its_unchanged_records() {
         read(&fresh) == read(&replacing),
         "the copied table differs from a fresh one"
     );
+    // The old table opened ahead, as an update opens it beside its plan.
+    let opened = hdlod::tree::OldTable::open(&before, &dir).expect("a table this writer wrote");
+    let ahead = tmp.path().join("ahead");
+    let given = Previous {
+        table: Some(&opened),
+        ..previous
+    };
+    let copied = write(&ahead).finish_replacing(&tree, &given).unwrap();
+    assert_eq!(copied, n - 1);
+    assert!(read(&fresh) == read(&ahead));
     // The object tables did not change: the tree replaced's files linked.
     #[cfg(unix)]
     for file in ["objects.json", "objects.bin"] {

@@ -33,7 +33,9 @@ use std::time::Instant;
 use glam::{DVec3, Vec3};
 
 use crate::scene::{Class, Scene, Visibility};
-use crate::tree::{Aabb, Cluster, ClusterClass, ObjectTables, Previous, Tree, TreeWriter};
+use crate::tree::{
+    Aabb, Cluster, ClusterClass, ObjectTables, OldTable, Previous, Tree, TreeWriter,
+};
 use crate::{Error, Result};
 use context::{Context, Node, add};
 
@@ -210,13 +212,14 @@ pub(super) fn scheduled<'a>(scene: &'a Scene, config: &BuildConfig) -> Cow<'a, S
 /// Carries out a local geometry update of the tree `old` at `out`
 /// (`local.rs`), atomically: the new tree shares the old one's geometry
 /// store and adds its new files to it.
+/// `(load, planned, table)`: the seconds the old tree took to load, when
+/// the plan started, and the old table if it was opened ahead.
 fn update_geometry(
     old: &Tree,
     plan: local::Plan<'_>,
     config: &BuildConfig,
     out: &Path,
-    load: f64,
-    planned: Instant,
+    (load, planned, table): (f64, Instant, Option<&OldTable>),
     progress: &dyn Progress,
 ) -> Result<(Tree, BuildStats, How)> {
     let clock = planned;
@@ -253,6 +256,7 @@ fn update_geometry(
         tree: old,
         dir: out,
         origin: &updated.origin,
+        table,
     };
     writer.finish_replacing(&updated.tree, &previous)?;
     stats
@@ -415,18 +419,30 @@ fn update_in_place(
     };
     let same = key == Some(new_key.as_str());
     let key_seconds = clock.elapsed().as_secs_f64();
+    // The old table is opened (mapped, its records found) beside the plan
+    // or the schedule pass, each of which leaves a core waiting at times,
+    // rather than in the write, which keeps both busy.
+    let open_table = || OldTable::open(old, out);
     if !same {
-        return match local::plan(old, scene, &aligned.tombstones, config, new_key) {
+        let (planned, table) = rayon::join(
+            || local::plan(old, scene, &aligned.tombstones, config, new_key),
+            open_table,
+        );
+        return match planned {
             Err(why) => Ok(Err(format!(
                 "the scene's geometry or the build configuration changed since it was built, \
                  and the tree cannot be updated in place: {why}"
             ))),
-            Ok(plan) => update_geometry(old, plan, config, out, load, clock, progress).map(Ok),
+            Ok(plan) => {
+                let previous = (load, clock, table.as_ref());
+                update_geometry(old, plan, config, out, previous, progress).map(Ok)
+            }
         };
     }
     progress.phase("update", 1);
     let clock = Instant::now();
-    let (tree, mut stats, dissolved, origin) = match update_schedule(old, scene, config) {
+    let (updated, table) = rayon::join(|| update_schedule(old, scene, config), open_table);
+    let (tree, mut stats, dissolved, origin) = match updated {
         Update::Rebuild(why) => return Ok(Err(why)),
         Update::Updated {
             tree,
@@ -462,6 +478,7 @@ fn update_in_place(
         tree: old,
         dir: out,
         origin: &origin,
+        table: table.as_ref(),
     };
     writer.finish_replacing(&tree, &previous)?;
     stats

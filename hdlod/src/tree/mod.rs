@@ -42,7 +42,7 @@ pub use format::{ClusterClass, Layout};
 pub use objects::ObjectTables;
 pub use skins::{Skeleton, Skins};
 pub use store::{TreeWriter, load};
-pub use table::Previous;
+pub use table::{OldTable, Previous};
 
 /// An axis-aligned box. Plain old data: the cut's node records hold one.
 #[derive(Debug, Clone, Copy, PartialEq, bytemuck::Pod, bytemuck::Zeroable)]

@@ -33,13 +33,16 @@ pub struct Previous<'a> {
     /// Per cluster of the new tree, the old cluster it was made from, if
     /// any; a record is copied only when its content is that cluster's.
     pub origin: &'a [Option<u32>],
+    /// Its `clusters.json`, opened ahead ([`OldTable::open`]) where the
+    /// caller had a core to spare; else the writer opens it.
+    pub table: Option<&'a OldTable>,
 }
 
 /// The table's bytes in chunks, in order.
-pub(super) struct ClustersJson {
+pub(super) struct ClustersJson<'a> {
     chunks: Vec<Chunk>,
     /// The previous table, which `Piece::Old` ranges are of.
-    old: Option<OldTable>,
+    old: Option<Table<'a>>,
     /// How many records were copied from the previous table.
     pub(super) copied: usize,
 }
@@ -99,12 +102,35 @@ const RECORD: &[u8] = b"{\"id\":";
 const LEVEL: &[u8] = b",\"level\":";
 const MOTION_FROM: &[u8] = b",\"motion_from\":";
 
-impl ClustersJson {
+/// The previous table, opened by the writer or given.
+enum Table<'a> {
+    Opened(Box<OldTable>),
+    Given(&'a OldTable),
+}
+
+impl std::ops::Deref for Table<'_> {
+    type Target = OldTable;
+
+    fn deref(&self) -> &OldTable {
+        match self {
+            Table::Opened(table) => table,
+            Table::Given(table) => table,
+        }
+    }
+}
+
+impl<'a> ClustersJson<'a> {
     /// The table of `tree`, written to `path` later; `previous`: the tree
     /// it replaces, if any.
-    pub(super) fn of(tree: &Tree, path: &Path, previous: Option<&Previous>) -> Result<Self> {
+    pub(super) fn of(tree: &Tree, path: &Path, previous: Option<&Previous<'a>>) -> Result<Self> {
         const CHUNK: u32 = 4096;
-        let old = previous.and_then(|p| OldTable::open(p).map(|table| (table, p)));
+        let old = previous.and_then(|p| {
+            let table = match p.table {
+                Some(table) => Table::Given(table),
+                None => Table::Opened(Box::new(OldTable::open(p.tree, p.dir)?)),
+            };
+            Some((table, p))
+        });
         let n = tree.cluster_count() as u32;
         let chunks = (0..n.div_ceil(CHUNK))
             .into_par_iter()
@@ -169,7 +195,7 @@ impl ClustersJson {
 }
 
 /// The old tree's `clusters.json`, mapped, and where each record starts.
-struct OldTable {
+pub struct OldTable {
     map: Mmap,
     /// Per old cluster, its record's first byte; one more, the end of the
     /// last record.
@@ -182,8 +208,8 @@ impl OldTable {
     /// The old table, when it is laid out as this writer writes it: one
     /// record per cluster, in order of id. `None` otherwise (a table written
     /// by hand, or by another writer), and nothing is copied.
-    fn open(previous: &Previous) -> Option<OldTable> {
-        let path = previous.dir.join(super::format::CLUSTERS_FILE);
+    pub fn open(tree: &Tree, dir: &Path) -> Option<OldTable> {
+        let path = dir.join(super::format::CLUSTERS_FILE);
         let file = fs::File::open(&path).ok()?;
         // Populated: read whole and at once, rather than a fault per page.
         // SAFETY: trees are replaced by renaming a new directory into place,
@@ -195,7 +221,7 @@ impl OldTable {
             return None;
         }
         let starts = record_starts(bytes);
-        let n = previous.tree.cluster_count();
+        let n = tree.cluster_count();
         if starts.len() != n {
             return None;
         }
