@@ -650,12 +650,17 @@ impl Plan<'_> {
                                 .sum(),
                         )
                     };
+                    let mut below: HashMap<u32, Vec<u32>> = HashMap::new();
                     let wanted = (children.iter())
                         .map(|&child| match child {
                             Child::Added(a) => originals(&added[a]),
                             Child::Old(k) => match edited.get(&k).or_else(|| made.get(&k)) {
                                 Some(m) => originals(m),
-                                None => self.leaves_below(old, k).map(|(_, t)| t),
+                                None => {
+                                    let (leaves, triangles) = self.leaves_below(old, k)?;
+                                    below.insert(k, leaves);
+                                    Some(triangles)
+                                }
                             },
                         })
                         .try_fold(0, |total, t| Some(total + t?))
@@ -668,7 +673,8 @@ impl Plan<'_> {
                                 Child::Old(k) => match edited.get(&k).or_else(|| made.get(&k)) {
                                     Some(m) => m.clone(),
                                     None => {
-                                        let mut m = self.stored(old, old_dir, k, wanted)?;
+                                        let leaves = below.remove(&k).filter(|_| wanted);
+                                        let mut m = self.stored(old, old_dir, k, leaves)?;
                                         if let Some(w) = widened.get(&k) {
                                             (m.eps, m.lo, m.hi) = (w.eps, w.lo, w.hi);
                                         }
@@ -847,9 +853,15 @@ impl Plan<'_> {
     }
 
     /// The unchanged cluster `id` of `old`: its geometry read back from its
-    /// file, its error as stored, and where `originals`, the original
-    /// objects below it while they are few enough for the direct bound.
-    fn stored(&self, old: &Tree, old_dir: &Path, id: u32, originals: bool) -> Result<Made> {
+    /// file, its error as stored, and the original objects of `leaves`
+    /// ([`Plan::leaves_below`] it) where the direct bound will use them.
+    fn stored(
+        &self,
+        old: &Tree,
+        old_dir: &Path,
+        id: u32,
+        leaves: Option<Vec<u32>>,
+    ) -> Result<Made> {
         let c = old.cluster(id);
         let (decoded, hash) = stored_file(old, old_dir, id)?;
         let mesh = placed(decoded.drawn());
@@ -859,22 +871,16 @@ impl Plan<'_> {
             lo: c.bounds.min.as_vec3(),
             hi: c.bounds.max.as_vec3(),
             hash,
-            originals: originals.then(|| self.originals_below(old, id)).flatten(),
+            originals: leaves.map(|leaves| self.originals_of(leaves)),
             instance: None,
         })
     }
 
-    /// The original objects below old cluster `id`, as the scene now
-    /// places them, when they have at most [`DIRECT_MAX_TRIANGLES`]
-    /// triangles.
-    fn originals_below(&self, old: &Tree, id: u32) -> Option<Vec<Arc<Mesh>>> {
-        let (leaves, _) = self.leaves_below(old, id)?;
-        Some(
-            leaves
-                .into_iter()
-                .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept_piece(c)])))
-                .collect(),
-        )
+    /// The original objects of old `leaves`, as the scene now places them.
+    fn originals_of(&self, leaves: Vec<u32>) -> Vec<Arc<Mesh>> {
+        (leaves.into_iter())
+            .map(|c| Arc::new(leaf_mesh(&self.scene, &self.pieces[self.kept_piece(c)])))
+            .collect()
     }
 
     /// The static and pseudo-dynamic leaves below old cluster `id` and
@@ -1286,9 +1292,9 @@ fn old_leaves(old: &Tree) -> std::result::Result<OldLeaves<'_>, String> {
     let mut leaves_of: FxHashMap<&str, Vec<u32>> =
         FxHashMap::with_capacity_and_hasher(old_leaves.len(), Default::default());
     for &leaf in &old_leaves {
-        match old.objects_of(leaf)[..] {
-            [object] => leaves_of.entry(object).or_default().push(leaf),
-            _ => return Err(format!("leaf cluster {leaf} does not name one object")),
+        match old.sole_object(leaf) {
+            Some(object) => leaves_of.entry(object).or_default().push(leaf),
+            None => return Err(format!("leaf cluster {leaf} does not name one object")),
         }
     }
     Ok(OldLeaves {

@@ -141,10 +141,14 @@ fn schedule_pass(
     // The object tables need the leaves' objects and ids alone: made on
     // one core while the other recomputes the visibility, the objects put
     // back after.
-    let leaf_objects: Vec<(u32, Vec<String>)> = (records.iter_mut())
-        .filter(|c| tables && !c.objects.is_empty())
-        .map(|c| (c.id, std::mem::take(&mut c.objects)))
-        .collect();
+    let leaf_objects: Vec<(u32, Vec<String>)> = if tables {
+        (records.iter_mut())
+            .filter(|c| !c.objects.is_empty())
+            .map(|c| (c.id, std::mem::take(&mut c.objects)))
+            .collect()
+    } else {
+        Vec::new()
+    };
     let (objects, visibility) = rayon::join(
         || {
             let named = leaf_objects

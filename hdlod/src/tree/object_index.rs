@@ -256,17 +256,13 @@ pub(crate) struct IndexFile<'a> {
 }
 
 impl IndexFile<'_> {
-    fn pieces(&self) -> [&[u8]; 3] {
+    /// The file's bytes in order.
+    pub(crate) fn pieces(&self) -> [&[u8]; 3] {
         [&self.body, self.rows, self.rest]
     }
 
     pub(crate) fn to_vec(&self) -> Vec<u8> {
         self.pieces().concat()
-    }
-
-    pub(crate) fn write(&self, file: &mut std::fs::File) -> std::io::Result<()> {
-        let mut slices = self.pieces().map(std::io::IoSlice::new);
-        sections::write_all_vectored(file, &mut slices)
     }
 }
 

@@ -7,8 +7,6 @@
 //! update's writes to finish (`table.rs` does the same for
 //! `clusters.json`).
 
-use std::fs;
-use std::io::IoSlice;
 use std::path::Path;
 
 use memchr::memmem;
@@ -98,11 +96,7 @@ impl ObjectsJson {
     }
 
     pub(super) fn write(&self, path: &Path) -> Result<()> {
-        let mut slices: Vec<IoSlice> = self.pieces().map(IoSlice::new).collect();
-        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        super::sections::write_all_vectored(&mut file, &mut slices)
-            .and_then(|()| file.sync_all())
-            .map_err(|e| Error::io(path, e))
+        super::sections::write_pieces(path, self.pieces())
     }
 }
 

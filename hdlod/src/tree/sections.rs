@@ -143,9 +143,23 @@ impl<'a> Parts<'a> {
     }
 }
 
+/// Writes `pieces`, in order, to a new file at `path`, synced: in a few
+/// vectored writes from where the pieces are, rather than copied into one
+/// buffer first.
+pub(crate) fn write_pieces<'a>(
+    path: &std::path::Path,
+    pieces: impl IntoIterator<Item = &'a [u8]>,
+) -> Result<()> {
+    let mut slices: Vec<std::io::IoSlice> = pieces.into_iter().map(std::io::IoSlice::new).collect();
+    let mut file = std::fs::File::create(path).map_err(|e| Error::io(path, e))?;
+    write_all_vectored(&mut file, &mut slices)
+        .and_then(|()| file.sync_all())
+        .map_err(|e| Error::io(path, e))
+}
+
 /// `Write::write_all_vectored`, which is not stable: a few calls for
 /// pieces that would take a call each.
-pub(crate) fn write_all_vectored(
+fn write_all_vectored(
     file: &mut std::fs::File,
     mut slices: &mut [std::io::IoSlice<'_>],
 ) -> std::io::Result<()> {

@@ -410,10 +410,7 @@ impl TreeWriter {
             || json.write(&json_path),
             || {
                 let index = tables.to_index(json.rest(), json.len());
-                let mut file =
-                    fs::File::create(&index_path).map_err(|e| Error::io(&index_path, e))?;
-                (index.write(&mut file).and_then(|()| file.sync_all()))
-                    .map_err(|e| Error::io(&index_path, e))
+                super::sections::write_pieces(&index_path, index.pieces())
             },
         );
         written.and(index)

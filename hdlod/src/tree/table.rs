@@ -12,7 +12,6 @@
 //! came from.
 
 use std::fs;
-use std::io::IoSlice;
 use std::ops::Range;
 use std::path::Path;
 
@@ -174,23 +173,18 @@ impl<'a> ClustersJson<'a> {
 
     pub(super) fn write(&self, path: &Path) -> Result<()> {
         let old: &[u8] = self.old.as_ref().map_or(&[], |old| &old.map);
-        let mut slices = vec![IoSlice::new(OPEN)];
+        let mut slices: Vec<&[u8]> = vec![OPEN];
         for (i, chunk) in self.chunks.iter().enumerate() {
             if i > 0 {
-                slices.push(IoSlice::new(b","));
+                slices.push(b",");
             }
-            slices.extend(chunk.pieces.iter().map(|piece| {
-                IoSlice::new(match piece {
-                    Piece::New(range) => &chunk.new[range.clone()],
-                    Piece::Old(range) => &old[range.clone()],
-                })
+            slices.extend(chunk.pieces.iter().map(|piece| match piece {
+                Piece::New(range) => &chunk.new[range.clone()],
+                Piece::Old(range) => &old[range.clone()],
             }));
         }
-        slices.push(IoSlice::new(CLOSE));
-        let mut file = fs::File::create(path).map_err(|e| Error::io(path, e))?;
-        super::sections::write_all_vectored(&mut file, &mut slices)
-            .and_then(|()| file.sync_all())
-            .map_err(|e| Error::io(path, e))
+        slices.push(CLOSE);
+        super::sections::write_pieces(path, slices)
     }
 }
 
